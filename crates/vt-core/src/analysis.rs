@@ -1,0 +1,472 @@
+//! The offline half of System A (seed thesis Sec. 3.2, SPEC A-1..A-3) as one pipeline over
+//! frame sources: backgrounds, masks, loops, the scene's geometric model, homographies between
+//! neighbouring views, and transition tables.
+//!
+//! Frames stream: a view is read once for its median background and once more for its masks,
+//! unless its frames fit in [`AnalyzeParams::cache_bytes`], in which case the first pass keeps them
+//! and the second pass reads memory. Only masks (one bit per pixel) are kept for all views.
+
+use std::time::{Duration, Instant};
+
+use image::RgbImage;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::blur::{gaussian_blur, gaussian_blur_into, GaussianParams};
+use crate::loops::{find_loop, Loop, LoopParams};
+use crate::median::MedianAccumulator;
+use crate::model::{select_model, ModelParams, MotionModel, Selection};
+use crate::transition::{transition_table, warp_masks};
+use crate::{Error, Homography, Mask, Point, Result};
+
+/// Where a view's frames come from. Implemented by the decoders in `vt-io` and by in-memory
+/// sequences in tests. [`FrameSource::for_each_frame`] may be called more than once and must yield
+/// the same frames each time.
+pub trait FrameSource {
+    /// A name for messages (usually the path).
+    fn name(&self) -> &str;
+    /// Calls `f(index, frame)` for every frame in order and returns how many there were.
+    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>) -> Result<usize>;
+}
+
+/// Frames already in memory.
+pub struct MemorySource {
+    /// Name for messages.
+    pub name: String,
+    /// The frames.
+    pub frames: Vec<RgbImage>,
+}
+
+impl FrameSource for MemorySource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>) -> Result<usize> {
+        for (i, fr) in self.frames.iter().enumerate() {
+            f(i, fr)?;
+        }
+        Ok(self.frames.len())
+    }
+}
+
+/// Background subtraction. The thesis gives no threshold; vt's rule, documented here and
+/// in the README: after both are smoothed, a pixel is *moving* when
+/// `max over R,G,B of |frame - background| > threshold`. Then an optional opening (removes
+/// specks) and closing (fills holes), radii in pixels, 0 = off (the thesis has neither).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MaskParams {
+    /// Grey levels; default 25, about 10% of full scale, well above sensor noise after a 3x3 blur.
+    pub threshold: u8,
+    /// Opening radius (square of side 2r+1), 0 = off.
+    pub open_radius: u32,
+    /// Closing radius, 0 = off.
+    pub close_radius: u32,
+}
+
+impl Default for MaskParams {
+    fn default() -> Self {
+        Self { threshold: 25, open_radius: 0, close_radius: 0 }
+    }
+}
+
+/// The raw threshold step of [`MaskParams`] (no clean-up) on two smoothed images.
+pub fn threshold_mask(frame: &RgbImage, background: &RgbImage, threshold: u8) -> Result<Mask> {
+    if frame.dimensions() != background.dimensions() {
+        return Err(Error::SizeMismatch {
+            what: "mask frame vs background".into(),
+            expected_w: background.width(),
+            expected_h: background.height(),
+            got_w: frame.width(),
+            got_h: frame.height(),
+        });
+    }
+    let bytes: Vec<u8> = frame
+        .as_raw()
+        .chunks_exact(3)
+        .zip(background.as_raw().chunks_exact(3))
+        .map(|(f, b)| {
+            let d = (0..3).map(|c| f[c].abs_diff(b[c])).max().unwrap_or(0);
+            (d > threshold) as u8
+        })
+        .collect();
+    Mask::from_bytes(frame.width(), frame.height(), &bytes)
+}
+
+/// [`threshold_mask`] followed by the clean-up of `params`.
+pub fn foreground_mask(frame: &RgbImage, background: &RgbImage, params: &MaskParams) -> Result<Mask> {
+    let m = threshold_mask(frame, background, params.threshold)?;
+    Ok(m.open(params.open_radius).close(params.close_radius))
+}
+
+/// Everything the analysis can be tuned by.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AnalyzeParams {
+    /// Smoothing before subtraction (thesis: 3x3).
+    pub blur: GaussianParams,
+    /// Background subtraction.
+    pub mask: MaskParams,
+    /// Eq. (1) and (2) window and minimum loop length.
+    pub loops: LoopParams,
+    /// Geometric model selection.
+    pub model: ModelParams,
+    /// Keep a view's frames in memory between the two passes when they fit in this many bytes
+    /// (not serialised into scenes: it changes speed, never results).
+    #[serde(skip, default = "default_cache")]
+    pub cache_bytes: usize,
+}
+
+fn default_cache() -> usize {
+    768 << 20
+}
+
+impl Default for AnalyzeParams {
+    fn default() -> Self {
+        Self {
+            blur: GaussianParams::default(),
+            mask: MaskParams::default(),
+            loops: LoopParams::default(),
+            model: ModelParams::default(),
+            cache_bytes: default_cache(),
+        }
+    }
+}
+
+/// Pipeline stages, for progress reporting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Reading frames and accumulating the median.
+    Background,
+    /// Blurring and subtracting.
+    Masks,
+    /// Eq. (1).
+    Loop,
+    /// Model selection and homographies.
+    Homographies,
+    /// Eq. (2).
+    Transitions,
+}
+
+/// Receives progress and the per-frame object data. All methods default to doing nothing.
+pub trait Observer {
+    /// A stage of `view` (None for scene-wide stages) started; `total` units if known.
+    fn start(&mut self, _stage: Stage, _view: Option<usize>, _total: Option<u64>) {}
+    /// One unit done.
+    fn tick(&mut self) {}
+    /// The stage finished.
+    fn finish(&mut self) {}
+    /// Frame `frame` of `view` has moving-object mask `mask` (pixels of `raw` under it are the
+    /// object, eq. (4)-(5)); frames arrive in order. An error aborts the analysis.
+    fn object_frame(&mut self, _view: usize, _frame: usize, _mask: &Mask, _raw: &RgbImage) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// A do-nothing observer.
+pub struct Quiet;
+impl Observer for Quiet {}
+
+/// Wall time per stage, summed over views.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Timings {
+    /// Time spent inside frame sources (decoding), not in our callbacks.
+    pub decode: Duration,
+    /// Median accumulation and extraction.
+    pub median: Duration,
+    /// Blur and subtraction.
+    pub masks: Duration,
+    /// Eq. (1).
+    pub loops: Duration,
+    /// Model selection, homographies.
+    pub homographies: Duration,
+    /// Mask warping and eq. (2).
+    pub transitions: Duration,
+}
+
+/// One view's results.
+#[derive(Debug, Clone)]
+pub struct ViewResult {
+    /// Source name.
+    pub name: String,
+    /// `N_p`.
+    pub n_frames: usize,
+    /// `B_p`, the unsmoothed median.
+    pub background: RgbImage,
+    /// `I_p(m)` for every frame.
+    pub masks: Vec<Mask>,
+    /// `(m_p, n_p)` and its cost.
+    pub best_loop: Loop,
+    /// Fraction of pixels set, averaged over frames (how much of the view moves).
+    pub moving_fraction: f64,
+}
+
+/// A neighbour link `p -> p + 1`.
+#[derive(Debug, Clone)]
+pub struct Link {
+    /// `H_(p,p+1)`.
+    pub homography: Homography,
+    /// RMS transfer error of the points, pixels.
+    pub rms: f64,
+    /// `t_{p+1}(s, p)` for every frame `s` of view `p`.
+    pub forward: Vec<Option<usize>>,
+    /// `t_p(s, p+1)` for every frame `s` of view `p + 1`.
+    pub backward: Vec<Option<usize>>,
+}
+
+/// The whole analysis.
+#[derive(Debug, Clone)]
+pub struct SceneAnalysis {
+    /// Frame width.
+    pub width: u32,
+    /// Frame height.
+    pub height: u32,
+    /// Per view, in input order.
+    pub views: Vec<ViewResult>,
+    /// The model chosen for the scene (None for a single view).
+    pub selection: Option<Selection>,
+    /// `links[p]` joins view p and p + 1.
+    pub links: Vec<Link>,
+    /// Where the time went.
+    pub timings: Timings,
+}
+
+fn size_err(what: String, expected: (u32, u32), got: (u32, u32)) -> Error {
+    Error::SizeMismatch { what, expected_w: expected.0, expected_h: expected.1, got_w: got.0, got_h: got.1 }
+}
+
+/// Runs A-1..A-3 on `sources` (one per view, in order) with `points[p]` the marked points of view p
+/// (the same K physical points in every view; may be empty when there is a single view).
+pub fn analyze(
+    sources: &mut [&mut dyn FrameSource],
+    points: &[Vec<Point>],
+    params: &AnalyzeParams,
+    observer: &mut dyn Observer,
+) -> Result<SceneAnalysis> {
+    let m = sources.len();
+    if m == 0 {
+        return Err(Error::InvalidParameter { name: "views", value: "0".into(), why: "at least one view is needed".into() });
+    }
+    if m > 1 {
+        if points.len() != m {
+            return Err(Error::DegeneratePoints(format!("{m} views but points for {} views", points.len())));
+        }
+        let k0 = points[0].len();
+        if let Some((p, pts)) = points.iter().enumerate().find(|(_, v)| v.len() != k0) {
+            return Err(Error::DegeneratePoints(format!("view 0 has {k0} points but view {p} has {}", pts.len())));
+        }
+    }
+    let mut timings = Timings::default();
+    let mut views = Vec::with_capacity(m);
+    let mut size: Option<(u32, u32)> = None;
+    for (p, src) in sources.iter_mut().enumerate() {
+        let v = analyze_view(p, &mut **src, params, &mut size, observer, &mut timings)?;
+        views.push(v);
+    }
+    let (width, height) = size.expect("every view has at least one frame");
+
+    let mut selection = None;
+    let mut links = Vec::new();
+    if m > 1 {
+        let t0 = Instant::now();
+        observer.start(Stage::Homographies, None, Some((m - 1) as u64));
+        let pairs: Vec<(&[Point], &[Point])> =
+            (0..m - 1).map(|p| (points[p].as_slice(), points[p + 1].as_slice())).collect();
+        let sel = select_model(&pairs, &params.model).map_err(|e| match e {
+            Error::DegeneratePoints(msg) => Error::DegeneratePoints(format!("points: {msg}")),
+            other => other,
+        })?;
+        observer.finish();
+        timings.homographies += t0.elapsed();
+
+        let t0 = Instant::now();
+        observer.start(Stage::Transitions, None, Some(2 * (m - 1) as u64));
+        for p in 0..m - 1 {
+            let h = sel.fits[p].homography;
+            let (a, b) = (&views[p], &views[p + 1]);
+            let fwd = transition_table(&warp_masks(&a.masks, &h, width, height), &b.masks, b.best_loop.end, params.loops.window)?;
+            observer.tick();
+            let back = transition_table(&warp_masks(&b.masks, &h.inverse(), width, height), &a.masks, a.best_loop.end, params.loops.window)?;
+            observer.tick();
+            links.push(Link { homography: h, rms: sel.fits[p].rms, forward: fwd, backward: back });
+        }
+        observer.finish();
+        timings.transitions += t0.elapsed();
+        selection = Some(sel);
+    }
+    Ok(SceneAnalysis { width, height, views, selection, links, timings })
+}
+
+/// The model chosen, if any.
+impl SceneAnalysis {
+    /// The scene's model (None for a single view).
+    pub fn model(&self) -> Option<MotionModel> {
+        self.selection.as_ref().map(|s| s.model)
+    }
+}
+
+fn analyze_view(
+    p: usize,
+    src: &mut dyn FrameSource,
+    params: &AnalyzeParams,
+    size: &mut Option<(u32, u32)>,
+    observer: &mut dyn Observer,
+    timings: &mut Timings,
+) -> Result<ViewResult> {
+    let name = src.name().to_string();
+    let label = |extra: &str| format!("view {p} ({name}){extra}");
+
+    // Pass 1: median, caching frames while they fit.
+    observer.start(Stage::Background, Some(p), None);
+    let mut acc: Option<MedianAccumulator> = None;
+    let mut cache: Option<Vec<RgbImage>> = Some(Vec::new());
+    let mut cached_bytes = 0usize;
+    let mut inside = Duration::ZERO;
+    let t_pass = Instant::now();
+    let n1 = src.for_each_frame(&mut |i, frame| {
+        let t = Instant::now();
+        let dims = frame.dimensions();
+        if dims.0 == 0 || dims.1 == 0 {
+            return Err(Error::EmptyImage { what: label(&format!(" frame {i}")), w: dims.0, h: dims.1 });
+        }
+        match size {
+            None => *size = Some(dims),
+            Some(s) if *s != dims => {
+                if acc.is_none() {
+                    return Err(Error::ViewSizes { first: *s, view: label(""), size: dims });
+                }
+                return Err(size_err(label(&format!(" frame {i}")), *s, dims));
+            }
+            _ => {}
+        }
+        acc.get_or_insert_with(|| MedianAccumulator::new(dims.0, dims.1)).push(frame).map_err(|e| match e {
+            Error::TooManyFrames { got, max, .. } => Error::TooManyFrames { what: label(""), got, max },
+            other => other,
+        })?;
+        if let Some(c) = cache.as_mut() {
+            cached_bytes += frame.as_raw().len();
+            if cached_bytes <= params.cache_bytes {
+                c.push(frame.clone());
+            } else {
+                cache = None;
+            }
+        }
+        observer.tick();
+        inside += t.elapsed();
+        Ok(())
+    })?;
+    timings.decode += t_pass.elapsed().saturating_sub(inside);
+    observer.finish();
+    let need = params.loops.window + params.loops.min_length;
+    if n1 < need {
+        return Err(Error::TooFewFrames {
+            what: label(""),
+            got: n1,
+            need,
+            why: format!("a loop needs w + k = {} + {} frames", params.loops.window, params.loops.min_length),
+        });
+    }
+    let t = Instant::now();
+    let acc = acc.expect("n1 >= 1 frames were pushed");
+    let background = acc.median()?;
+    drop(acc);
+    let bg_blur = gaussian_blur(&background, &params.blur)?;
+    timings.median += t.elapsed() + inside;
+
+    // Pass 2: masks.
+    observer.start(Stage::Masks, Some(p), Some(n1 as u64));
+    let t = Instant::now();
+    let mut masks = Vec::with_capacity(n1);
+    let mut inside = Duration::ZERO;
+    if let Some(frames) = cache {
+        let computed: Result<Vec<Mask>> = frames
+            .par_iter()
+            .map(|f| foreground_mask(&gaussian_blur(f, &params.blur)?, &bg_blur, &params.mask))
+            .collect();
+        masks = computed?;
+        for (i, (m, f)) in masks.iter().zip(&frames).enumerate() {
+            observer.object_frame(p, i, m, f)?;
+            observer.tick();
+        }
+        timings.masks += t.elapsed();
+    } else {
+        let mut blurred = RgbImage::new(bg_blur.width(), bg_blur.height());
+        let t_pass = Instant::now();
+        let n2 = src.for_each_frame(&mut |i, frame| {
+            let t = Instant::now();
+            if frame.dimensions() != bg_blur.dimensions() {
+                return Err(size_err(label(&format!(" frame {i}")), bg_blur.dimensions(), frame.dimensions()));
+            }
+            gaussian_blur_into(frame, &params.blur, &mut blurred)?;
+            let m = foreground_mask(&blurred, &bg_blur, &params.mask)?;
+            observer.object_frame(p, i, &m, frame)?;
+            masks.push(m);
+            observer.tick();
+            inside += t.elapsed();
+            Ok(())
+        })?;
+        if n2 != n1 {
+            return Err(Error::Source { view: label(""), message: format!("gave {n1} frames on the first read and {n2} on the second") });
+        }
+        timings.decode += t_pass.elapsed().saturating_sub(inside);
+        timings.masks += inside;
+    }
+    observer.finish();
+
+    let t = Instant::now();
+    observer.start(Stage::Loop, Some(p), None);
+    let best_loop = find_loop(&masks, &params.loops, &label(""))?;
+    observer.finish();
+    timings.loops += t.elapsed();
+    let total_px = masks.len() as f64 * masks[0].len() as f64;
+    let moving_fraction = masks.iter().map(|m| m.count_ones() as f64).sum::<f64>() / total_px;
+    Ok(ViewResult { name, n_frames: n1, background, masks, best_loop, moving_fraction })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tiny two-view scene: a square moving with period 10 over a gradient, view 1 shifted 5 px.
+    fn view(shift: u32, offset: usize, n: usize) -> MemorySource {
+        let frames = (0..n)
+            .map(|f| {
+                let ph = ((f + offset) % 10) as f64 / 10.0 * std::f64::consts::TAU;
+                let cx = 20.0 + 8.0 * ph.sin() + shift as f64;
+                RgbImage::from_fn(48, 32, |x, y| {
+                    let inside = (x as f64 - cx).abs() < 4.0 && (y as f64 - 16.0).abs() < 4.0;
+                    if inside { image::Rgb([250, 20, 20]) } else { image::Rgb([(x * 3) as u8, (y * 5) as u8, 90]) }
+                })
+            })
+            .collect();
+        MemorySource { name: format!("mem{shift}"), frames }
+    }
+
+    #[test]
+    fn two_view_scene_end_to_end() {
+        let (mut a, mut b) = (view(0, 0, 40), view(5, 3, 40));
+        let pts = |dx: f64| vec![Point::new(2.0 + dx, 2.0), Point::new(40.0 + dx, 3.0), Point::new(41.0 + dx, 30.0), Point::new(3.0 + dx, 29.0)];
+        let params = AnalyzeParams { loops: LoopParams { window: 3, min_length: 15 }, ..Default::default() };
+        let res = analyze(&mut [&mut a, &mut b], &[pts(0.0), pts(5.0)], &params, &mut Quiet).unwrap();
+        assert_eq!(res.model(), Some(MotionModel::Translation));
+        for v in &res.views {
+            assert_eq!(v.best_loop.len() % 10, 0);
+            assert_eq!(v.best_loop.cost, 0);
+        }
+        // Frame s of view 0 has phase s; frame t of view 1 has phase t + 3.
+        for (s, t) in res.links[0].forward.iter().enumerate() {
+            assert_eq!((t.unwrap() + 3) % 10, s % 10);
+        }
+        for (s, t) in res.links[0].backward.iter().enumerate() {
+            assert_eq!(t.unwrap() % 10, (s + 3) % 10);
+        }
+    }
+
+    #[test]
+    fn views_of_different_sizes_are_named() {
+        let mut a = view(0, 0, 20);
+        let mut b = MemorySource { name: "small".into(), frames: vec![RgbImage::new(10, 10); 20] };
+        let params = AnalyzeParams { loops: LoopParams { window: 2, min_length: 5 }, ..Default::default() };
+        let pts = vec![Point::new(0.0, 0.0), Point::new(9.0, 0.0), Point::new(9.0, 9.0), Point::new(0.0, 9.0)];
+        let err = analyze(&mut [&mut a, &mut b], &[pts.clone(), pts], &params, &mut Quiet).unwrap_err();
+        assert_eq!(err.to_string(), "views have different sizes: view 0 is 48x32, view 1 (small) is 10x10");
+    }
+}

@@ -1,0 +1,94 @@
+//! The one error type of vt-core.
+
+use thiserror::Error;
+
+/// Result alias for vt-core.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong in vt-core. Messages carry the numbers involved.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum Error {
+    /// Two images or masks that must share a size do not.
+    #[error("{what}: size mismatch: expected {expected_w}x{expected_h}, got {got_w}x{got_h}")]
+    SizeMismatch {
+        /// What was being combined (e.g. "view 3 frame 12").
+        what: String,
+        /// Expected width.
+        expected_w: u32,
+        /// Expected height.
+        expected_h: u32,
+        /// Width found.
+        got_w: u32,
+        /// Height found.
+        got_h: u32,
+    },
+    /// A view whose frames differ in size from view 0's.
+    #[error("views have different sizes: view 0 is {}x{}, {view} is {}x{}", first.0, first.1, size.0, size.1)]
+    ViewSizes {
+        /// View 0's size.
+        first: (u32, u32),
+        /// The other view, named.
+        view: String,
+        /// Its size.
+        size: (u32, u32),
+    },
+    /// An image with zero width or height.
+    #[error("{what}: empty image ({w}x{h})")]
+    EmptyImage {
+        /// What the image was.
+        what: String,
+        /// Width.
+        w: u32,
+        /// Height.
+        h: u32,
+    },
+    /// Too few frames for an operation.
+    #[error("{what}: {got} frames, need at least {need} ({why})")]
+    TooFewFrames {
+        /// Which view or sequence.
+        what: String,
+        /// Frames present.
+        got: usize,
+        /// Frames needed.
+        need: usize,
+        /// Which rule sets the minimum.
+        why: String,
+    },
+    /// More frames than a counter can hold.
+    #[error("{what}: {got} frames, at most {max} supported")]
+    TooManyFrames {
+        /// Which view.
+        what: String,
+        /// Frames pushed.
+        got: usize,
+        /// Limit.
+        max: usize,
+    },
+    /// A parameter out of its valid range.
+    #[error("invalid parameter {name} = {value}: {why}")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// Its value, formatted.
+        value: String,
+        /// The rule it breaks.
+        why: String,
+    },
+    /// Point correspondences that cannot determine a transformation.
+    #[error("degenerate points: {0}")]
+    DegeneratePoints(String),
+    /// A non-finite number where a finite one is required.
+    #[error("non-finite value in {0}")]
+    NonFinite(String),
+    /// A singular or non-finite 3x3 matrix where an invertible one is needed.
+    #[error("singular homography: {0}")]
+    SingularHomography(String),
+    /// A frame source (decoder) failed; the message comes from the source.
+    #[error("{view}: {message}")]
+    Source {
+        /// Which view.
+        view: String,
+        /// What the source reported.
+        message: String,
+    },
+}

@@ -1,0 +1,160 @@
+//! Exact per-pixel, per-channel temporal median that streams frames (A-1, `B_p`).
+//!
+//! Each channel of each pixel keeps a 256-bin histogram of `u16` counts, so frames can be pushed
+//! one at a time and dropped: memory is `width * height * 3 * 512` bytes whatever the number of
+//! frames (354 MB at 640x360), against `n_frames * width * height * 3` to hold the frames.
+//!
+//! The median of `n` values is the *lower* median, the value of rank `(n - 1) / 2` (0-based)
+//! in sorted order: always an observed value, so it is exact in `u8` (OpenCV's route in vt-cv
+//! picks the same rank after `cv::sort`).
+
+use image::RgbImage;
+use rayon::prelude::*;
+
+use crate::{Error, Result};
+
+const BINS: usize = 256;
+
+/// Streaming exact median of RGB frames.
+pub struct MedianAccumulator {
+    width: u32,
+    height: u32,
+    counts: Vec<u16>,
+    n_frames: usize,
+}
+
+impl MedianAccumulator {
+    /// Most frames a view may have (the counters are `u16`).
+    pub const MAX_FRAMES: usize = u16::MAX as usize;
+
+    /// An empty accumulator for `width x height` RGB frames.
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize * 3 * BINS;
+        Self { width, height, counts: vec![0; n], n_frames: 0 }
+    }
+
+    /// Frames pushed so far.
+    pub fn n_frames(&self) -> usize {
+        self.n_frames
+    }
+
+    /// Adds one frame; it can be dropped afterwards.
+    pub fn push(&mut self, frame: &RgbImage) -> Result<()> {
+        if frame.dimensions() != (self.width, self.height) {
+            return Err(Error::SizeMismatch {
+                what: format!("median frame {}", self.n_frames),
+                expected_w: self.width,
+                expected_h: self.height,
+                got_w: frame.width(),
+                got_h: frame.height(),
+            });
+        }
+        if self.n_frames >= Self::MAX_FRAMES {
+            return Err(Error::TooManyFrames {
+                what: "median".into(),
+                got: self.n_frames + 1,
+                max: Self::MAX_FRAMES,
+            });
+        }
+        let row_values = self.width as usize * 3;
+        self.counts
+            .par_chunks_mut(row_values * BINS)
+            .zip(frame.as_raw().par_chunks(row_values))
+            .for_each(|(hist_row, px_row)| {
+                for (hist, &v) in hist_row.chunks_exact_mut(BINS).zip(px_row) {
+                    hist[v as usize] += 1;
+                }
+            });
+        self.n_frames += 1;
+        Ok(())
+    }
+
+    /// The median image of everything pushed so far.
+    pub fn median(&self) -> Result<RgbImage> {
+        if self.n_frames == 0 {
+            return Err(Error::TooFewFrames {
+                what: "median".into(),
+                got: 0,
+                need: 1,
+                why: "a median needs a frame".into(),
+            });
+        }
+        let rank = (self.n_frames - 1) / 2;
+        let row_values = self.width as usize * 3;
+        let mut out = vec![0u8; row_values * self.height as usize];
+        out.par_chunks_mut(row_values)
+            .zip(self.counts.par_chunks(row_values * BINS))
+            .for_each(|(out_row, hist_row)| {
+                for (o, hist) in out_row.iter_mut().zip(hist_row.chunks_exact(BINS)) {
+                    let mut seen = 0usize;
+                    for (v, &c) in hist.iter().enumerate() {
+                        seen += c as usize;
+                        if seen > rank {
+                            *o = v as u8;
+                            break;
+                        }
+                    }
+                }
+            });
+        Ok(RgbImage::from_raw(self.width, self.height, out).expect("buffer sized width*height*3"))
+    }
+}
+
+/// Convenience: the median of frames already in memory.
+pub fn temporal_median<'a>(frames: impl IntoIterator<Item = &'a RgbImage>) -> Result<RgbImage> {
+    let mut it = frames.into_iter().peekable();
+    let first = it.peek().ok_or(Error::TooFewFrames {
+        what: "median".into(),
+        got: 0,
+        need: 1,
+        why: "a median needs a frame".into(),
+    })?;
+    let mut acc = MedianAccumulator::new(first.width(), first.height());
+    for f in it {
+        acc.push(f)?;
+    }
+    acc.median()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Independent reference: sort each pixel's values and take rank (n-1)/2.
+    fn sort_median(frames: &[RgbImage]) -> RgbImage {
+        let (w, h) = frames[0].dimensions();
+        let mut out = RgbImage::new(w, h);
+        for (i, o) in out.as_mut().iter_mut().enumerate() {
+            let mut v: Vec<u8> = frames.iter().map(|f| f.as_raw()[i]).collect();
+            v.sort_unstable();
+            *o = v[(v.len() - 1) / 2];
+        }
+        out
+    }
+
+    proptest! {
+        #[test]
+        fn streaming_median_equals_sort_reference(
+            (w, h, n) in (1u32..9, 1u32..7, 1usize..12),
+            seed in any::<u64>(),
+        ) {
+            let mut s = seed | 1;
+            let frames: Vec<RgbImage> = (0..n).map(|_| RgbImage::from_fn(w, h, |_, _| {
+                // xorshift: values cluster on few levels so ties are common.
+                s ^= s << 13; s ^= s >> 7; s ^= s << 17;
+                let v = [(s % 5) as u8 * 60, (s >> 8) as u8, ((s >> 16) % 3) as u8 * 127];
+                image::Rgb(v)
+            })).collect();
+            prop_assert_eq!(temporal_median(&frames).unwrap(), sort_median(&frames));
+        }
+    }
+
+    #[test]
+    fn errors_name_the_problem() {
+        let mut acc = MedianAccumulator::new(4, 3);
+        assert!(matches!(acc.median(), Err(Error::TooFewFrames { .. })));
+        let err = acc.push(&RgbImage::new(3, 4)).unwrap_err();
+        assert_eq!(err.to_string(), "median frame 0: size mismatch: expected 4x3, got 3x4");
+    }
+}
