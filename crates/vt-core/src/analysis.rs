@@ -431,8 +431,9 @@ mod tests {
             .map(|f| {
                 let ph = ((f + offset) % 10) as f64 / 10.0 * std::f64::consts::TAU;
                 let cx = 20.0 + 8.0 * ph.sin() + shift as f64;
+                let cy = 16.0 + 6.0 * ph.cos();
                 RgbImage::from_fn(48, 32, |x, y| {
-                    let inside = (x as f64 - cx).abs() < 4.0 && (y as f64 - 16.0).abs() < 4.0;
+                    let inside = (x as f64 - cx).abs() < 4.0 && (y as f64 - cy).abs() < 4.0;
                     if inside { image::Rgb([250, 20, 20]) } else { image::Rgb([(x * 3) as u8, (y * 5) as u8, 90]) }
                 })
             })

@@ -251,7 +251,11 @@ fn estimate(src: &[Point], dst: &[Point]) -> Result<HomographyFit> {
     let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
     let hn = refine_lm(hn, &ns, &nd);
     let ti = td.try_inverse().expect("normaliser is a similarity, always invertible");
-    let homography = Homography::from_matrix(ti * hn * ts)?;
+    let homography = Homography::from_matrix(ti * hn * ts).map_err(|e| {
+        Error::DegeneratePoints(format!(
+            "the point configuration does not determine a homography ({e}); are three of four points on one line?"
+        ))
+    })?;
     let rms = homography.rms_error(src, dst);
     if !rms.is_finite() {
         return Err(Error::DegeneratePoints(format!(
