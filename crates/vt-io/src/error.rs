@@ -1,0 +1,71 @@
+//! The one error type of vt-io. Every variant names the file it is about.
+
+use std::path::PathBuf;
+
+/// Result alias for vt-io.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What can go wrong reading or writing vt's files.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// An operating-system error on a path.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A video that cannot be decoded, or a decoder that cannot run.
+    #[error("{}: {message}", path.display())]
+    Video {
+        /// The video file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// An image that cannot be read or written.
+    #[error("{}: {message}", path.display())]
+    Image {
+        /// The image file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A malformed points file.
+    #[error("{}:{line}: {message}", path.display())]
+    Points {
+        /// The points file.
+        path: PathBuf,
+        /// 1-based line number (0 for the whole file).
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A scene directory that is missing parts, corrupted, or of another format version.
+    #[error("{}: {message}", path.display())]
+    Scene {
+        /// The file in the scene.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A view path that is neither a video nor a frame folder.
+    #[error("{}: {message}", path.display())]
+    View {
+        /// The view path.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// An error from the algorithms.
+    #[error(transparent)]
+    Core(#[from] vt_core::Error),
+}
+
+impl Error {
+    /// Wraps an OS error with its path.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io { path: path.into(), source }
+    }
+}

@@ -1,0 +1,252 @@
+//! Frame sources for views: a video file decoded by `ffmpeg`, or a folder of PNG/JPG frames.
+//!
+//! Videos are decoded with `-fps_mode passthrough`, so variable-frame-rate files give their real
+//! frames (OpenCV's `tree.avi`: 68, not the 444 its header implies), and with `-xerror`, so a
+//! truncated or corrupt file is an error rather than a silently shorter video.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use image::RgbImage;
+use rayon::prelude::*;
+use vt_core::analysis::FrameSource;
+
+use crate::{Error, Result};
+
+/// Video file extensions vt decodes through ffmpeg.
+pub const VIDEO_EXTENSIONS: [&str; 6] = ["mp4", "avi", "mov", "mkv", "webm", "m4v"];
+/// Frame image extensions in folders.
+pub const FRAME_EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
+
+fn has_ext(path: &Path, exts: &[&str]) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| exts.iter().any(|x| x.eq_ignore_ascii_case(e)))
+}
+
+/// A view's frames, from either kind of input.
+pub enum ViewSource {
+    /// A video file.
+    Video(VideoSource),
+    /// A folder of frames.
+    Folder(FolderSource),
+}
+
+impl ViewSource {
+    /// Opens a view: a folder of frames or a video file, decided by what the path is.
+    pub fn open(path: &Path) -> Result<Self> {
+        if !path.exists() {
+            return Err(Error::View { path: path.to_path_buf(), message: "no such file or directory".into() });
+        }
+        if path.is_dir() {
+            return Ok(ViewSource::Folder(FolderSource::open(path)?));
+        }
+        if has_ext(path, &VIDEO_EXTENSIONS) {
+            return Ok(ViewSource::Video(VideoSource::open(path)?));
+        }
+        Err(Error::View {
+            path: path.to_path_buf(),
+            message: format!(
+                "not a view: expected a video ({}) or a folder of frames ({})",
+                VIDEO_EXTENSIONS.join(", "),
+                FRAME_EXTENSIONS.join(", ")
+            ),
+        })
+    }
+
+    /// Frame size.
+    pub fn size(&self) -> (u32, u32) {
+        match self {
+            ViewSource::Video(v) => (v.width, v.height),
+            ViewSource::Folder(f) => f.size,
+        }
+    }
+
+    /// The source as vt-core's trait object.
+    pub fn as_source(&mut self) -> &mut dyn FrameSource {
+        match self {
+            ViewSource::Video(v) => v,
+            ViewSource::Folder(f) => f,
+        }
+    }
+}
+
+/// A video decoded by the `ffmpeg` program into raw RGB frames through a pipe.
+pub struct VideoSource {
+    path: PathBuf,
+    name: String,
+    width: u32,
+    height: u32,
+}
+
+fn missing_tool(tool: &str, path: &Path, e: std::io::Error) -> Error {
+    Error::Video {
+        path: path.to_path_buf(),
+        message: if e.kind() == std::io::ErrorKind::NotFound {
+            format!("cannot decode videos: `{tool}` is not installed (Debian: apt-get install ffmpeg)")
+        } else {
+            format!("cannot run {tool}: {e}")
+        },
+    }
+}
+
+fn last_line(s: &str) -> String {
+    s.lines().map(str::trim).filter(|l| !l.is_empty()).last().unwrap_or("unknown error").to_string()
+}
+
+impl VideoSource {
+    /// Probes the video's size with `ffprobe`.
+    pub fn open(path: &Path) -> Result<Self> {
+        let out = Command::new("ffprobe")
+            .args(["-v", "error", "-select_streams", "v:0", "-show_entries", "stream=width,height", "-of", "csv=p=0"])
+            .arg(path)
+            .stdin(Stdio::null())
+            .output()
+            .map_err(|e| missing_tool("ffprobe", path, e))?;
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let dims: Vec<u32> = stdout.trim().split(',').filter_map(|s| s.trim().parse().ok()).collect();
+        if !out.status.success() || dims.len() != 2 || dims[0] == 0 || dims[1] == 0 {
+            let err = String::from_utf8_lossy(&out.stderr);
+            let why = if out.status.success() { "no video stream".to_string() } else { last_line(&err) };
+            return Err(Error::Video { path: path.to_path_buf(), message: format!("not a readable video ({why})") });
+        }
+        Ok(Self { path: path.to_path_buf(), name: path.display().to_string(), width: dims[0], height: dims[1] })
+    }
+
+    /// Frame size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+}
+
+impl FrameSource for VideoSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>) -> vt_core::Result<usize> {
+        let src_err = |message: String| vt_core::Error::Source { view: self.name.clone(), message };
+        let mut child = Command::new("ffmpeg")
+            .args(["-v", "error", "-xerror", "-nostdin", "-i"])
+            .arg(&self.path)
+            .args(["-map", "0:v:0", "-fps_mode", "passthrough", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| src_err(missing_tool("ffmpeg", &self.path, e).to_string()))?;
+        // Drain stderr on a thread so a chatty decoder can never block on a full pipe.
+        let mut stderr = child.stderr.take().expect("stderr was piped");
+        let err_thread = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = stderr.read_to_string(&mut s);
+            s
+        });
+        let mut stdout = child.stdout.take().expect("stdout was piped");
+        let frame_bytes = self.width as usize * self.height as usize * 3;
+        let mut buf = vec![0u8; frame_bytes];
+        let mut n = 0usize;
+        let result: vt_core::Result<()> = loop {
+            let mut filled = 0;
+            while filled < frame_bytes {
+                match stdout.read(&mut buf[filled..]) {
+                    Ok(0) => break,
+                    Ok(k) => filled += k,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(src_err(format!("reading decoded frames: {e}"))),
+                }
+            }
+            if filled == 0 {
+                break Ok(());
+            }
+            if filled < frame_bytes {
+                break Err(src_err(format!("truncated: frame {n} has {filled} of {frame_bytes} bytes")));
+            }
+            let img = RgbImage::from_raw(self.width, self.height, std::mem::take(&mut buf)).expect("buffer is w*h*3");
+            let r = f(n, &img);
+            buf = img.into_raw();
+            if let Err(e) = r {
+                break Err(e);
+            }
+            n += 1;
+        };
+        drop(stdout);
+        if result.is_err() {
+            let _ = child.kill();
+        }
+        let status = child.wait().map_err(|e| src_err(format!("waiting for ffmpeg: {e}")))?;
+        let err = err_thread.join().unwrap_or_default();
+        result?;
+        if !status.success() {
+            return Err(src_err(format!(
+                "unreadable or truncated video after {n} frames (ffmpeg: {})",
+                last_line(&err)
+            )));
+        }
+        if n == 0 {
+            return Err(src_err("the video has no frames".into()));
+        }
+        Ok(n)
+    }
+}
+
+/// A folder of frames (PNG or JPG), in file-name order.
+pub struct FolderSource {
+    name: String,
+    files: Vec<PathBuf>,
+    size: (u32, u32),
+}
+
+impl FolderSource {
+    /// Lists the folder and reads the first frame's size.
+    pub fn open(dir: &Path) -> Result<Self> {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_file() && has_ext(p, &FRAME_EXTENSIONS))
+            .collect();
+        files.sort();
+        let first = files.first().ok_or_else(|| Error::View {
+            path: dir.to_path_buf(),
+            message: format!("folder has no frames ({})", FRAME_EXTENSIONS.join(", ")),
+        })?;
+        let size = image::image_dimensions(first).map_err(|e| Error::Image { path: first.clone(), message: e.to_string() })?;
+        Ok(Self { name: dir.display().to_string(), files, size })
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.files.len()
+    }
+
+    /// Never true for an opened folder.
+    pub fn is_empty(&self) -> bool {
+        self.files.is_empty()
+    }
+}
+
+/// Reads an image file as RGB, naming the file in errors.
+pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    let img = image::open(path).map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })?;
+    Ok(img.to_rgb8())
+}
+
+impl FrameSource for FolderSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>) -> vt_core::Result<usize> {
+        // Decode a chunk of frames in parallel, hand them over in order.
+        let chunk = 2 * rayon::current_num_threads().max(1);
+        let mut n = 0;
+        for files in self.files.chunks(chunk) {
+            let frames: Vec<Result<RgbImage>> = files.par_iter().map(|p| read_rgb(p)).collect();
+            for fr in frames {
+                let fr = fr.map_err(|e| vt_core::Error::Source { view: self.name.clone(), message: e.to_string() })?;
+                f(n, &fr)?;
+                n += 1;
+            }
+        }
+        Ok(n)
+    }
+}

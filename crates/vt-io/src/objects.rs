@@ -1,0 +1,248 @@
+//! The moving-object store: per frame of a view, the object's mask and its pixels, in a compact
+//! binary file the renderer loads in one read.
+//!
+//! Layout (little endian), version 1:
+//! ```text
+//! magic "VTOBJ1\0\0" | u32 width | u32 height
+//! frame records, one after the other:
+//!     u32 x0 y0 x1 y1                  (bounding box, exclusive; all 0 for an empty mask)
+//!     mask bits of the box             (row-major, LSB first, (x1-x0)*(y1-y0) bits, byte-padded)
+//!     RGB of the set pixels            (in the same row-major order)
+//! u64 offsets[n_frames + 1]            (byte offset of each record, from the file start; the
+//!                                       last one is where the table starts)
+//! u64 n_frames | magic "VTOBJEND"
+//! ```
+//! The table sits at the end so frames can be written as they are decoded, count unknown.
+//! Only the box is stored, so a frame costs what moves in it, not the frame size.
+
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+use vt_core::Mask;
+
+use crate::{Error, Result};
+
+const MAGIC: &[u8; 8] = b"VTOBJ1\0\0";
+const END: &[u8; 8] = b"VTOBJEND";
+const HEADER: usize = 16;
+
+/// Writes a store frame by frame.
+pub struct ObjectWriter {
+    path: PathBuf,
+    out: BufWriter<std::fs::File>,
+    width: u32,
+    height: u32,
+    offsets: Vec<u64>,
+    pos: u64,
+}
+
+impl ObjectWriter {
+    /// Creates the file.
+    pub fn create(path: &Path, width: u32, height: u32) -> Result<Self> {
+        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut out = BufWriter::new(file);
+        let mut head = Vec::with_capacity(HEADER);
+        head.extend_from_slice(MAGIC);
+        head.extend_from_slice(&width.to_le_bytes());
+        head.extend_from_slice(&height.to_le_bytes());
+        out.write_all(&head).map_err(|e| Error::io(path, e))?;
+        Ok(Self { path: path.to_path_buf(), out, width, height, offsets: Vec::new(), pos: HEADER as u64 })
+    }
+
+    /// Appends the next frame: the pixels of `raw` under `mask`.
+    pub fn push(&mut self, mask: &Mask, raw: &RgbImage) -> Result<()> {
+        if (mask.width(), mask.height()) != (self.width, self.height) || raw.dimensions() != (self.width, self.height) {
+            return Err(Error::Scene { path: self.path.clone(), message: "object frame of the wrong size".into() });
+        }
+        let (x0, y0, x1, y1) = mask.bounding_box().unwrap_or((0, 0, 0, 0));
+        let mut rec = Vec::new();
+        for v in [x0, y0, x1, y1] {
+            rec.extend_from_slice(&v.to_le_bytes());
+        }
+        let n_bits = ((x1 - x0) * (y1 - y0)) as usize;
+        let mut bits = vec![0u8; n_bits.div_ceil(8)];
+        let mut rgb = Vec::new();
+        let mut i = 0;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if mask.get(x, y) {
+                    bits[i / 8] |= 1 << (i % 8);
+                    rgb.extend_from_slice(&raw.get_pixel(x, y).0);
+                }
+                i += 1;
+            }
+        }
+        rec.extend_from_slice(&bits);
+        rec.extend_from_slice(&rgb);
+        self.offsets.push(self.pos);
+        self.pos += rec.len() as u64;
+        self.out.write_all(&rec).map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Frames pushed so far.
+    pub fn len(&self) -> usize {
+        self.offsets.len()
+    }
+
+    /// True before the first push.
+    pub fn is_empty(&self) -> bool {
+        self.offsets.is_empty()
+    }
+
+    /// Writes the offset table and trailer and closes the file.
+    pub fn finish(mut self) -> Result<()> {
+        let n = self.offsets.len() as u64;
+        self.offsets.push(self.pos);
+        let mut tail: Vec<u8> = self.offsets.iter().flat_map(|o| o.to_le_bytes()).collect();
+        tail.extend_from_slice(&n.to_le_bytes());
+        tail.extend_from_slice(END);
+        let io = |e| Error::io(&self.path, e);
+        self.out.write_all(&tail).map_err(io)?;
+        self.out.flush().map_err(io)?;
+        Ok(())
+    }
+}
+
+/// A loaded store.
+pub struct ObjectStore {
+    width: u32,
+    height: u32,
+    data: Vec<u8>,
+    offsets: Vec<u64>,
+}
+
+/// One frame's object: box, mask bits of the box, and the RGB of set pixels.
+pub struct ObjectFrame<'a> {
+    /// Bounding box `(x0, y0, x1, y1)`, exclusive.
+    pub bbox: (u32, u32, u32, u32),
+    /// Mask bits of the box, row-major, LSB first.
+    pub bits: &'a [u8],
+    /// RGB triples of the set pixels in row-major order.
+    pub rgb: &'a [u8],
+}
+
+impl ObjectFrame<'_> {
+    /// Calls `f(x, y, rgb)` for every object pixel, in row-major order.
+    pub fn for_each_pixel(&self, mut f: impl FnMut(u32, u32, [u8; 3])) {
+        let (x0, y0, x1, y1) = self.bbox;
+        let (mut i, mut k) = (0usize, 0usize);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if self.bits[i / 8] >> (i % 8) & 1 == 1 {
+                    f(x, y, [self.rgb[k], self.rgb[k + 1], self.rgb[k + 2]]);
+                    k += 3;
+                }
+                i += 1;
+            }
+        }
+    }
+}
+
+impl ObjectStore {
+    /// Loads and validates a store.
+    pub fn load(path: &Path) -> Result<Self> {
+        let data = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bad = |m: String| Error::Scene { path: path.to_path_buf(), message: m };
+        if data.len() < HEADER || &data[..8] != MAGIC {
+            return Err(bad("not a vt object store (bad magic)".into()));
+        }
+        if data.len() < HEADER + 24 || &data[data.len() - 8..] != END {
+            return Err(bad("corrupted or truncated object store (no end marker)".into()));
+        }
+        let u32_at = |o: usize| u32::from_le_bytes(data[o..o + 4].try_into().expect("4 bytes"));
+        let u64_at = |o: usize| u64::from_le_bytes(data[o..o + 8].try_into().expect("8 bytes"));
+        let (width, height) = (u32_at(8), u32_at(12));
+        let n = u64_at(data.len() - 16) as usize;
+        let table_len = n.checked_add(1).and_then(|k| k.checked_mul(8)).filter(|&l| l + 16 + HEADER <= data.len());
+        let Some(table_len) = table_len else {
+            return Err(bad(format!("corrupted: {n} frames do not fit in {} bytes", data.len())));
+        };
+        let table_start = data.len() - 16 - table_len;
+        let offsets: Vec<u64> = (0..=n).map(|i| u64_at(table_start + 8 * i)).collect();
+        if offsets.windows(2).any(|w| w[1] < w[0] + 16) || offsets.first() != Some(&(HEADER as u64)) || offsets[n] != table_start as u64 {
+            return Err(bad("corrupted: offset table does not match the file".into()));
+        }
+        let store = Self { width, height, data, offsets };
+        for i in 0..n {
+            let (x0, y0, x1, y1) = store.raw_bbox(i);
+            let ok = x0 <= x1 && y0 <= y1 && x1 <= width && y1 <= height;
+            let need = ok.then(|| 16 + (((x1 - x0) * (y1 - y0)) as usize).div_ceil(8));
+            let len = (store.offsets[i + 1] - store.offsets[i]) as usize;
+            if need.is_none_or(|need| len < need || (len - need) % 3 != 0) {
+                return Err(bad(format!("corrupted: frame {i} record is inconsistent")));
+            }
+        }
+        Ok(store)
+    }
+
+    fn raw_bbox(&self, i: usize) -> (u32, u32, u32, u32) {
+        let o = self.offsets[i] as usize;
+        let g = |k: usize| u32::from_le_bytes(self.data[o + 4 * k..o + 4 * k + 4].try_into().expect("4 bytes"));
+        (g(0), g(1), g(2), g(3))
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// True when the store has no frames.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Frame size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Frame `i`'s object. Panics when `i >= len()`.
+    pub fn frame(&self, i: usize) -> ObjectFrame<'_> {
+        let bbox = self.raw_bbox(i);
+        let (o, end) = (self.offsets[i] as usize + 16, self.offsets[i + 1] as usize);
+        let nb = (((bbox.2 - bbox.0) * (bbox.3 - bbox.1)) as usize).div_ceil(8);
+        ObjectFrame { bbox, bits: &self.data[o..o + nb], rgb: &self.data[o + nb..end] }
+    }
+
+    /// Frame `i`'s mask as a full-size [`Mask`].
+    pub fn mask(&self, i: usize) -> Mask {
+        let mut m = Mask::new(self.width, self.height);
+        self.frame(i).for_each_pixel(|x, y, _| m.set(x, y, true));
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_corruption() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("o.bin");
+        let raw = RgbImage::from_fn(13, 9, |x, y| image::Rgb([x as u8, y as u8, 7]));
+        let masks = [Mask::from_fn(13, 9, |x, y| (x + y) % 3 == 0 && x > 2), Mask::new(13, 9), Mask::from_fn(13, 9, |_, _| true)];
+        let mut w = ObjectWriter::create(&path, 13, 9).unwrap();
+        for m in &masks {
+            w.push(m, &raw).unwrap();
+        }
+        w.finish().unwrap();
+        let s = ObjectStore::load(&path).unwrap();
+        assert_eq!(s.len(), 3);
+        for (i, m) in masks.iter().enumerate() {
+            assert_eq!(&s.mask(i), m);
+            s.frame(i).for_each_pixel(|x, y, c| assert_eq!(c, raw.get_pixel(x, y).0));
+        }
+        let bytes = std::fs::read(&path).unwrap();
+        for (cut, flip) in [(5, None), (0, Some(20)), (0, Some(bytes.len() - 20))] {
+            let mut b = bytes[..bytes.len() - cut].to_vec();
+            if let Some(i) = flip {
+                b[i] ^= 0x5a;
+            }
+            std::fs::write(&path, &b).unwrap();
+            let err = ObjectStore::load(&path).err().map(|e| e.to_string()).unwrap_or_default();
+            assert!(err.contains("corrupted"), "cut {cut} flip {flip:?}: {err:?}");
+        }
+    }
+}

@@ -1,0 +1,252 @@
+//! The scene directory written by `vt analyze` and read by the renderer.
+//!
+//! ```text
+//! SCENE/
+//!   scene.json            format "vt-scene", version 1 (see [`SceneFile`])
+//!   background_000.png    B_p, the unsmoothed median of view p
+//!   objects_000.bin       the moving object of every frame of view p (see [`crate::objects`])
+//! ```
+//! A reader refuses other format versions with a message saying which it found and which it
+//! reads, rather than guessing.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use vt_core::analysis::{AnalyzeParams, SceneAnalysis};
+use vt_core::model::MotionModel;
+use vt_core::{Homography, Point};
+
+use crate::{Error, Result};
+
+/// The `format` string of scene.json.
+pub const FORMAT: &str = "vt-scene";
+/// The version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// scene.json.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SceneFile {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// [`VERSION`] when written by this build.
+    pub version: u32,
+    /// The program that wrote it.
+    pub created_by: String,
+    /// Frame width, all views.
+    pub width: u32,
+    /// Frame height, all views.
+    pub height: u32,
+    /// The analysis parameters used.
+    pub params: AnalyzeParams,
+    /// The geometric model of the scene (absent for a single view).
+    pub model: Option<ModelEntry>,
+    /// One entry per view, in order.
+    pub views: Vec<ViewEntry>,
+}
+
+/// Which model explains the points, and the evidence.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ModelEntry {
+    /// The chosen model.
+    pub chosen: MotionModel,
+    /// True when forced by the user.
+    pub forced: bool,
+    /// Summed GRIC of each model tried (lower is better).
+    pub gric: BTreeMap<String, f64>,
+}
+
+/// One view.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ViewEntry {
+    /// Display name (the input path).
+    pub name: String,
+    /// `N_p`.
+    pub frames: usize,
+    /// Marked points (x, y).
+    pub points: Vec<[f64; 2]>,
+    /// Background image file, relative to the scene.
+    pub background: String,
+    /// Object store file, relative to the scene.
+    pub objects: String,
+    /// Mean fraction of pixels in the moving-object mask.
+    pub moving_fraction: f64,
+    /// `(m_p, n_p)` and its eq. (1) cost.
+    #[serde(rename = "loop")]
+    pub loop_: LoopEntry,
+    /// `H_(p,p+1)` (absent for the last view).
+    pub to_next: Option<LinkEntry>,
+    /// `H_(p,p-1)` (absent for the first view).
+    pub to_prev: Option<LinkEntry>,
+    /// Eq. (2) tables.
+    pub transitions: Transitions,
+}
+
+/// A loop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LoopEntry {
+    /// `m`.
+    pub start: usize,
+    /// `n`.
+    pub end: usize,
+    /// Eq. (1) cost.
+    pub cost: u64,
+}
+
+/// A homography to a neighbour.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct LinkEntry {
+    /// Row-major 3x3, last element 1.
+    pub homography: [[f64; 3]; 3],
+    /// RMS transfer error of the points, pixels.
+    pub rms: f64,
+}
+
+impl LinkEntry {
+    fn from_h(h: &Homography, rms: f64) -> Self {
+        let m = h.matrix();
+        Self { homography: [[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]], rms }
+    }
+
+    /// The homography, validated.
+    pub fn homography(&self) -> vt_core::Result<Homography> {
+        let h = &self.homography;
+        Homography::from_matrix(nalgebra_matrix(h))
+    }
+}
+
+fn nalgebra_matrix(h: &[[f64; 3]; 3]) -> nalgebra::Matrix3<f64> {
+    nalgebra::Matrix3::new(h[0][0], h[0][1], h[0][2], h[1][0], h[1][1], h[1][2], h[2][0], h[2][1], h[2][2])
+}
+
+/// Eq. (2) tables, one entry per frame of this view.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Transitions {
+    /// `t_{p+1}(s, p)`: all null for the last view.
+    pub next: Vec<Option<usize>>,
+    /// `t_{p-1}(s, p)`: all null for the first view.
+    pub prev: Vec<Option<usize>>,
+}
+
+/// File name of view p's background.
+pub fn background_name(p: usize) -> String {
+    format!("background_{p:03}.png")
+}
+
+/// File name of view p's object store.
+pub fn objects_name(p: usize) -> String {
+    format!("objects_{p:03}.bin")
+}
+
+impl SceneFile {
+    /// Builds scene.json's contents from an analysis.
+    pub fn from_analysis(a: &SceneAnalysis, points: &[Vec<Point>], params: &AnalyzeParams) -> Self {
+        let model = a.selection.as_ref().map(|s| ModelEntry {
+            chosen: s.model,
+            forced: s.forced,
+            gric: s.scores.iter().map(|(k, v)| (k.name().to_string(), *v)).collect(),
+        });
+        let views = a
+            .views
+            .iter()
+            .enumerate()
+            .map(|(p, v)| {
+                let none = vec![None; v.n_frames];
+                let next = a.links.get(p);
+                let prev = if p > 0 { a.links.get(p - 1) } else { None };
+                ViewEntry {
+                    name: v.name.clone(),
+                    frames: v.n_frames,
+                    points: points.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect()).unwrap_or_default(),
+                    background: background_name(p),
+                    objects: objects_name(p),
+                    moving_fraction: v.moving_fraction,
+                    loop_: LoopEntry { start: v.best_loop.start, end: v.best_loop.end, cost: v.best_loop.cost },
+                    to_next: next.map(|l| LinkEntry::from_h(&l.homography, l.rms)),
+                    to_prev: prev.map(|l| LinkEntry::from_h(&l.homography.inverse(), l.rms)),
+                    transitions: Transitions {
+                        next: next.map(|l| l.forward.clone()).unwrap_or_else(|| none.clone()),
+                        prev: prev.map(|l| l.backward.clone()).unwrap_or(none),
+                    },
+                }
+            })
+            .collect();
+        SceneFile {
+            format: FORMAT.into(),
+            version: VERSION,
+            created_by: format!("vt {}", env!("CARGO_PKG_VERSION")),
+            width: a.width,
+            height: a.height,
+            params: *params,
+            model,
+            views,
+        }
+    }
+
+    /// Writes scene.json into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        let path = dir.join("scene.json");
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Scene { path: path.clone(), message: e.to_string() })?;
+        std::fs::write(&path, text).map_err(|e| Error::io(&path, e))
+    }
+
+    /// Reads and validates `dir/scene.json` (format, version, and internal consistency).
+    pub fn read(dir: &Path) -> Result<Self> {
+        let path = dir.join("scene.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let bad = |message: String| Error::Scene { path: path.clone(), message };
+        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(format!("corrupted: not valid JSON ({e})")))?;
+        if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
+            return Err(bad(format!("not a vt scene (format is not \"{FORMAT}\")")));
+        }
+        let version = value.get("version").and_then(|v| v.as_u64()).unwrap_or(0);
+        if version != VERSION as u64 {
+            return Err(bad(format!(
+                "scene format version {version}, but this vt reads version {VERSION}: re-run `vt analyze` to rebuild it"
+            )));
+        }
+        let scene: SceneFile = serde_json::from_value(value).map_err(|e| bad(format!("corrupted: {e}")))?;
+        scene.validate().map_err(bad)?;
+        Ok(scene)
+    }
+
+    fn validate(&self) -> std::result::Result<(), String> {
+        if self.views.is_empty() {
+            return Err("no views".into());
+        }
+        let m = self.views.len();
+        for (p, v) in self.views.iter().enumerate() {
+            let l = v.loop_;
+            if !(l.start < l.end && l.end < v.frames) {
+                return Err(format!("view {p}: loop ({}, {}) does not fit {} frames", l.start, l.end, v.frames));
+            }
+            for (side, table, exists) in [("next", &v.transitions.next, p + 1 < m), ("prev", &v.transitions.prev, p > 0)] {
+                if table.len() != v.frames {
+                    return Err(format!("view {p}: {} {side} transitions for {} frames", table.len(), v.frames));
+                }
+                if exists {
+                    let q = if side == "next" { p + 1 } else { p - 1 };
+                    let end = self.views[q].loop_.end;
+                    if let Some((s, t)) = table.iter().enumerate().find_map(|(s, t)| t.filter(|&t| t + 1 >= end).map(|t| (s, t))) {
+                        return Err(format!("view {p}: {side} transition of frame {s} is {t}, beyond view {q}'s loop end {end}"));
+                    }
+                }
+            }
+            for (side, link, exists) in [("to_next", &v.to_next, p + 1 < m), ("to_prev", &v.to_prev, p > 0)] {
+                match (link, exists) {
+                    (Some(l), true) => {
+                        l.homography().map_err(|e| format!("view {p}: {side}: {e}"))?;
+                    }
+                    (None, false) => {}
+                    _ => return Err(format!("view {p}: {side} homography is {}", if exists { "missing" } else { "unexpected" })),
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Path of a file of the scene.
+    pub fn file(dir: &Path, name: &str) -> PathBuf {
+        dir.join(name)
+    }
+}
