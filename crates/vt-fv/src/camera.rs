@@ -1,0 +1,502 @@
+//! Pinhole cameras `P = K [R | t]`, the Middlebury `*_par.txt` parser, and new-view cameras.
+//!
+//! Conventions (Middlebury's): a world point `X` maps to camera coordinates `R X + t`, then to
+//! homogeneous pixels `K (R X + t)`; the image origin is top-left, `x` grows to the right
+//! (columns) and `y` downwards (rows), and pixel centres sit at integer coordinates, so the pixel
+//! holding a projection `(u, v)` is `(round(u), round(v))`. A point is in front of the camera when
+//! its camera-space `z` is positive.
+
+use nalgebra::{Matrix3, Matrix3x4, Rotation3, UnitQuaternion, Vector3};
+
+use crate::{Error, Result};
+
+/// A calibrated pinhole camera.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Camera {
+    /// Name (the image file name in a `*_par.txt` file).
+    pub name: String,
+    /// Intrinsics (upper triangular, `k33 = 1`).
+    pub k: Matrix3<f64>,
+    /// World-to-camera rotation.
+    pub r: Matrix3<f64>,
+    /// World-to-camera translation.
+    pub t: Vector3<f64>,
+}
+
+/// Smallest camera-space depth counted as "in front of the camera".
+pub const MIN_DEPTH: f64 = 1e-9;
+
+impl Camera {
+    /// A camera from its parts; fails for a singular `K` or a non-finite entry.
+    pub fn new(
+        name: impl Into<String>,
+        k: Matrix3<f64>,
+        r: Matrix3<f64>,
+        t: Vector3<f64>,
+    ) -> Result<Self> {
+        let name = name.into();
+        if k.iter()
+            .chain(r.iter())
+            .chain(t.iter())
+            .any(|v| !v.is_finite())
+        {
+            return Err(Error::BadCamera {
+                name,
+                what: "non-finite matrix entry".into(),
+            });
+        }
+        if k.determinant().abs() < 1e-12 {
+            return Err(Error::BadCamera {
+                name,
+                what: format!("K is singular (det {:e})", k.determinant()),
+            });
+        }
+        Ok(Self { name, k, r, t })
+    }
+
+    /// A camera at `centre` looking at `target`, with image "down" as close as possible to
+    /// `down` (a world direction), and intrinsics `k`.
+    pub fn look_at(
+        name: impl Into<String>,
+        k: Matrix3<f64>,
+        centre: Vector3<f64>,
+        target: Vector3<f64>,
+        down: Vector3<f64>,
+    ) -> Result<Self> {
+        let name = name.into();
+        let z = target - centre;
+        if z.norm() < 1e-12 {
+            return Err(Error::BadCamera {
+                name,
+                what: "centre and target coincide".into(),
+            });
+        }
+        let z = z.normalize();
+        let mut y = down - z * down.dot(&z);
+        if y.norm() < 1e-9 {
+            // `down` is parallel to the viewing direction: take any perpendicular.
+            let any = if z.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            y = any - z * any.dot(&z);
+        }
+        let y = y.normalize();
+        let x = y.cross(&z);
+        // Rows of R are the camera axes in world coordinates.
+        let r = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
+        let t = -(r * centre);
+        Self::new(name, k, r, t)
+    }
+
+    /// The 3x4 projection matrix `P = K [R | t]`.
+    pub fn projection(&self) -> Matrix3x4<f64> {
+        let mut rt = Matrix3x4::zeros();
+        rt.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.r);
+        rt.set_column(3, &self.t);
+        self.k * rt
+    }
+
+    /// Camera-space coordinates `R X + t` of a world point.
+    #[inline]
+    pub fn to_camera(&self, x: &Vector3<f64>) -> Vector3<f64> {
+        self.r * x + self.t
+    }
+
+    /// Projects a world point to continuous pixel coordinates `(u, v)` and its camera-space
+    /// depth; `None` when the point is not in front of the camera.
+    #[inline]
+    pub fn project(&self, x: &Vector3<f64>) -> Option<(f64, f64, f64)> {
+        let c = self.to_camera(x);
+        if c.z <= MIN_DEPTH {
+            return None;
+        }
+        let p = self.k * c;
+        Some((p.x / p.z, p.y / p.z, c.z))
+    }
+
+    /// The camera centre in world coordinates, `C = -R^T t`.
+    pub fn centre(&self) -> Vector3<f64> {
+        -(self.r.transpose() * self.t)
+    }
+
+    /// The unit viewing direction (optical axis) in world coordinates.
+    pub fn forward(&self) -> Vector3<f64> {
+        self.r.row(2).transpose().normalize()
+    }
+
+    /// The unit world direction of the ray through pixel `(u, v)`.
+    pub fn ray(&self, u: f64, v: f64) -> Vector3<f64> {
+        let kinv = self
+            .k
+            .try_inverse()
+            .expect("K is invertible: checked by Camera::new");
+        let d = self.r.transpose() * (kinv * Vector3::new(u, v, 1.0));
+        d.normalize()
+    }
+
+    /// The world point on the ray through pixel `(u, v)` at camera-space depth `depth`.
+    pub fn back_project(&self, u: f64, v: f64, depth: f64) -> Vector3<f64> {
+        let kinv = self
+            .k
+            .try_inverse()
+            .expect("K is invertible: checked by Camera::new");
+        let c = kinv * Vector3::new(u, v, 1.0) * depth;
+        self.r.transpose() * (c - self.t)
+    }
+
+    /// The same camera for an image scaled by `s` (e.g. 0.5 for half size): scales `K`'s first
+    /// two rows so pixel centres stay at integer coordinates.
+    pub fn scaled(&self, s: f64) -> Self {
+        let mut k = self.k;
+        // Pixel centres at integers: u' = s (u + 0.5) - 0.5.
+        for c in 0..3 {
+            k[(0, c)] *= s;
+            k[(1, c)] *= s;
+        }
+        k[(0, 2)] += 0.5 * s - 0.5;
+        k[(1, 2)] += 0.5 * s - 0.5;
+        Self {
+            name: self.name.clone(),
+            k,
+            r: self.r,
+            t: self.t,
+        }
+    }
+}
+
+/// Parses a Middlebury `*_par.txt` camera file: the first line is the camera count, then one
+/// line per camera, `name k11 k12 k13 k21 k22 k23 k31 k32 k33 r11 .. r33 t1 t2 t3`.
+/// Blank lines are skipped. Errors name the 1-based line number and what is wrong.
+pub fn parse_par(text: &str) -> Result<Vec<Camera>> {
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
+    let (hline, header) = lines.next().ok_or(Error::ParLine {
+        line: 1,
+        what: "empty file, expected a camera count".into(),
+    })?;
+    let declared: usize = header.trim().parse().map_err(|_| Error::ParLine {
+        line: hline + 1,
+        what: format!("expected the camera count, got {:?}", header.trim()),
+    })?;
+    let mut cams = Vec::with_capacity(declared);
+    for (i, line) in lines {
+        let lineno = i + 1;
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        if fields.len() != 22 {
+            return Err(Error::ParLine {
+                line: lineno,
+                what: format!(
+                    "expected 22 fields (name + 9 K + 9 R + 3 t), got {}",
+                    fields.len()
+                ),
+            });
+        }
+        let mut v = [0.0f64; 21];
+        for (j, f) in fields[1..].iter().enumerate() {
+            let x: f64 = f.parse().map_err(|_| Error::ParLine {
+                line: lineno,
+                what: format!(
+                    "field {} ({}) is not a number: {:?}",
+                    j + 2,
+                    field_name(j),
+                    f
+                ),
+            })?;
+            if !x.is_finite() {
+                return Err(Error::ParLine {
+                    line: lineno,
+                    what: format!("field {} ({}) is not finite: {:?}", j + 2, field_name(j), f),
+                });
+            }
+            v[j] = x;
+        }
+        let k = Matrix3::from_row_slice(&v[0..9]);
+        let r = Matrix3::from_row_slice(&v[9..18]);
+        let t = Vector3::new(v[18], v[19], v[20]);
+        let cam = Camera::new(fields[0], k, r, t).map_err(|e| Error::ParLine {
+            line: lineno,
+            what: e.to_string(),
+        })?;
+        cams.push(cam);
+    }
+    if cams.len() != declared {
+        return Err(Error::ParCount {
+            declared,
+            found: cams.len(),
+        });
+    }
+    Ok(cams)
+}
+
+fn field_name(j: usize) -> String {
+    match j {
+        0..=8 => format!("k{}{}", j / 3 + 1, j % 3 + 1),
+        9..=17 => format!("r{}{}", (j - 9) / 3 + 1, (j - 9) % 3 + 1),
+        _ => format!("t{}", j - 17),
+    }
+}
+
+/// Writes cameras in the Middlebury `*_par.txt` format.
+pub fn format_par(cams: &[Camera]) -> String {
+    let mut s = format!("{}\n", cams.len());
+    for c in cams {
+        s.push_str(&c.name);
+        for v in
+            c.k.transpose()
+                .iter()
+                .chain(c.r.transpose().iter())
+                .chain(c.t.iter())
+        {
+            s.push_str(&format!(" {v:.17e}"));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The circle through the camera centres, fitted by least squares.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ring {
+    /// Centroid of the camera centres.
+    pub centre: Vector3<f64>,
+    /// Mean distance of the centres (projected on the plane) from `centre`.
+    pub radius: f64,
+    /// Unit normal of the best-fit plane, oriented so angles grow from camera 0 towards camera 1.
+    pub normal: Vector3<f64>,
+    /// Unit in-plane direction of angle 0 (towards camera 0).
+    pub u: Vector3<f64>,
+    /// Unit in-plane direction of angle 90 degrees, `normal x u`.
+    pub v: Vector3<f64>,
+    /// Average intrinsics of the cameras.
+    pub k: Matrix3<f64>,
+    /// Average image "down" direction of the cameras, in world coordinates.
+    pub down: Vector3<f64>,
+}
+
+impl Ring {
+    /// Fits a ring to at least three cameras.
+    pub fn fit(cams: &[Camera]) -> Result<Self> {
+        if cams.len() < 3 {
+            return Err(Error::TooFew {
+                what: "cameras to fit a ring".into(),
+                got: cams.len(),
+                need: 3,
+            });
+        }
+        let centres: Vec<Vector3<f64>> = cams.iter().map(Camera::centre).collect();
+        let n = centres.len() as f64;
+        let centre = centres.iter().sum::<Vector3<f64>>() / n;
+        let mut cov = Matrix3::zeros();
+        for c in &centres {
+            let d = c - centre;
+            cov += d * d.transpose();
+        }
+        let eig = cov.symmetric_eigen();
+        let imin = eig.eigenvalues.imin();
+        let mut normal: Vector3<f64> = eig.eigenvectors.column(imin).into_owned().normalize();
+        let inplane = |p: &Vector3<f64>, nrm: &Vector3<f64>| {
+            let d = p - centre;
+            d - nrm * d.dot(nrm)
+        };
+        let u = inplane(&centres[0], &normal);
+        if u.norm() < 1e-12 {
+            return Err(Error::BadCamera {
+                name: cams[0].name.clone(),
+                what: "camera centre is at the ring centre".into(),
+            });
+        }
+        let u = u.normalize();
+        let mut v = normal.cross(&u);
+        if inplane(&centres[1], &normal).dot(&v) < 0.0 {
+            normal = -normal;
+            v = -v;
+        }
+        let radius = centres
+            .iter()
+            .map(|c| inplane(c, &normal).norm())
+            .sum::<f64>()
+            / n;
+        let k = cams.iter().map(|c| c.k).sum::<Matrix3<f64>>() / n;
+        let down = cams
+            .iter()
+            .map(|c| c.r.row(1).transpose())
+            .sum::<Vector3<f64>>();
+        let down = if down.norm() > 1e-9 {
+            down.normalize()
+        } else {
+            -normal
+        };
+        Ok(Self {
+            centre,
+            radius,
+            normal,
+            u,
+            v,
+            k,
+            down,
+        })
+    }
+
+    /// The point of the ring at `angle_deg` (0 = camera 0's direction, growing towards camera 1).
+    pub fn point(&self, angle_deg: f64) -> Vector3<f64> {
+        let a = angle_deg.to_radians();
+        self.centre + (self.u * a.cos() + self.v * a.sin()) * self.radius
+    }
+
+    /// The angle (degrees, in `(-180, 180]`) of a world point's projection on the ring plane.
+    pub fn angle_of(&self, p: &Vector3<f64>) -> f64 {
+        let d = p - self.centre;
+        d.dot(&self.v).atan2(d.dot(&self.u)).to_degrees()
+    }
+
+    /// A camera on the ring at `angle_deg` looking at `target` (e.g. the ring centre or the volume
+    /// centre), with the cameras' average `K` and "down" direction.
+    pub fn camera(&self, angle_deg: f64, target: &Vector3<f64>) -> Result<Camera> {
+        Camera::look_at(
+            format!("ring{angle_deg:.2}"),
+            self.k,
+            self.point(angle_deg),
+            *target,
+            self.down,
+        )
+    }
+}
+
+/// A camera between cameras `a` and `b` at `s` in `[0, 1]`: rotation by slerp, centre and `K` by
+/// linear interpolation.
+pub fn interpolate(a: &Camera, b: &Camera, s: f64) -> Result<Camera> {
+    let qa = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&a.r));
+    let qb = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&b.r));
+    let q = qa
+        .try_slerp(&qb, s, 1e-9)
+        .unwrap_or(if s < 0.5 { qa } else { qb });
+    let r = q.to_rotation_matrix().into_inner();
+    let c = a.centre() * (1.0 - s) + b.centre() * s;
+    let k = a.k * (1.0 - s) + b.k * s;
+    Camera::new(format!("{}~{}@{s:.3}", a.name, b.name), k, r, -(r * c))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use proptest::prelude::*;
+
+    const TWO: &str = "2\n\
+        a.png 1520.4 0 302.3 0 1525.9 246.9 0 0 1 0.0218 0.9833 -0.1807 0.9986 -0.0127 0.0520 0.0488 -0.1816 -0.9822 -0.07 0.02 0.61\n\
+        b.png 1520.4 0 302.3 0 1525.9 246.9 0 0 1 1 0 0 0 1 0 0 0 1 0 0 1\n";
+
+    fn check_err(text: &str, line: usize, needle: &str) {
+        match parse_par(text) {
+            Err(Error::ParLine { line: l, what }) => {
+                assert_eq!(l, line, "wrong line for {text:?}: {what}");
+                assert!(what.contains(needle), "message {what:?} lacks {needle:?}");
+            }
+            other => panic!("expected a ParLine error at line {line}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn parses_two_cameras() {
+        let cams = parse_par(TWO).unwrap();
+        assert_eq!(cams.len(), 2);
+        assert_eq!(cams[1].name, "b.png");
+        assert_relative_eq!(cams[1].t.z, 1.0);
+        assert_relative_eq!(cams[0].k[(0, 2)], 302.3);
+    }
+
+    #[test]
+    fn par_errors_name_the_line() {
+        check_err("2\na.png 1 2 3\n", 2, "got 4");
+        check_err(&TWO.replace("0.61", "NaN"), 2, "t3");
+        check_err(&TWO.replace("0.61", "inf"), 2, "not finite");
+        check_err(
+            &TWO.replace(" 0 0 1 0 0 1\n", " 0 0 1 0 0 x\n"),
+            3,
+            "not a number",
+        );
+        check_err(
+            &TWO.replace("b.png 1520.4 0 302.3 0 1525.9", "b.png 0 0 0 0 0"),
+            3,
+            "singular",
+        );
+        check_err("two\n", 1, "count");
+        assert_eq!(
+            parse_par("3\n".to_string().as_str()).unwrap_err(),
+            Error::ParCount {
+                declared: 3,
+                found: 0
+            }
+        );
+    }
+
+    #[test]
+    fn par_round_trip() {
+        let cams = parse_par(TWO).unwrap();
+        let again = parse_par(&format_par(&cams)).unwrap();
+        assert_eq!(cams, again);
+    }
+
+    fn test_camera(yaw: f64, pitch: f64, dist: f64) -> Camera {
+        let k = Matrix3::new(500.0, 0.0, 200.0, 0.0, 510.0, 190.0, 0.0, 0.0, 1.0);
+        let c = Vector3::new(
+            yaw.cos() * pitch.cos(),
+            yaw.sin() * pitch.cos(),
+            pitch.sin(),
+        ) * dist;
+        Camera::look_at("t", k, c, Vector3::zeros(), -Vector3::z()).unwrap()
+    }
+
+    proptest! {
+        #[test]
+        fn project_back_project_round_trip(yaw in -3.1f64..3.1, pitch in -1.2f64..1.2, dist in 1.0f64..10.0,
+                                            u in 0.0f64..400.0, v in 0.0f64..400.0, depth in 0.1f64..20.0) {
+            let cam = test_camera(yaw, pitch, dist);
+            let x = cam.back_project(u, v, depth);
+            let (pu, pv, pd) = cam.project(&x).unwrap();
+            prop_assert!((pu - u).abs() < 1e-6 && (pv - v).abs() < 1e-6 && (pd - depth).abs() < 1e-9);
+            // The ray through (u, v) passes through x.
+            let d = cam.ray(u, v);
+            let along = (x - cam.centre()).normalize();
+            prop_assert!((d - along).norm() < 1e-9);
+            // P = K[R|t] agrees with project.
+            let h = cam.projection() * x.push(1.0);
+            prop_assert!((h.x / h.z - u).abs() < 1e-6);
+        }
+
+        #[test]
+        fn scaled_camera_matches_scaled_pixels(u in 0.0f64..400.0, v in 0.0f64..400.0, s in 0.2f64..2.0) {
+            let cam = test_camera(0.3, 0.2, 4.0);
+            let x = cam.back_project(u, v, 3.0);
+            let (su, sv, _) = cam.scaled(s).project(&x).unwrap();
+            prop_assert!((su - (s * (u + 0.5) - 0.5)).abs() < 1e-6 && (sv - (s * (v + 0.5) - 0.5)).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn ring_recovers_cameras() {
+        let cams: Vec<Camera> = (0..8)
+            .map(|i| test_camera(i as f64 * std::f64::consts::FRAC_PI_4, 0.4, 3.0))
+            .collect();
+        let ring = Ring::fit(&cams).unwrap();
+        assert_relative_eq!(ring.radius, 3.0 * 0.4f64.cos(), epsilon = 1e-9);
+        assert_relative_eq!(ring.angle_of(&cams[2].centre()), 90.0, epsilon = 1e-6);
+        let target = Vector3::zeros();
+        let c2 = ring.camera(90.0, &target).unwrap();
+        assert!((c2.centre() - cams[2].centre()).norm() < 1e-9);
+        assert!(
+            (c2.r - cams[2].r).norm() < 1e-6,
+            "{} vs {}",
+            c2.r,
+            cams[2].r
+        );
+        let mid = interpolate(&cams[0], &cams[2], 0.5).unwrap();
+        assert!((mid.r - cams[1].r).norm() < 1e-6);
+        let end = interpolate(&cams[0], &cams[2], 1.0).unwrap();
+        assert!((end.centre() - cams[2].centre()).norm() < 1e-9);
+    }
+}

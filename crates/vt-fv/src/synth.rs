@@ -1,0 +1,411 @@
+//! A synthetic textured object (sphere and box union) ray cast from cameras on a ring, with
+//! ground truth, for tests and benchmarks. Independent of the voxel code: pixels come from
+//! analytic ray-primitive intersections.
+
+use image::{Rgb, RgbImage};
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::hull::Aabb;
+use crate::silhouette::Mask;
+use crate::{Error, Result};
+
+/// The union of a sphere and an axis-aligned box, with a procedural colour texture defined on
+/// world coordinates (so every view sees the same colour at a surface point: exactly
+/// photo-consistent, no shading). Every colour channel is at least 60, above the 0.19 silhouette
+/// threshold; the background is black.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthObject {
+    /// Sphere centre.
+    pub sphere_centre: Vector3<f64>,
+    /// Sphere radius.
+    pub sphere_radius: f64,
+    /// The box.
+    pub cuboid: Aabb,
+}
+
+impl Default for SynthObject {
+    /// A sphere of radius 0.5 at the origin with a flat box poking out of it along x.
+    fn default() -> Self {
+        Self {
+            sphere_centre: Vector3::zeros(),
+            sphere_radius: 0.5,
+            cuboid: Aabb::new(
+                Vector3::new(-0.75, -0.22, -0.4),
+                Vector3::new(0.6, 0.25, 0.0),
+            ),
+        }
+    }
+}
+
+impl SynthObject {
+    /// Whether a point is inside the solid.
+    pub fn contains(&self, p: &Vector3<f64>) -> bool {
+        (p - self.sphere_centre).norm_squared() <= self.sphere_radius * self.sphere_radius
+            || in_box(&self.cuboid, p)
+    }
+
+    /// A box holding the whole object.
+    pub fn bounds(&self) -> Aabb {
+        let r = Vector3::repeat(self.sphere_radius);
+        let (a, b) = (self.sphere_centre - r, self.sphere_centre + r);
+        Aabb::new(a.inf(&self.cuboid.min), b.sup(&self.cuboid.max))
+    }
+
+    /// First intersection `t > 0` of the ray `o + t d` with the solid (camera outside it).
+    pub fn intersect(&self, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
+        // The first entry into a union of convex solids is the earliest entry into either.
+        let s = sphere_entry(&self.sphere_centre, self.sphere_radius, o, d);
+        let b = box_entry(&self.cuboid, o, d);
+        match (s, b) {
+            (Some(s), Some(b)) => Some(s.min(b)),
+            (s, b) => s.or(b),
+        }
+    }
+
+    /// The texture colour at a world point.
+    pub fn colour(&self, p: &Vector3<f64>) -> [u8; 3] {
+        let (x, y, z) = (p.x, p.y, p.z);
+        let s1 = (9.0 * x + 4.0 * z).sin();
+        let s2 = (11.0 * y - 5.0 * x + 2.0 * z).sin();
+        let s3 = (23.0 * (x + y + z)).sin();
+        let checker = ((5.0 * x).floor() + (5.0 * y).floor() + (5.0 * z).floor()).rem_euclid(2.0);
+        let r = 150.0 + 60.0 * s1 + 35.0 * s3;
+        let g = 140.0 + 55.0 * s2 + 45.0 * (2.0 * checker - 1.0);
+        let b = 140.0 + 50.0 * s1 * s2 + 55.0 * (1.0 - 2.0 * checker) * s3.signum();
+        [r, g, b].map(|c| c.clamp(60.0, 255.0).round() as u8)
+    }
+
+    /// Renders a view: colour (averaging `ss x ss` samples per pixel, black background) and the
+    /// object mask (hit at the pixel centre).
+    pub fn render(&self, cam: &Camera, w: u32, h: u32, ss: u32) -> (RgbImage, Mask) {
+        let ss = ss.max(1);
+        let o = cam.centre();
+        let rows: Vec<(Vec<[u8; 3]>, Vec<bool>)> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                let mut colours = Vec::with_capacity(w as usize);
+                let mut hits = Vec::with_capacity(w as usize);
+                for x in 0..w {
+                    let mut acc = [0.0f64; 3];
+                    for sy in 0..ss {
+                        for sx in 0..ss {
+                            let u = x as f64 - 0.5 + (sx as f64 + 0.5) / ss as f64;
+                            let v = y as f64 - 0.5 + (sy as f64 + 0.5) / ss as f64;
+                            let d = cam.ray(u, v);
+                            if let Some(t) = self.intersect(&o, &d) {
+                                let c = self.colour(&(o + d * t));
+                                for k in 0..3 {
+                                    acc[k] += c[k] as f64;
+                                }
+                            }
+                        }
+                    }
+                    let n = (ss * ss) as f64;
+                    colours.push(acc.map(|a| (a / n).round() as u8));
+                    hits.push(self.intersect(&o, &cam.ray(x as f64, y as f64)).is_some());
+                }
+                (colours, hits)
+            })
+            .collect();
+        let mut img = RgbImage::new(w, h);
+        let mut mask = Mask::new(w, h);
+        for (y, (cs, hs)) in rows.iter().enumerate() {
+            for x in 0..w as usize {
+                img.put_pixel(x as u32, y as u32, Rgb(cs[x]));
+                mask.set(x as u32, y as u32, hs[x]);
+            }
+        }
+        (img, mask)
+    }
+
+    /// `n` points on the true surface (deterministic for a `seed`), split between the sphere and
+    /// the box in proportion to their areas, keeping only points not inside the other solid.
+    pub fn surface_samples(&self, n: usize, seed: u64) -> Vec<Vector3<f64>> {
+        let mut rng = crate::rng::Rng::new(seed);
+        let e = self.cuboid.max - self.cuboid.min;
+        let faces = [
+            e.y * e.z,
+            e.y * e.z,
+            e.x * e.z,
+            e.x * e.z,
+            e.x * e.y,
+            e.x * e.y,
+        ];
+        let box_area: f64 = faces.iter().sum();
+        let sphere_area = 4.0 * std::f64::consts::PI * self.sphere_radius.powi(2);
+        let mut out = Vec::with_capacity(n);
+        while out.len() < n {
+            let p = if rng.f64() * (box_area + sphere_area) < sphere_area {
+                let z = rng.f64() * 2.0 - 1.0;
+                let phi = rng.f64() * std::f64::consts::TAU;
+                let s = (1.0 - z * z).sqrt();
+                let p = self.sphere_centre
+                    + Vector3::new(s * phi.cos(), s * phi.sin(), z) * self.sphere_radius;
+                if in_box_strict(&self.cuboid, &p) {
+                    continue;
+                }
+                p
+            } else {
+                let mut pick = rng.f64() * box_area;
+                let mut face = 0;
+                while face < 5 && pick > faces[face] {
+                    pick -= faces[face];
+                    face += 1;
+                }
+                let (a, b) = (rng.f64(), rng.f64());
+                let (lo, hi) = (self.cuboid.min, self.cuboid.max);
+                let p = match face / 2 {
+                    0 => Vector3::new(
+                        if face == 0 { lo.x } else { hi.x },
+                        lo.y + a * e.y,
+                        lo.z + b * e.z,
+                    ),
+                    1 => Vector3::new(
+                        lo.x + a * e.x,
+                        if face == 2 { lo.y } else { hi.y },
+                        lo.z + b * e.z,
+                    ),
+                    _ => Vector3::new(
+                        lo.x + a * e.x,
+                        lo.y + b * e.y,
+                        if face == 4 { lo.z } else { hi.z },
+                    ),
+                };
+                if (p - self.sphere_centre).norm() < self.sphere_radius {
+                    continue;
+                }
+                p
+            };
+            out.push(p);
+        }
+        out
+    }
+
+    /// Volume of the solid by the midpoint rule on an `n^3` grid over [`Self::bounds`].
+    pub fn volume(&self, n: usize) -> f64 {
+        let b = self.bounds();
+        let e = b.max - b.min;
+        let count: usize = (0..n)
+            .into_par_iter()
+            .map(|k| {
+                let mut c = 0;
+                for j in 0..n {
+                    for i in 0..n {
+                        let p = b.min
+                            + Vector3::new(
+                                (i as f64 + 0.5) * e.x,
+                                (j as f64 + 0.5) * e.y,
+                                (k as f64 + 0.5) * e.z,
+                            ) / n as f64;
+                        c += self.contains(&p) as usize;
+                    }
+                }
+                c
+            })
+            .sum();
+        count as f64 / (n * n * n) as f64 * e.x * e.y * e.z
+    }
+}
+
+fn in_box(b: &Aabb, p: &Vector3<f64>) -> bool {
+    (0..3).all(|i| p[i] >= b.min[i] && p[i] <= b.max[i])
+}
+
+fn in_box_strict(b: &Aabb, p: &Vector3<f64>) -> bool {
+    (0..3).all(|i| p[i] > b.min[i] && p[i] < b.max[i])
+}
+
+fn sphere_entry(c: &Vector3<f64>, r: f64, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
+    let oc = o - c;
+    let b = d.dot(&oc);
+    let disc = b * b - (oc.norm_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    (t > 0.0).then_some(t)
+}
+
+fn box_entry(bx: &Aabb, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
+    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+    for i in 0..3 {
+        if d[i].abs() < 1e-300 {
+            if o[i] < bx.min[i] || o[i] > bx.max[i] {
+                return None;
+            }
+            continue;
+        }
+        let (a, b) = ((bx.min[i] - o[i]) / d[i], (bx.max[i] - o[i]) / d[i]);
+        t0 = t0.max(a.min(b));
+        t1 = t1.min(a.max(b));
+    }
+    (t1 >= t0 && t0 > 0.0).then_some(t0)
+}
+
+/// How to photograph the synthetic object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthParams {
+    /// Cameras on the ring, evenly spaced from angle 0 (8, as in the paper).
+    pub n_views: usize,
+    /// Image width (400, as in the paper).
+    pub width: u32,
+    /// Image height (400).
+    pub height: u32,
+    /// Distance of the cameras from the object centre (3.0).
+    pub distance: f64,
+    /// Elevation of the ring above the object's equator, degrees (25).
+    pub elevation_deg: f64,
+    /// Focal length as a multiple of the image width (1.3: the object fills about 70 %).
+    pub focal_factor: f64,
+    /// Ring angles (degrees) of extra viewpoints with ground truth ([10, 22.5]).
+    pub extra_angles_deg: Vec<f64>,
+    /// Samples per pixel along each axis, for anti-aliasing (2).
+    pub supersample: u32,
+}
+
+impl Default for SynthParams {
+    fn default() -> Self {
+        Self {
+            n_views: 8,
+            width: 400,
+            height: 400,
+            distance: 3.0,
+            elevation_deg: 25.0,
+            focal_factor: 1.3,
+            extra_angles_deg: vec![10.0, 22.5],
+            supersample: 2,
+        }
+    }
+}
+
+/// Photos of the synthetic object with their cameras, masks and ground truth for extra views.
+#[derive(Debug, Clone)]
+pub struct SynthData {
+    /// The object.
+    pub object: SynthObject,
+    /// Reference cameras.
+    pub cameras: Vec<Camera>,
+    /// Reference photos.
+    pub photos: Vec<RgbImage>,
+    /// Exact object masks of the reference photos.
+    pub masks: Vec<Mask>,
+    /// Cameras of the extra viewpoints.
+    pub extra_cameras: Vec<Camera>,
+    /// Ground-truth photos of the extra viewpoints.
+    pub extra_truth: Vec<RgbImage>,
+    /// Exact object masks of the extra viewpoints.
+    pub extra_masks: Vec<Mask>,
+}
+
+/// The camera at `angle_deg` on the synthetic ring.
+pub fn ring_camera(p: &SynthParams, angle_deg: f64) -> Result<Camera> {
+    let f = p.focal_factor * p.width as f64;
+    let k = Matrix3::new(
+        f,
+        0.0,
+        (p.width as f64 - 1.0) / 2.0,
+        0.0,
+        f,
+        (p.height as f64 - 1.0) / 2.0,
+        0.0,
+        0.0,
+        1.0,
+    );
+    let (a, e) = (angle_deg.to_radians(), p.elevation_deg.to_radians());
+    let c = Vector3::new(a.cos() * e.cos(), a.sin() * e.cos(), e.sin()) * p.distance;
+    Camera::look_at(
+        format!("synth{angle_deg:.1}"),
+        k,
+        c,
+        Vector3::zeros(),
+        -Vector3::z(),
+    )
+}
+
+/// Ray casts the default [`SynthObject`] from `n_views` ring cameras and the extra viewpoints.
+pub fn generate(p: &SynthParams) -> Result<SynthData> {
+    if p.n_views == 0 {
+        return Err(Error::TooFew {
+            what: "synthetic views".into(),
+            got: 0,
+            need: 1,
+        });
+    }
+    if p.width == 0 || p.height == 0 {
+        return Err(Error::ImageTooSmall {
+            what: "synthetic view".into(),
+            w: p.width,
+            h: p.height,
+            need: 1,
+        });
+    }
+    let object = SynthObject::default();
+    let shoot = |angles: &[f64]| -> Result<(Vec<Camera>, Vec<RgbImage>, Vec<Mask>)> {
+        let mut out = (Vec::new(), Vec::new(), Vec::new());
+        for &a in angles {
+            let cam = ring_camera(p, a)?;
+            let (img, mask) = object.render(&cam, p.width, p.height, p.supersample);
+            out.0.push(cam);
+            out.1.push(img);
+            out.2.push(mask);
+        }
+        Ok(out)
+    };
+    let angles: Vec<f64> = (0..p.n_views)
+        .map(|i| 360.0 * i as f64 / p.n_views as f64)
+        .collect();
+    let (cameras, photos, masks) = shoot(&angles)?;
+    let (extra_cameras, extra_truth, extra_masks) = shoot(&p.extra_angles_deg)?;
+    Ok(SynthData {
+        object,
+        cameras,
+        photos,
+        masks,
+        extra_cameras,
+        extra_truth,
+        extra_masks,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rays_hit_what_contains_says() {
+        let obj = SynthObject::default();
+        let p = SynthParams {
+            width: 40,
+            height: 40,
+            ..Default::default()
+        };
+        let cam = ring_camera(&p, 30.0).unwrap();
+        for (u, v) in [(20.0, 20.0), (5.0, 20.0), (33.0, 12.0), (1.0, 1.0)] {
+            let d = cam.ray(u, v);
+            if let Some(t) = obj.intersect(&cam.centre(), &d) {
+                let q = cam.centre() + d * t;
+                assert!(
+                    obj.contains(&(q + d * 1e-6)) && !obj.contains(&(q - d * 1e-6)),
+                    "hit at {q} is not on the surface"
+                );
+            }
+        }
+        for s in obj.surface_samples(200, 1) {
+            let dirs: Vec<Vector3<f64>> = (0..27)
+                .filter(|&i| i != 13)
+                .map(|i| {
+                    Vector3::new(
+                        (i % 3) as f64 - 1.0,
+                        (i / 3 % 3) as f64 - 1.0,
+                        (i / 9) as f64 - 1.0,
+                    )
+                })
+                .collect();
+            let near_surface = dirs.iter().any(|d| obj.contains(&(s + d * 1e-6)))
+                && dirs.iter().any(|d| !obj.contains(&(s + d * 1e-6)));
+            assert!(near_surface, "{s} is not on the surface");
+        }
+    }
+}
