@@ -20,5 +20,45 @@ pub use camera::Camera;
 pub use error::{Error, Result};
 pub use hull::{visual_hull, Aabb, HullParams, VoxelGrid};
 pub use silhouette::Mask;
+pub mod photo;
+pub mod render;
 pub mod rng;
 pub mod synth;
+
+pub use photo::{photo_hull, PhotoParams, SurfaceVoxel, VoxelModel};
+pub use render::{render_rough, Rendered};
+
+/// Builds the coloured voxel model: visual hull (SPEC B.1) then photo hull and colours (B.2,
+/// B.3). `progress(stage, done, total)` reports the stages.
+pub fn build_model(
+    cams: &[Camera],
+    images: &[image::RgbImage],
+    silhouettes: &[Mask],
+    hull: &HullParams,
+    photo: &PhotoParams,
+    progress: &mut dyn FnMut(&str, u64, u64),
+) -> Result<VoxelModel> {
+    if cams.len() != images.len() {
+        return Err(Error::CountMismatch {
+            what: "cameras vs images".into(),
+            a: cams.len(),
+            b: images.len(),
+        });
+    }
+    for (i, (img, m)) in images.iter().zip(silhouettes).enumerate() {
+        if img.dimensions() != (m.width(), m.height()) {
+            return Err(Error::SizeMismatch {
+                what: format!("silhouette of view {i} vs its image"),
+                expected_w: img.width(),
+                expected_h: img.height(),
+                got_w: m.width(),
+                got_h: m.height(),
+            });
+        }
+    }
+    progress("visual hull", 0, 1);
+    let grid = visual_hull(cams, silhouettes, hull)?;
+    progress("visual hull", 1, 1);
+    photo_hull(grid, cams, images, photo, progress)
+}
+pub mod eval;
