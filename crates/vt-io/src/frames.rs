@@ -250,3 +250,15 @@ impl FrameSource for FolderSource {
         Ok(n)
     }
 }
+
+/// Writes an RGB image as PNG with fast compression (frames are noisy; strong compression buys
+/// little and costs much), naming the file in errors.
+pub fn write_png(path: &Path, img: &RgbImage) -> Result<()> {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    use image::ImageEncoder;
+    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    let w = std::io::BufWriter::new(file);
+    PngEncoder::new_with_quality(w, CompressionType::Fast, FilterType::Adaptive)
+        .write_image(img.as_raw(), img.width(), img.height(), image::ExtendedColorType::Rgb8)
+        .map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
+}

@@ -220,9 +220,11 @@ impl TextureScene {
     }
 
     /// Object pose at a phase (fraction of a period): centre offset and rotation on its plane.
+    /// The swing (0.55) exceeds the half-width (0.3), so every pixel shows the background most
+    /// of the time, as the median background of A-1 assumes.
     fn pose(&self, phase: f64) -> (f64, f64, f64) {
         let a = phase * std::f64::consts::TAU;
-        (0.28 * a.sin(), 0.1 * (2.0 * a).sin() + 0.04 * a.cos(), 0.3 * (a + 0.5).sin())
+        (0.55 * a.sin(), 0.12 * (2.0 * a).sin() + 0.05 * a.cos(), 0.35 * (a + 0.5).sin())
     }
 
     /// Colour along a ray from `origin`, with the object at `phase` (fraction of a period).
@@ -237,7 +239,7 @@ impl TextureScene {
         let (px, py) = at_depth(OBJECT_DEPTH);
         let (dx, dy) = (px - ox, py - oy);
         let (u, v) = (dx * rot.cos() + dy * rot.sin(), -dx * rot.sin() + dy * rot.cos());
-        let e = (u / 0.42).powi(2) + (v / 0.27).powi(2);
+        let e = (u / 0.3).powi(2) + (v / 0.2).powi(2);
         if e < 1.0 {
             let vein = 0.5 + 0.5 * (u * 38.0).sin() * (v * 20.0).cos();
             let spots = value_noise(seed ^ 7, u * 9.0, v * 9.0);

@@ -1,0 +1,241 @@
+//! `vt analyze`: videos (or frame folders) + points -> scene directory.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use vt_core::analysis::{analyze, AnalyzeParams, MaskParams, SceneAnalysis, Timings};
+use vt_core::blur::GaussianParams;
+use vt_core::loops::LoopParams;
+use vt_core::model::{ModelParams, MotionModel};
+use vt_io::atomic::AtomicDir;
+use vt_io::frames::{write_png, ViewSource};
+use vt_io::scene::{background_name, SceneFile};
+
+use crate::progress::AnalysisObserver;
+
+#[derive(Args)]
+pub struct AnalyzeArgs {
+    /// One video (mp4/avi/mov/mkv) or folder of PNG/JPG frames per view, in camera order.
+    #[arg(required = true)]
+    views: Vec<PathBuf>,
+    /// Points file: one line per view with the same K >= 4 points as x y pairs (needed for 2+ views).
+    #[arg(long)]
+    points: Option<PathBuf>,
+    /// Output scene directory (written atomically; an existing one is replaced only on success).
+    #[arg(long)]
+    out: PathBuf,
+    /// Window w of eq. (1) and (2) (thesis: 3).
+    #[arg(long, default_value_t = 3)]
+    window: usize,
+    /// Minimum loop length k of eq. (1) (thesis: 100).
+    #[arg(long, default_value_t = 100)]
+    min_length: usize,
+    /// Background-subtraction threshold, grey levels: moving if max over RGB |frame - bg| > T.
+    #[arg(long, default_value_t = 25)]
+    threshold: u8,
+    /// Gaussian kernel size (odd; thesis: 3).
+    #[arg(long, default_value_t = 3)]
+    blur_size: usize,
+    /// Gaussian sigma (<= 0: derived from the size as OpenCV does).
+    #[arg(long, default_value_t = 0.0)]
+    blur_sigma: f64,
+    /// Mask opening radius in pixels (0 = off, as in the thesis).
+    #[arg(long, default_value_t = 0)]
+    open: u32,
+    /// Mask closing radius in pixels (0 = off, as in the thesis).
+    #[arg(long, default_value_t = 0)]
+    close: u32,
+    /// Geometric model between views: auto (simplest that explains the points, by GRIC),
+    /// translation, similarity, affine or homography.
+    #[arg(long, default_value = "auto")]
+    model: String,
+    /// Marking noise of the points, pixels (GRIC's sigma).
+    #[arg(long, default_value_t = 1.0)]
+    point_sigma: f64,
+    /// Keep a view's frames in memory between the two passes when they fit in this many MiB.
+    #[arg(long, default_value_t = 768)]
+    cache_mb: usize,
+}
+
+impl AnalyzeArgs {
+    /// Arguments for `vt demo`: defaults, with k scaled to the demo's length.
+    pub fn for_demo(views: Vec<PathBuf>, points: PathBuf, out: PathBuf, frames: usize) -> Self {
+        Self {
+            views,
+            points: Some(points),
+            out,
+            window: 3,
+            min_length: (frames / 2).clamp(4, 100),
+            threshold: 25,
+            blur_size: 3,
+            blur_sigma: 0.0,
+            open: 0,
+            close: 0,
+            model: "auto".into(),
+            point_sigma: 1.0,
+            cache_mb: 768,
+        }
+    }
+
+    fn params(&self) -> Result<AnalyzeParams> {
+        let force = match self.model.as_str() {
+            "auto" => None,
+            m => Some(m.parse::<MotionModel>().map_err(|_| {
+                anyhow::anyhow!("--model '{m}' is not auto, translation, similarity, affine or homography")
+            })?),
+        };
+        if !(self.point_sigma.is_finite() && self.point_sigma > 0.0) {
+            bail!("--point-sigma {} must be a positive number of pixels", self.point_sigma);
+        }
+        if self.blur_size % 2 == 0 {
+            bail!("--blur-size {} must be odd", self.blur_size);
+        }
+        if self.window == 0 || self.min_length == 0 {
+            bail!("--window ({}) and --min-length ({}) must be at least 1", self.window, self.min_length);
+        }
+        Ok(AnalyzeParams {
+            blur: GaussianParams { ksize: self.blur_size, sigma: self.blur_sigma },
+            mask: MaskParams { threshold: self.threshold, open_radius: self.open, close_radius: self.close },
+            loops: LoopParams { window: self.window, min_length: self.min_length },
+            model: ModelParams { sigma: self.point_sigma, force },
+            cache_bytes: self.cache_mb << 20,
+        })
+    }
+}
+
+/// What `run` returns, for the demo's truth check.
+pub struct AnalyzeResult {
+    pub scene: SceneFile,
+}
+
+pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
+    let params = args.params()?;
+    let m = args.views.len();
+    let points = match &args.points {
+        Some(p) => {
+            let pts = vt_io::points::read_points(p)?;
+            if pts.len() != m {
+                bail!("{}: {} lines of points, but {} views were given (one line per view)", p.display(), pts.len(), m);
+            }
+            pts
+        }
+        None if m > 1 => bail!("--points is required with {m} views (the homographies between views come from them)"),
+        None => Vec::new(),
+    };
+    let mut sources: Vec<ViewSource> = args
+        .views
+        .iter()
+        .enumerate()
+        .map(|(p, path)| ViewSource::open(path).with_context(|| format!("view {p}")))
+        .collect::<Result<_>>()?;
+    let started = Instant::now();
+    let dir = AtomicDir::create(&args.out)?;
+    let mut observer = AnalysisObserver::new(dir.path().to_path_buf());
+    let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> = sources.iter_mut().map(|s| s.as_source()).collect();
+    let analysis = analyze(&mut refs, &points, &params, &mut observer);
+    vt_core::analysis::Observer::finish(&mut observer);
+    let analysis = analysis?;
+    observer.finish_objects()?;
+    for (p, v) in analysis.views.iter().enumerate() {
+        write_png(&dir.path().join(background_name(p)), &v.background)?;
+    }
+    let scene = SceneFile::from_analysis(&analysis, &points, &params);
+    scene.write(dir.path())?;
+    dir.commit()?;
+    print_summary(&analysis, &scene, started.elapsed().as_secs_f64());
+    println!("scene: {}", args.out.display());
+    Ok(AnalyzeResult { scene })
+}
+
+fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
+    println!("{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>7}  {:>9}  {:>8}", "view", "frames", "loop (m, n)", "length", "cost", "moving", "model", "rms px");
+    let model = a.model().map(|m| m.name()).unwrap_or("-");
+    for (p, v) in a.views.iter().enumerate() {
+        let rms = scene.views[p].to_next.as_ref().map(|l| format!("{:.3}", l.rms)).unwrap_or_else(|| "-".into());
+        println!(
+            "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>6.1}%  {:>9}  {:>8}",
+            p,
+            v.n_frames,
+            format!("({}, {})", v.best_loop.start, v.best_loop.end),
+            v.best_loop.len(),
+            v.best_loop.cost,
+            100.0 * v.moving_fraction,
+            if p + 1 < a.views.len() { model } else { "-" },
+            rms
+        );
+    }
+    if let Some(sel) = &a.selection {
+        let scores: Vec<String> = sel.scores.iter().map(|(m, s)| format!("{m} {s:.1}")).collect();
+        println!("model: {}{} (GRIC: {})", sel.model, if sel.forced { ", forced" } else { "" }, scores.join(", "));
+    }
+    let Timings { decode, median, masks, loops, homographies, transitions } = a.timings;
+    println!(
+        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2})",
+        decode.as_secs_f64(),
+        median.as_secs_f64(),
+        masks.as_secs_f64(),
+        loops.as_secs_f64(),
+        homographies.as_secs_f64(),
+        transitions.as_secs_f64()
+    );
+}
+
+/// Compares a scene with the truth of a synthetic texture scene; returns a printable report and
+/// fails when a check fails.
+pub fn check_against_truth(_scene_dir: &Path, truth_path: &Path, result: &AnalyzeResult) -> Result<String> {
+    let truth: crate::synth::TextureTruth =
+        serde_json::from_str(&std::fs::read_to_string(truth_path).with_context(|| truth_path.display().to_string())?)
+            .with_context(|| truth_path.display().to_string())?;
+    let period = truth.period;
+    let phase = |p: usize, s: usize| (s as i64 - truth.phase[p] as i64).rem_euclid(period as i64) as usize;
+    let circ = |a: usize, b: usize| {
+        let d = a.abs_diff(b) % period;
+        d.min(period - d)
+    };
+    let mut lines = vec!["truth check (synthetic scene):".to_string()];
+    let mut ok = true;
+    let w = result.scene.params.loops.window;
+    for (p, v) in result.scene.views.iter().enumerate() {
+        let len = v.loop_.end - v.loop_.start;
+        let off = circ(len % period, 0);
+        ok &= off <= 1;
+        let mut worst = 0;
+        for (side, table, q) in [("next", &v.transitions.next, p + 1), ("prev", &v.transitions.prev, p.wrapping_sub(1))] {
+            if q >= result.scene.views.len() {
+                continue;
+            }
+            for (s, t) in table.iter().enumerate().take(v.frames + 1 - w) {
+                let t = t.with_context(|| format!("view {p} {side} transition of frame {s} missing"))?;
+                worst = worst.max(circ(phase(p, s), phase(q, t)));
+            }
+        }
+        ok &= worst <= 1;
+        lines.push(format!(
+            "  view {p}: loop length {len} = {:.2} periods (off by {off} frame(s)); worst transition phase error {worst} frame(s)",
+            len as f64 / period as f64
+        ));
+    }
+    for (p, th) in truth.homographies_next.iter().enumerate() {
+        let Some(link) = &result.scene.views[p].to_next else { continue };
+        let h = link.homography()?;
+        let t = vt_core::Homography::from_matrix(nalgebra::Matrix3::from_row_slice(&th.concat()))?;
+        let (w, hh) = (result.scene.width as f64, result.scene.height as f64);
+        let err = [(0.0, 0.0), (w, 0.0), (0.0, hh), (w, hh)]
+            .iter()
+            .map(|&(x, y)| {
+                let pt = vt_core::Point::new(x, y);
+                (h.apply(pt).expect("finite") - t.apply(pt).expect("finite")).norm()
+            })
+            .fold(0.0, f64::max);
+        ok &= err < 0.5;
+        lines.push(format!("  H({p},{}) corner error vs truth: {err:.4} px", p + 1));
+    }
+    lines.push(format!("  result: {}", if ok { "PASS" } else { "FAIL" }));
+    let report = lines.join("\n");
+    if !ok {
+        bail!("the analysis does not match the synthetic truth:\n{report}");
+    }
+    Ok(report)
+}

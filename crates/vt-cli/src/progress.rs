@@ -1,0 +1,94 @@
+//! Progress bars (to stderr, hidden when stderr is not a terminal) and the analysis observer
+//! that also streams each view's moving-object store to disk.
+
+use std::path::PathBuf;
+
+use image::RgbImage;
+use indicatif::{ProgressBar, ProgressStyle};
+use vt_core::analysis::{Observer, Stage};
+use vt_core::Mask;
+use vt_io::objects::ObjectWriter;
+
+/// A bar with a message, or a spinner when the total is unknown.
+pub fn bar(total: u64, msg: &str) -> ProgressBar {
+    let pb = ProgressBar::new(total);
+    pb.set_style(
+        ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    pb.set_message(msg.to_string());
+    pb
+}
+
+fn spinner(msg: &str) -> ProgressBar {
+    let pb = ProgressBar::new_spinner();
+    pb.set_style(ProgressStyle::with_template("{msg:>24} {spinner} {pos} {elapsed_precise}").expect("static template"));
+    pb.set_message(msg.to_string());
+    pb
+}
+
+/// Progress bars per stage, and object stores written as masks arrive.
+pub struct AnalysisObserver {
+    dir: PathBuf,
+    current: Option<ProgressBar>,
+    writer: Option<(usize, ObjectWriter)>,
+}
+
+impl AnalysisObserver {
+    /// Writes object stores into `dir` (the scene's temporary directory).
+    pub fn new(dir: PathBuf) -> Self {
+        Self { dir, current: None, writer: None }
+    }
+
+    /// Closes the last object store.
+    pub fn finish_objects(&mut self) -> vt_core::Result<()> {
+        if let Some((p, w)) = self.writer.take() {
+            w.finish().map_err(|e| vt_core::Error::Source { view: format!("view {p}"), message: e.to_string() })?;
+        }
+        Ok(())
+    }
+}
+
+impl Observer for AnalysisObserver {
+    fn start(&mut self, stage: Stage, view: Option<usize>, total: Option<u64>) {
+        let name = match stage {
+            Stage::Background => "decode + median",
+            Stage::Masks => "masks",
+            Stage::Loop => "loop search",
+            Stage::Homographies => "model + homographies",
+            Stage::Transitions => "transitions",
+        };
+        let msg = match view {
+            Some(p) => format!("view {p}: {name}"),
+            None => name.to_string(),
+        };
+        self.current = Some(match total {
+            Some(t) => bar(t, &msg),
+            None => spinner(&msg),
+        });
+    }
+
+    fn tick(&mut self) {
+        if let Some(pb) = &self.current {
+            pb.inc(1);
+        }
+    }
+
+    fn finish(&mut self) {
+        if let Some(pb) = self.current.take() {
+            pb.finish_and_clear();
+        }
+    }
+
+    fn object_frame(&mut self, view: usize, _frame: usize, mask: &Mask, raw: &RgbImage) -> vt_core::Result<()> {
+        let to_core = |e: vt_io::Error| vt_core::Error::Source { view: format!("view {view}"), message: e.to_string() };
+        if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
+            self.finish_objects()?;
+            let path = self.dir.join(vt_io::scene::objects_name(view));
+            self.writer = Some((view, ObjectWriter::create(&path, raw.width(), raw.height()).map_err(to_core)?));
+        }
+        let (_, w) = self.writer.as_mut().expect("set above");
+        w.push(mask, raw).map_err(to_core)
+    }
+}

@@ -1,0 +1,185 @@
+//! `vt synth ...`: write synthetic scenes with their truth.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use vt_io::atomic::AtomicDir;
+use vt_io::frames::write_png;
+use vt_synth::{Rig, TextureParams, TextureScene};
+
+use crate::progress::bar;
+
+#[derive(Subcommand)]
+pub enum SynthCommand {
+    /// System A test scene: M cameras on a line filming a swaying planar object, asynchronously.
+    Textures(TexturesArgs),
+}
+
+#[derive(Args)]
+pub struct TexturesArgs {
+    /// Output directory (replaced atomically).
+    #[arg(long)]
+    out: PathBuf,
+    /// Number of views M.
+    #[arg(long, default_value_t = 3)]
+    views: usize,
+    /// Frames per view.
+    #[arg(long, default_value_t = 150)]
+    frames: usize,
+    /// Frame size, WxH.
+    #[arg(long, default_value = "320x180", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Motion period in frames.
+    #[arg(long, default_value_t = 24)]
+    period: usize,
+    /// Random seed (same seed, same bytes).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Camera rig: parallel (views differ by a translation) or converging (a homography).
+    #[arg(long, default_value = "parallel", value_parser = parse_rig)]
+    rig: Rig,
+    /// Put the background on the object's plane, so one homography explains the whole scene.
+    #[arg(long)]
+    planar: bool,
+    /// Sensor noise, grey levels.
+    #[arg(long, default_value_t = 2.0)]
+    noise: f64,
+}
+
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("size '{s}' is not WxH (e.g. 320x180)"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("width '{w}' is not a whole number"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("height '{h}' is not a whole number"))?;
+    if w < 8 || h < 8 || w > 16384 || h > 16384 {
+        return Err(format!("size {w}x{h} is out of range (8 to 16384 per side)"));
+    }
+    Ok((w, h))
+}
+
+fn parse_rig(s: &str) -> Result<Rig, String> {
+    match s {
+        "parallel" => Ok(Rig::Parallel),
+        "converging" => Ok(Rig::Converging),
+        _ => Err(format!("rig '{s}' is not parallel or converging")),
+    }
+}
+
+pub fn run(cmd: SynthCommand) -> Result<()> {
+    match cmd {
+        SynthCommand::Textures(a) => {
+            let params = TextureParams {
+                views: a.views,
+                frames: a.frames,
+                width: a.size.0,
+                height: a.size.1,
+                period: a.period,
+                seed: a.seed,
+                rig: a.rig,
+                planar: a.planar,
+                noise: a.noise,
+                ..Default::default()
+            };
+            write_textures(&a.out, &params)?;
+            println!("wrote {} views x {} frames to {}", a.views, a.frames, a.out.display());
+            Ok(())
+        }
+    }
+}
+
+/// Folder name of view p's frames.
+pub fn view_dir(p: usize) -> String {
+    format!("view_{p:02}")
+}
+
+/// truth.json of a texture scene.
+#[derive(Serialize, Deserialize)]
+pub struct TextureTruth {
+    /// "vt-synth-textures".
+    pub format: String,
+    /// 1.
+    pub version: u32,
+    /// The generator's parameters.
+    pub params: TextureParams,
+    /// Motion period, frames.
+    pub period: usize,
+    /// Per view: the frame where the motion is at phase 0; frame s of view p has phase
+    /// `(s - phase[p]) mod period`.
+    pub phase: Vec<usize>,
+    /// Per view exposure gain.
+    pub gains: Vec<f64>,
+    /// `H_(p,p+1)` of the object plane, row-major, for p = 0..M-2.
+    pub homographies_next: Vec<[[f64; 3]; 3]>,
+    /// Ground-truth renders of intermediate viewpoints (noise-free, gain 1).
+    pub renders: Vec<TruthRender>,
+}
+
+/// One ground-truth render.
+#[derive(Serialize, Deserialize)]
+pub struct TruthRender {
+    /// Viewpoint in [0, M-1].
+    pub q: f64,
+    /// Motion phase, frames.
+    pub phase: usize,
+    /// File, relative to the scene directory.
+    pub file: String,
+}
+
+/// Writes frames, points.txt and truth.json of a texture scene into `out`, atomically.
+pub fn write_textures(out: &Path, params: &TextureParams) -> Result<()> {
+    let scene = TextureScene::new(*params).map_err(|e| anyhow::anyhow!(e))?;
+    if params.frames > 100_000 {
+        bail!("--frames {} is too many (at most 100000)", params.frames);
+    }
+    let dir = AtomicDir::create(out)?;
+    let root = dir.path().to_path_buf();
+    let pb = bar((params.views * params.frames) as u64, "synth frames");
+    for p in 0..params.views {
+        let vdir = root.join(view_dir(p));
+        std::fs::create_dir(&vdir).with_context(|| vdir.display().to_string())?;
+        (0..params.frames).into_par_iter().try_for_each(|s| {
+            write_png(&vdir.join(format!("frame_{s:05}.png")), &scene.frame(p, s))?;
+            pb.inc(1);
+            anyhow::Ok(())
+        })?;
+    }
+    pb.finish_and_clear();
+    let points: Vec<Vec<vt_core::Point>> =
+        (0..params.views).map(|p| scene.points(p).into_iter().map(|(x, y)| vt_core::Point::new(x, y)).collect()).collect();
+    std::fs::write(root.join("points.txt"), vt_io::points::format_points(&points)).context("points.txt")?;
+
+    let tdir = root.join("truth");
+    std::fs::create_dir(&tdir).context("truth/")?;
+    // Truth at half-view steps, at two phases, so renders can be checked at and between views.
+    let m = params.views;
+    let qs: Vec<f64> = (0..(2 * m - 1).max(1)).map(|i| i as f64 * 0.5).collect();
+    let mut renders = Vec::new();
+    for &q in &qs {
+        for phase in [0, params.period / 3] {
+            let file = format!("truth/q{q:05.2}_phase{phase:03}.png");
+            write_png(&root.join(&file), &scene.truth(q, phase))?;
+            renders.push(TruthRender { q, phase, file });
+        }
+    }
+    let homographies_next = (0..m.saturating_sub(1))
+        .map(|p| {
+            let h = scene.plane_homography(p as f64, p as f64 + 1.0);
+            [[h[(0, 0)], h[(0, 1)], h[(0, 2)]], [h[(1, 0)], h[(1, 1)], h[(1, 2)]], [h[(2, 0)], h[(2, 1)], h[(2, 2)]]]
+        })
+        .collect();
+    let truth = TextureTruth {
+        format: "vt-synth-textures".into(),
+        version: 1,
+        params: *params,
+        period: params.period,
+        phase: scene.phase_offsets().to_vec(),
+        gains: scene.gains().to_vec(),
+        homographies_next,
+        renders,
+    };
+    std::fs::write(root.join("truth.json"), serde_json::to_string_pretty(&truth)?).context("truth.json")?;
+    dir.commit()?;
+    Ok(())
+}
