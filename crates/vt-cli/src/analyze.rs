@@ -130,6 +130,20 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
         .enumerate()
         .map(|(p, path)| ViewSource::open(path).with_context(|| format!("view {p}")))
         .collect::<Result<_>>()?;
+    // Sizes are known before decoding: refuse mismatched views before any work.
+    let first = sources[0].size();
+    if let Some((p, src)) = sources.iter().enumerate().find(|(_, s)| s.size() != first) {
+        let size = src.size();
+        bail!(
+            "views have different sizes: view 0 ({}) is {}x{}, view {p} ({}) is {}x{}",
+            args.views[0].display(),
+            first.0,
+            first.1,
+            args.views[p].display(),
+            size.0,
+            size.1
+        );
+    }
     let started = Instant::now();
     let dir = AtomicDir::create(&args.out)?;
     let mut observer = AnalysisObserver::new(dir.path().to_path_buf());

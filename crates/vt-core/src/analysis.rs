@@ -255,16 +255,8 @@ pub fn analyze(
         }
     }
     let mut timings = Timings::default();
-    let mut views = Vec::with_capacity(m);
-    let mut size: Option<(u32, u32)> = None;
-    for (p, src) in sources.iter_mut().enumerate() {
-        let v = analyze_view(p, &mut **src, params, &mut size, observer, &mut timings)?;
-        views.push(v);
-    }
-    let (width, height) = size.expect("every view has at least one frame");
-
+    // The points are cheap to check: select the model and fit homographies before any decoding.
     let mut selection = None;
-    let mut links = Vec::new();
     if m > 1 {
         let t0 = Instant::now();
         observer.start(Stage::Homographies, None, Some((m - 1) as u64));
@@ -276,7 +268,19 @@ pub fn analyze(
         })?;
         observer.finish();
         timings.homographies += t0.elapsed();
+        selection = Some(sel);
+    }
 
+    let mut views = Vec::with_capacity(m);
+    let mut size: Option<(u32, u32)> = None;
+    for (p, src) in sources.iter_mut().enumerate() {
+        let v = analyze_view(p, &mut **src, params, &mut size, observer, &mut timings)?;
+        views.push(v);
+    }
+    let (width, height) = size.expect("every view has at least one frame");
+
+    let mut links = Vec::new();
+    if let Some(sel) = &selection {
         let t0 = Instant::now();
         observer.start(Stage::Transitions, None, Some(2 * (m - 1) as u64));
         for p in 0..m - 1 {
@@ -290,7 +294,6 @@ pub fn analyze(
         }
         observer.finish();
         timings.transitions += t0.elapsed();
-        selection = Some(sel);
     }
     Ok(SceneAnalysis { width, height, views, selection, links, timings })
 }

@@ -212,6 +212,15 @@ pub struct Selection {
 /// Models that cannot be fitted (e.g. too few points) are skipped; if none fits, the error of the
 /// simplest is returned.
 pub fn select_model(pairs: &[(&[Point], &[Point])], params: &ModelParams) -> Result<Selection> {
+    // Marked points must pin down the most general model whatever is chosen: at least 4 pairs,
+    // finite, distinct, not all on one line. A simpler model is a finding, not an excuse.
+    for (i, (s, d)) in pairs.iter().enumerate() {
+        check_points(s, d, 4, "the marked points").map_err(|e| match e {
+            Error::DegeneratePoints(m) => Error::DegeneratePoints(format!("views {i} and {}: {m}", i + 1)),
+            Error::NonFinite(m) => Error::NonFinite(format!("views {i} and {}: {m}", i + 1)),
+            other => other,
+        })?;
+    }
     let candidates: Vec<MotionModel> = match params.force {
         Some(m) => vec![m],
         None => MotionModel::ALL.to_vec(),

@@ -62,3 +62,9 @@ pub fn build_model(
     photo_hull(grid, cams, images, photo, progress)
 }
 pub mod eval;
+pub mod patchmatch;
+pub mod synthesis;
+pub mod pipeline;
+
+pub use pipeline::{leave_one_out, novel_view, EvalReport, NovelView};
+pub use synthesis::{guided_synthesis, SynthParams};
