@@ -150,7 +150,12 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
     let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> = sources.iter_mut().map(|s| s.as_source()).collect();
     let analysis = analyze(&mut refs, &points, &params, &mut observer);
     vt_core::analysis::Observer::finish(&mut observer);
-    let analysis = analysis?;
+    let analysis = analysis.map_err(|e| match (&e, &args.points) {
+        (vt_core::Error::DegeneratePoints(_) | vt_core::Error::NonFinite(_), Some(p)) => {
+            anyhow::anyhow!("{}: {e}", p.display())
+        }
+        _ => e.into(),
+    })?;
     observer.finish_objects()?;
     for (p, v) in analysis.views.iter().enumerate() {
         write_png(&dir.path().join(background_name(p)), &v.background)?;

@@ -254,7 +254,7 @@ fn bad_input_gives_one_clear_line_and_leaves_no_scene() {
         (vec![v0, other.views[0].as_str(), "--points", s(&points)], vec!["different sizes", "64x40", "48x40"]),
         (vec![v0, v1, "--points", s(&points), "--min-length", "40"], vec!["view 0", "30 frames", "43"]),
         (vec![v0, v1, "--points", s(&three)], vec!["three.txt:1", "3 points"]),
-        (vec![v0, v1, "--points", s(&collinear)], vec!["points", "one line"]),
+        (vec![v0, v1, "--points", s(&collinear)], vec!["line.txt", "view 0", "one line"]),
         (vec![v0, v1, "--points", s(&nan)], vec!["nan.txt:2", "'nan'"]),
         (vec![s(&garbage), "--min-length", "5"], vec!["garbage.mp4", "not a readable video"]),
         (vec![s(&truncated), "--min-length", "5"], vec!["truncated.avi", "truncated"]),

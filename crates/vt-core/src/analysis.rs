@@ -262,10 +262,7 @@ pub fn analyze(
         observer.start(Stage::Homographies, None, Some((m - 1) as u64));
         let pairs: Vec<(&[Point], &[Point])> =
             (0..m - 1).map(|p| (points[p].as_slice(), points[p + 1].as_slice())).collect();
-        let sel = select_model(&pairs, &params.model).map_err(|e| match e {
-            Error::DegeneratePoints(msg) => Error::DegeneratePoints(format!("points: {msg}")),
-            other => other,
-        })?;
+        let sel = select_model(&pairs, &params.model)?;
         observer.finish();
         timings.homographies += t0.elapsed();
         selection = Some(sel);

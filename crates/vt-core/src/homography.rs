@@ -141,20 +141,27 @@ pub struct HomographyFit {
 /// Checks shared by every estimator: same count, at least `min` points, all finite,
 /// no duplicates, not all on one line (in either image).
 pub(crate) fn check_points(src: &[Point], dst: &[Point], min: usize, what: &str) -> Result<()> {
+    check_named_points(src, dst, min, what, ("source", "destination"))
+}
+
+/// [`check_points`] with the two sides named in messages (e.g. "view 0", "view 1").
+pub(crate) fn check_named_points(src: &[Point], dst: &[Point], min: usize, what: &str, names: (&str, &str)) -> Result<()> {
     if src.len() != dst.len() {
         return Err(Error::DegeneratePoints(format!(
-            "{} source points but {} destination points",
+            "{} {} points but {} {} points",
             src.len(),
-            dst.len()
+            names.0,
+            dst.len(),
+            names.1
         )));
     }
     if src.len() < min {
         return Err(Error::DegeneratePoints(format!("{what} needs at least {min} point pairs, got {}", src.len())));
     }
-    for (side, pts) in [("source", src), ("destination", dst)] {
+    for (side, pts) in [(names.0, src), (names.1, dst)] {
         for (i, p) in pts.iter().enumerate() {
             if !p.x.is_finite() || !p.y.is_finite() {
-                return Err(Error::NonFinite(format!("{side} point {i} ({}, {})", p.x, p.y)));
+                return Err(Error::NonFinite(format!("{side}: point {i} ({}, {})", p.x, p.y)));
             }
         }
         let spread = spread(pts);
@@ -162,14 +169,14 @@ pub(crate) fn check_points(src: &[Point], dst: &[Point], min: usize, what: &str)
             for j in i + 1..pts.len() {
                 if (pts[i] - pts[j]).norm() <= 1e-9 * spread.max(1e-300) {
                     return Err(Error::DegeneratePoints(format!(
-                        "{side} points {i} and {j} coincide at ({}, {})",
+                        "{side}: points {i} and {j} coincide at ({}, {})",
                         pts[i].x, pts[i].y
                     )));
                 }
             }
         }
         if min >= 3 && collinear(pts) {
-            return Err(Error::DegeneratePoints(format!("all {side} points lie on one line")));
+            return Err(Error::DegeneratePoints(format!("{side}: all points lie on one line")));
         }
     }
     Ok(())

@@ -21,7 +21,7 @@
 use nalgebra::{Matrix3, Matrix4, Matrix6, Vector4, Vector6};
 use serde::{Deserialize, Serialize};
 
-use crate::homography::{check_points, Homography, Point};
+use crate::homography::{check_named_points, check_points, Homography, Point};
 use crate::{Error, Result};
 
 /// The geometric models, simplest first.
@@ -215,11 +215,8 @@ pub fn select_model(pairs: &[(&[Point], &[Point])], params: &ModelParams) -> Res
     // Marked points must pin down the most general model whatever is chosen: at least 4 pairs,
     // finite, distinct, not all on one line. A simpler model is a finding, not an excuse.
     for (i, (s, d)) in pairs.iter().enumerate() {
-        check_points(s, d, 4, "the marked points").map_err(|e| match e {
-            Error::DegeneratePoints(m) => Error::DegeneratePoints(format!("views {i} and {}: {m}", i + 1)),
-            Error::NonFinite(m) => Error::NonFinite(format!("views {i} and {}: {m}", i + 1)),
-            other => other,
-        })?;
+        let names = (format!("view {i}"), format!("view {}", i + 1));
+        check_named_points(s, d, 4, "the marked points", (&names.0, &names.1))?;
     }
     let candidates: Vec<MotionModel> = match params.force {
         Some(m) => vec![m],

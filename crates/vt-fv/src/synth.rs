@@ -67,10 +67,10 @@ impl SynthObject {
     /// The texture colour at a world point.
     pub fn colour(&self, p: &Vector3<f64>) -> [u8; 3] {
         let (x, y, z) = (p.x, p.y, p.z);
-        let s1 = (9.0 * x + 4.0 * z).sin();
-        let s2 = (11.0 * y - 5.0 * x + 2.0 * z).sin();
-        let s3 = (23.0 * (x + y + z)).sin();
-        let checker = ((5.0 * x).floor() + (5.0 * y).floor() + (5.0 * z).floor()).rem_euclid(2.0);
+        let s1 = (5.0 * x + 2.0 * z).sin();
+        let s2 = (6.0 * y - 3.0 * x + z).sin();
+        let s3 = (11.0 * (x + y + z)).sin();
+        let checker = ((3.0 * x).floor() + (3.0 * y).floor() + (3.0 * z).floor()).rem_euclid(2.0);
         let r = 150.0 + 60.0 * s1 + 35.0 * s3;
         let g = 140.0 + 55.0 * s2 + 45.0 * (2.0 * checker - 1.0);
         let b = 140.0 + 50.0 * s1 * s2 + 55.0 * (1.0 - 2.0 * checker) * s3.signum();
