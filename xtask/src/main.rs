@@ -1,1 +1,68 @@
-fn main() {}
+//! `cargo xtask`: project chores (lint, benchmarks, the OpenCV cross-check), in Rust so they run
+//! wherever cargo does. Few dependencies, so it compiles in seconds.
+
+use std::process::Command;
+
+use anyhow::{bail, Context, Result};
+
+const HELP: &str = "\
+cargo xtask <task>
+
+tasks:
+  lint          cargo fmt --check and cargo clippy (warnings are errors)
+  cross-check   run vt-core and vt-cv (OpenCV) on the same inputs and assert they agree
+  bench         thesis-scale System A benchmark (decode vs analysis time, peak memory),
+                then the criterion benches; pass --quick for a smaller scene
+";
+
+fn cargo() -> Command {
+    Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+}
+
+fn run(mut cmd: Command) -> Result<()> {
+    let shown = format!("{cmd:?}");
+    let status = cmd.status().with_context(|| format!("running {shown}"))?;
+    if !status.success() {
+        bail!("{shown} failed ({status})");
+    }
+    Ok(())
+}
+
+fn main() -> Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(task) = args.first() else {
+        print!("{HELP}");
+        return Ok(());
+    };
+    let rest = &args[1..];
+    match task.as_str() {
+        "lint" => {
+            let mut fmt = cargo();
+            fmt.args(["fmt", "--all", "--", "--check"]);
+            run(fmt)?;
+            let mut clippy = cargo();
+            clippy.args(["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"]);
+            run(clippy)
+        }
+        "cross-check" => {
+            let mut c = cargo();
+            c.args(["run", "--release", "--quiet", "-p", "vt-cv", "--bin", "cross-check", "--"]).args(rest);
+            run(c)
+        }
+        "bench" => {
+            let mut c = cargo();
+            c.args(["run", "--release", "--quiet", "-p", "vt-cli", "--bin", "vt-bench", "--"]).args(rest);
+            run(c)?;
+            if !rest.iter().any(|a| a == "--quick") {
+                let mut b = cargo();
+                b.args(["bench", "-p", "vt-core"]);
+                run(b)?;
+            }
+            Ok(())
+        }
+        other => {
+            print!("{HELP}");
+            bail!("unknown task '{other}'")
+        }
+    }
+}

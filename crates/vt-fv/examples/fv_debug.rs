@@ -31,6 +31,10 @@ fn main() {
         );
         let oracle = vt_fv::guided_synthesis(truth, &v.rough.image, &SynthParams { patch, ..Default::default() }).unwrap();
         println!("  oracle (input = truth): PSNR {:.2} SSIM {:.3}", psnr(&oracle, truth, m).unwrap(), ssim(&oracle, truth, m).unwrap());
+        for (pp, ms) in [(5, 20), (7, 0), (9, 20), (11, 20), (11, 0), (15, 20)] {
+            let g = vt_fv::guided_synthesis(&d.photos[v.reference], &v.rough.image, &SynthParams { patch: pp, max_synth_iters: ms, ..Default::default() }).unwrap();
+            println!("  patch {pp} synth iters {ms}: PSNR {:.2} SSIM {:.3}", psnr(&g, truth, m).unwrap(), ssim(&g, truth, m).unwrap());
+        }
         let cam_near = &d.cameras[v.reference];
         let rr = vt_fv::render_rough(&model, cam_near, size, size);
         println!("  rough at the reference camera: PSNR {:.2}", psnr(&rr.image, &d.photos[v.reference], Some(&d.masks[v.reference])).unwrap());
