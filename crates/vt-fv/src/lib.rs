@@ -63,8 +63,8 @@ pub fn build_model(
 }
 pub mod eval;
 pub mod patchmatch;
-pub mod synthesis;
 pub mod pipeline;
+pub mod synthesis;
 
 pub use pipeline::{leave_one_out, novel_view, EvalReport, NovelView};
 pub use synthesis::{guided_synthesis, SynthParams};

@@ -42,7 +42,16 @@ pub struct PatchMatchParams {
 
 impl Default for PatchMatchParams {
     fn default() -> Self {
-        Self { patch: 7, step: 1, search_radius: None, alpha: 0.5, max_iters: 16, stop_ratio: 0.0, strips: 1, seed: 0 }
+        Self {
+            patch: 7,
+            step: 1,
+            search_radius: None,
+            alpha: 0.5,
+            max_iters: 16,
+            stop_ratio: 0.0,
+            strips: 1,
+            seed: 0,
+        }
     }
 }
 
@@ -84,7 +93,10 @@ impl Source<'_> {
     #[inline]
     pub fn clamp(&self, x: i64, y: i64) -> (u32, u32) {
         let r = self.r as i64;
-        (x.clamp(r, self.w as i64 - 1 - r) as u32, y.clamp(r, self.h as i64 - 1 - r) as u32)
+        (
+            x.clamp(r, self.w as i64 - 1 - r) as u32,
+            y.clamp(r, self.h as i64 - 1 - r) as u32,
+        )
     }
 }
 
@@ -165,8 +177,16 @@ pub(crate) fn iterate(it: &Iter, mode: &Mode, nnf: &mut Nnf, out: &mut [[u8; 3]]
     let (w, h) = (nnf.width, nnf.height);
     let strips = it.strips.clamp(1, h.max(1));
     let rows = h.div_ceil(strips);
-    let prev_pos = if strips > 1 { nnf.pos.clone() } else { Vec::new() };
-    let prev_out = if strips > 1 && matches!(mode, Mode::Mixed { .. }) { out.to_vec() } else { Vec::new() };
+    let prev_pos = if strips > 1 {
+        nnf.pos.clone()
+    } else {
+        Vec::new()
+    };
+    let prev_out = if strips > 1 && matches!(mode, Mode::Mixed { .. }) {
+        out.to_vec()
+    } else {
+        Vec::new()
+    };
     let chunk = rows * w;
     nnf.pos
         .par_chunks_mut(chunk)
@@ -175,8 +195,22 @@ pub(crate) fn iterate(it: &Iter, mode: &Mode, nnf: &mut Nnf, out: &mut [[u8; 3]]
         .enumerate()
         .map(|(s, ((pos, dist), o))| {
             let y0 = s * rows;
-            let strip = Strip { y0, y1: y0 + pos.len() / w, w, h, prev_pos: &prev_pos, prev_out: &prev_out };
-            strip.run(it, mode, pos, dist, o, it.seed.wrapping_mul(0x9E37_79B9).wrapping_add(s as u64))
+            let strip = Strip {
+                y0,
+                y1: y0 + pos.len() / w,
+                w,
+                h,
+                prev_pos: &prev_pos,
+                prev_out: &prev_out,
+            };
+            strip.run(
+                it,
+                mode,
+                pos,
+                dist,
+                o,
+                it.seed.wrapping_mul(0x9E37_79B9).wrapping_add(s as u64),
+            )
         })
         .sum()
 }
@@ -209,7 +243,15 @@ impl Strip<'_> {
         }
     }
 
-    fn run(&self, it: &Iter, mode: &Mode, pos: &mut [(u32, u32)], dist: &mut [u64], out: &mut [[u8; 3]], seed: u64) -> usize {
+    fn run(
+        &self,
+        it: &Iter,
+        mode: &Mode,
+        pos: &mut [(u32, u32)],
+        dist: &mut [u64],
+        out: &mut [[u8; 3]],
+        seed: u64,
+    ) -> usize {
         let mut rng = Rng::new(seed);
         let mut q = Query::default();
         let mut changed = 0;
@@ -291,7 +333,10 @@ impl Strip<'_> {
             let mut radius = it.radius;
             while radius >= 1.0 {
                 let rr = radius as i64;
-                let c = src.clamp(best.0 as i64 + rng.range(-rr, rr), best.1 as i64 + rng.range(-rr, rr));
+                let c = src.clamp(
+                    best.0 as i64 + rng.range(-rr, rr),
+                    best.1 as i64 + rng.range(-rr, rr),
+                );
                 try_cand(c, &mut best, &mut best_d);
                 radius *= it.alpha;
             }
@@ -310,27 +355,59 @@ impl Strip<'_> {
 
 pub(crate) fn check_patch(what: &str, w: usize, h: usize, patch: usize) -> Result<()> {
     if patch == 0 || patch % 2 == 0 {
-        return Err(Error::BadParam { name: "patch".into(), value: patch.to_string(), why: "must be odd".into() });
+        return Err(Error::BadParam {
+            name: "patch".into(),
+            value: patch.to_string(),
+            why: "must be odd".into(),
+        });
     }
     if w < patch || h < patch {
-        return Err(Error::ImageTooSmall { what: what.into(), w: w as u32, h: h as u32, need: patch as u32 });
+        return Err(Error::ImageTooSmall {
+            what: what.into(),
+            w: w as u32,
+            h: h as u32,
+            need: patch as u32,
+        });
     }
     Ok(())
 }
 
 pub(crate) fn check_alpha(alpha: f64) -> Result<()> {
     if !(alpha > 0.0 && alpha < 1.0) {
-        return Err(Error::BadParam { name: "alpha".into(), value: alpha.to_string(), why: "must be in (0, 1)".into() });
+        return Err(Error::BadParam {
+            name: "alpha".into(),
+            value: alpha.to_string(),
+            why: "must be in (0, 1)".into(),
+        });
     }
     Ok(())
 }
 
 /// A random field over `w x h` into `src` with distances for query patches from `a`.
-pub(crate) fn random_nnf(w: usize, h: usize, src: &Source, a: &[[u8; 3]], offsets: &[(i64, i64)], seed: u64) -> Nnf {
+pub(crate) fn random_nnf(
+    w: usize,
+    h: usize,
+    src: &Source,
+    a: &[[u8; 3]],
+    offsets: &[(i64, i64)],
+    seed: u64,
+) -> Nnf {
     let mut rng = Rng::new(seed);
     let r = src.r as i64;
-    let pos: Vec<(u32, u32)> = (0..w * h).map(|_| (rng.range(r, src.w as i64 - 1 - r) as u32, rng.range(r, src.h as i64 - 1 - r) as u32)).collect();
-    let mut nnf = Nnf { width: w, height: h, pos, dist: vec![0; w * h] };
+    let pos: Vec<(u32, u32)> = (0..w * h)
+        .map(|_| {
+            (
+                rng.range(r, src.w as i64 - 1 - r) as u32,
+                rng.range(r, src.h as i64 - 1 - r) as u32,
+            )
+        })
+        .collect();
+    let mut nnf = Nnf {
+        width: w,
+        height: h,
+        pos,
+        dist: vec![0; w * h],
+    };
     recompute_dist(&mut nnf, src, a, offsets);
     nnf
 }
@@ -345,7 +422,15 @@ pub(crate) fn recompute_dist(nnf: &mut Nnf, src: &Source, a: &[[u8; 3]], offsets
     });
 }
 
-fn plain_query(a: &[[u8; 3]], w: usize, h: usize, ax: usize, ay: usize, offsets: &[(i64, i64)], bw: usize) -> Query {
+fn plain_query(
+    a: &[[u8; 3]],
+    w: usize,
+    h: usize,
+    ax: usize,
+    ay: usize,
+    offsets: &[(i64, i64)],
+    bw: usize,
+) -> Query {
     let mut q = Query::default();
     for &(dx, dy) in offsets {
         let (x, y) = (ax as i64 + dx, ay as i64 + dy);
@@ -361,11 +446,26 @@ fn plain_query(a: &[[u8; 3]], w: usize, h: usize, ax: usize, ay: usize, offsets:
 
 /// The PatchMatch field from every pixel of `a` to patches of `b`, with the iteration count run.
 pub fn patchmatch(a: &RgbImage, b: &RgbImage, p: &PatchMatchParams) -> Result<(Nnf, usize)> {
-    check_patch("PatchMatch image B", b.width() as usize, b.height() as usize, p.patch)?;
-    check_patch("PatchMatch image A", a.width() as usize, a.height() as usize, 1)?;
+    check_patch(
+        "PatchMatch image B",
+        b.width() as usize,
+        b.height() as usize,
+        p.patch,
+    )?;
+    check_patch(
+        "PatchMatch image A",
+        a.width() as usize,
+        a.height() as usize,
+        1,
+    )?;
     check_alpha(p.alpha)?;
     let (ap, bp) = (pixels(a), pixels(b));
-    let src = Source { px: &bp, w: b.width() as usize, h: b.height() as usize, r: p.patch / 2 };
+    let src = Source {
+        px: &bp,
+        w: b.width() as usize,
+        h: b.height() as usize,
+        r: p.patch / 2,
+    };
     let offsets = patch_offsets(p.patch, p.step);
     let (w, h) = (a.width() as usize, a.height() as usize);
     let mut nnf = random_nnf(w, h, &src, &ap, &offsets, p.seed);
@@ -374,7 +474,15 @@ pub fn patchmatch(a: &RgbImage, b: &RgbImage, p: &PatchMatchParams) -> Result<(N
     let mut first = 0;
     let mut iters = 0;
     while iters < p.max_iters {
-        let it = Iter { src: Source { ..src }, offsets: &offsets, radius, alpha: p.alpha, reverse: iters % 2 == 1, strips: p.strips, seed: p.seed.wrapping_add(iters as u64 + 1) };
+        let it = Iter {
+            src: Source { ..src },
+            offsets: &offsets,
+            radius,
+            alpha: p.alpha,
+            reverse: iters % 2 == 1,
+            strips: p.strips,
+            seed: p.seed.wrapping_add(iters as u64 + 1),
+        };
         let changed = iterate(&it, &Mode::Plain { a: &ap }, &mut nnf, &mut dummy);
         iters += 1;
         if iters == 1 {
@@ -389,9 +497,19 @@ pub fn patchmatch(a: &RgbImage, b: &RgbImage, p: &PatchMatchParams) -> Result<(N
 
 /// The exact field by exhaustive search (for testing PatchMatch).
 pub fn brute_force_nnf(a: &RgbImage, b: &RgbImage, patch: usize, step: usize) -> Result<Nnf> {
-    check_patch("brute force image B", b.width() as usize, b.height() as usize, patch)?;
+    check_patch(
+        "brute force image B",
+        b.width() as usize,
+        b.height() as usize,
+        patch,
+    )?;
     let (ap, bp) = (pixels(a), pixels(b));
-    let src = Source { px: &bp, w: b.width() as usize, h: b.height() as usize, r: patch / 2 };
+    let src = Source {
+        px: &bp,
+        w: b.width() as usize,
+        h: b.height() as usize,
+        r: patch / 2,
+    };
     let offsets = patch_offsets(patch, step);
     let (w, h) = (a.width() as usize, a.height() as usize);
     let r = src.r as u32;
@@ -411,7 +529,12 @@ pub fn brute_force_nnf(a: &RgbImage, b: &RgbImage, patch: usize, step: usize) ->
             best
         })
         .collect();
-    Ok(Nnf { width: w, height: h, pos: best.iter().map(|b| b.0).collect(), dist: best.iter().map(|b| b.1).collect() })
+    Ok(Nnf {
+        width: w,
+        height: h,
+        pos: best.iter().map(|b| b.0).collect(),
+        dist: best.iter().map(|b| b.1).collect(),
+    })
 }
 
 #[cfg(test)]
@@ -425,26 +548,48 @@ mod tests {
             let (x, y) = (x as f64, y as f64);
             image::Rgb(std::array::from_fn(|c| {
                 let k = &coef[c * 4..c * 4 + 4];
-                (128.0 + 60.0 * (k[0] * x + k[1] * y).sin() + 50.0 * (k[2] * x * 0.7 - k[3] * y * 1.3).cos()) as u8
+                (128.0
+                    + 60.0 * (k[0] * x + k[1] * y).sin()
+                    + 50.0 * (k[2] * x * 0.7 - k[3] * y * 1.3).cos()) as u8
             }))
         })
     }
 
     /// A built from `b` by `source(x, y)`, plus noise in 0..=`noise`.
-    fn build(b: &RgbImage, w: u32, h: u32, seed: u64, noise: i64, source: impl Fn(u32, u32) -> (u32, u32)) -> RgbImage {
+    fn build(
+        b: &RgbImage,
+        w: u32,
+        h: u32,
+        seed: u64,
+        noise: i64,
+        source: impl Fn(u32, u32) -> (u32, u32),
+    ) -> RgbImage {
         let mut rng = Rng::new(seed);
         RgbImage::from_fn(w, h, |x, y| {
             let (sx, sy) = source(x, y);
-            image::Rgb(b.get_pixel(sx, sy).0.map(|c| c.saturating_add(rng.range(0, noise) as u8)))
+            image::Rgb(
+                b.get_pixel(sx, sy)
+                    .0
+                    .map(|c| c.saturating_add(rng.range(0, noise) as u8)),
+            )
         })
     }
 
     fn wrong_count(a: &RgbImage, b: &RgbImage, p: &PatchMatchParams) -> (usize, f64, usize) {
         let exact = brute_force_nnf(a, b, p.patch, p.step).unwrap();
         let (nnf, iters) = patchmatch(a, b, p).unwrap();
-        assert!(nnf.dist.iter().zip(&exact.dist).all(|(x, y)| x >= y), "PatchMatch beat brute force");
-        let wrong = nnf.dist.iter().zip(&exact.dist).filter(|(x, y)| x != y).count();
-        let ratio = nnf.dist.iter().sum::<u64>() as f64 / exact.dist.iter().sum::<u64>().max(1) as f64;
+        assert!(
+            nnf.dist.iter().zip(&exact.dist).all(|(x, y)| x >= y),
+            "PatchMatch beat brute force"
+        );
+        let wrong = nnf
+            .dist
+            .iter()
+            .zip(&exact.dist)
+            .filter(|(x, y)| x != y)
+            .count();
+        let ratio =
+            nnf.dist.iter().sum::<u64>() as f64 / exact.dist.iter().sum::<u64>().max(1) as f64;
         (wrong, ratio, iters)
     }
 
@@ -454,7 +599,15 @@ mod tests {
         for (seed, strips) in [(1, 1), (2, 1), (3, 4)] {
             let b = texture(seed, 32, 32);
             let a = build(&b, 24, 24, seed, 4, |x, y| (x + 5, y + 3));
-            let p = PatchMatchParams { patch: 5, max_iters: 60, alpha: 0.8, stop_ratio: -1.0, seed, strips, ..Default::default() };
+            let p = PatchMatchParams {
+                patch: 5,
+                max_iters: 60,
+                alpha: 0.8,
+                stop_ratio: -1.0,
+                seed,
+                strips,
+                ..Default::default()
+            };
             let (wrong, _, iters) = wrong_count(&a, &b, &p);
             assert_eq!(wrong, 0, "seed {seed} strips {strips}: {wrong} of 576 pixels not at the exact nearest neighbour after {iters} iterations");
         }
@@ -466,17 +619,41 @@ mod tests {
         // their nearest neighbours are incoherent, which random search only finds by luck.
         for seed in [1, 2] {
             let b = texture(seed, 32, 32);
-            let a = build(&b, 32, 32, seed, 6, |x, y| if x < 16 { (x + 9, y / 2 + 5) } else { (x - 13, (y + 7) % 32) });
-            let p = PatchMatchParams { patch: 5, max_iters: 100, alpha: 0.8, stop_ratio: -1.0, seed, ..Default::default() };
+            let a = build(&b, 32, 32, seed, 6, |x, y| {
+                if x < 16 {
+                    (x + 9, y / 2 + 5)
+                } else {
+                    (x - 13, (y + 7) % 32)
+                }
+            });
+            let p = PatchMatchParams {
+                patch: 5,
+                max_iters: 100,
+                alpha: 0.8,
+                stop_ratio: -1.0,
+                seed,
+                ..Default::default()
+            };
             let (wrong, ratio, _) = wrong_count(&a, &b, &p);
-            assert!(wrong <= 20 && ratio < 1.01, "seed {seed}: {wrong} of 1024 not exact, total distance {ratio} x exact");
+            assert!(
+                wrong <= 20 && ratio < 1.01,
+                "seed {seed}: {wrong} of 1024 not exact, total distance {ratio} x exact"
+            );
         }
     }
 
     #[test]
     fn identical_images_match_themselves() {
         let b = texture(5, 32, 32);
-        let (nnf, _) = patchmatch(&b, &b, &PatchMatchParams { patch: 5, ..Default::default() }).unwrap();
+        let (nnf, _) = patchmatch(
+            &b,
+            &b,
+            &PatchMatchParams {
+                patch: 5,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         // Interior pixels find their own patch (distance 0).
         for y in 2..30 {
             for x in 2..30 {
@@ -489,8 +666,38 @@ mod tests {
     fn bad_params_are_refused() {
         let b = texture(1, 32, 32);
         let a = b.clone();
-        assert!(matches!(patchmatch(&a, &b, &PatchMatchParams { patch: 4, ..Default::default() }), Err(Error::BadParam { .. })));
-        assert!(matches!(patchmatch(&a, &b, &PatchMatchParams { patch: 41, ..Default::default() }), Err(Error::ImageTooSmall { .. })));
-        assert!(matches!(patchmatch(&a, &b, &PatchMatchParams { alpha: 1.0, ..Default::default() }), Err(Error::BadParam { .. })));
+        assert!(matches!(
+            patchmatch(
+                &a,
+                &b,
+                &PatchMatchParams {
+                    patch: 4,
+                    ..Default::default()
+                }
+            ),
+            Err(Error::BadParam { .. })
+        ));
+        assert!(matches!(
+            patchmatch(
+                &a,
+                &b,
+                &PatchMatchParams {
+                    patch: 41,
+                    ..Default::default()
+                }
+            ),
+            Err(Error::ImageTooSmall { .. })
+        ));
+        assert!(matches!(
+            patchmatch(
+                &a,
+                &b,
+                &PatchMatchParams {
+                    alpha: 1.0,
+                    ..Default::default()
+                }
+            ),
+            Err(Error::BadParam { .. })
+        ));
     }
 }

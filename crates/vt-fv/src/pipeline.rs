@@ -17,7 +17,12 @@ use crate::{build_model, Error, Result};
 /// the nearest reference photo as the synthesis input).
 pub fn nearest_reference(cams: &[Camera], cam: &Camera) -> Option<usize> {
     let f = cam.forward();
-    (0..cams.len()).max_by(|&a, &b| cams[a].forward().dot(&f).total_cmp(&cams[b].forward().dot(&f)))
+    (0..cams.len()).max_by(|&a, &b| {
+        cams[a]
+            .forward()
+            .dot(&f)
+            .total_cmp(&cams[b].forward().dot(&f))
+    })
 }
 
 /// A new view: the rough render and its guided synthesis.
@@ -32,11 +37,27 @@ pub struct NovelView {
 }
 
 /// Renders `model` from `cam` and synthesises the view from the nearest reference photo.
-pub fn novel_view(model: &VoxelModel, cams: &[Camera], images: &[RgbImage], cam: &Camera, w: u32, h: u32, synth: &SynthParams) -> Result<NovelView> {
-    let reference = nearest_reference(cams, cam).ok_or(Error::TooFew { what: "reference cameras".into(), got: 0, need: 1 })?;
+pub fn novel_view(
+    model: &VoxelModel,
+    cams: &[Camera],
+    images: &[RgbImage],
+    cam: &Camera,
+    w: u32,
+    h: u32,
+    synth: &SynthParams,
+) -> Result<NovelView> {
+    let reference = nearest_reference(cams, cam).ok_or(Error::TooFew {
+        what: "reference cameras".into(),
+        got: 0,
+        need: 1,
+    })?;
     let rough = render_rough(model, cam, w, h);
     let guided = guided_synthesis(&images[reference], &rough.image, synth)?;
-    Ok(NovelView { rough, guided, reference })
+    Ok(NovelView {
+        rough,
+        guided,
+        reference,
+    })
 }
 
 /// Scores of a withheld view, measured inside its silhouette.
@@ -74,14 +95,25 @@ pub fn leave_one_out(
     synth: &SynthParams,
 ) -> Result<EvalReport> {
     if withheld >= cams.len() || cams.len() != images.len() || cams.len() != masks.len() {
-        return Err(Error::CountMismatch { what: format!("withheld view {withheld} of cameras/images/masks"), a: cams.len(), b: images.len().min(masks.len()) });
+        return Err(Error::CountMismatch {
+            what: format!("withheld view {withheld} of cameras/images/masks"),
+            a: cams.len(),
+            b: images.len().min(masks.len()),
+        });
     }
     let keep: Vec<usize> = (0..cams.len()).filter(|&i| i != withheld).collect();
     let sub_cams: Vec<Camera> = keep.iter().map(|&i| cams[i].clone()).collect();
     let sub_imgs: Vec<RgbImage> = keep.iter().map(|&i| images[i].clone()).collect();
     let sub_masks: Vec<Mask> = keep.iter().map(|&i| masks[i].clone()).collect();
     let t = Instant::now();
-    let model = build_model(&sub_cams, &sub_imgs, &sub_masks, hull, photo, &mut |_, _, _| {})?;
+    let model = build_model(
+        &sub_cams,
+        &sub_imgs,
+        &sub_masks,
+        hull,
+        photo,
+        &mut |_, _, _| {},
+    )?;
     let model_secs = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let (w, h) = images[withheld].dimensions();

@@ -16,7 +16,10 @@
 
 use image::{Rgb, RgbImage};
 
-use crate::patchmatch::{check_alpha, check_patch, iterate, patch_offsets, pixels, random_nnf, recompute_dist, Iter, Mode, Nnf, Source};
+use crate::patchmatch::{
+    check_alpha, check_patch, iterate, patch_offsets, pixels, random_nnf, recompute_dist, Iter,
+    Mode, Nnf, Source,
+};
 use crate::{Error, Result};
 
 /// Guided synthesis parameters; `Default` is the paper's (patch 41, L 4, w = 1/4 of the image,
@@ -50,7 +53,19 @@ pub struct SynthParams {
 
 impl Default for SynthParams {
     fn default() -> Self {
-        Self { patch: 41, l: 4, search_radius: None, alpha: 0.8, stop_ratio: 0.06, max_init_iters: 10, max_synth_iters: 20, levels: 1, step: 1, strips: 1, seed: 0 }
+        Self {
+            patch: 41,
+            l: 4,
+            search_radius: None,
+            alpha: 0.8,
+            stop_ratio: 0.06,
+            max_init_iters: 10,
+            max_synth_iters: 20,
+            levels: 1,
+            step: 1,
+            strips: 1,
+            seed: 0,
+        }
     }
 }
 
@@ -58,7 +73,12 @@ impl SynthParams {
     /// The paper's parameters with every speed option on: 3 pyramid levels, step 2, strips per
     /// thread.
     pub fn fast() -> Self {
-        Self { levels: 3, step: 2, strips: 0, ..Self::default() }
+        Self {
+            levels: 3,
+            step: 2,
+            strips: 0,
+            ..Self::default()
+        }
     }
 }
 
@@ -104,17 +124,49 @@ fn half(px: &[[u8; 3]], w: usize, h: usize) -> (Vec<[u8; 3]>, usize, usize) {
 }
 
 /// [`guided_synthesis`] that also reports iteration counts.
-pub fn guided_synthesis_stats(input: &RgbImage, target: &RgbImage, p: &SynthParams) -> Result<(RgbImage, SynthStats)> {
-    check_patch("guided synthesis input", input.width() as usize, input.height() as usize, p.patch)?;
-    check_patch("guided synthesis target", target.width() as usize, target.height() as usize, 1)?;
+pub fn guided_synthesis_stats(
+    input: &RgbImage,
+    target: &RgbImage,
+    p: &SynthParams,
+) -> Result<(RgbImage, SynthStats)> {
+    check_patch(
+        "guided synthesis input",
+        input.width() as usize,
+        input.height() as usize,
+        p.patch,
+    )?;
+    check_patch(
+        "guided synthesis target",
+        target.width() as usize,
+        target.height() as usize,
+        1,
+    )?;
     check_alpha(p.alpha)?;
     if p.l == 0 {
-        return Err(Error::BadParam { name: "l".into(), value: "0".into(), why: "must be at least 1".into() });
+        return Err(Error::BadParam {
+            name: "l".into(),
+            value: "0".into(),
+            why: "must be at least 1".into(),
+        });
     }
-    let strips = if p.strips == 0 { rayon::current_num_threads() } else { p.strips };
-    let radius = p.search_radius.unwrap_or(input.width().max(input.height()) as usize / 4).max(1) as f64;
+    let strips = if p.strips == 0 {
+        rayon::current_num_threads()
+    } else {
+        p.strips
+    };
+    let radius = p
+        .search_radius
+        .unwrap_or(input.width().max(input.height()) as usize / 4)
+        .max(1) as f64;
     // Build the pyramid, finest first, stopping before the input gets smaller than its patch.
-    let mut levels = vec![Level { input: pixels(input), iw: input.width() as usize, ih: input.height() as usize, target: pixels(target), tw: target.width() as usize, th: target.height() as usize }];
+    let mut levels = vec![Level {
+        input: pixels(input),
+        iw: input.width() as usize,
+        ih: input.height() as usize,
+        target: pixels(target),
+        tw: target.width() as usize,
+        th: target.height() as usize,
+    }];
     while levels.len() < p.levels.max(1) {
         let l = levels.last().expect("pyramid has its finest level");
         let (i2, iw, ih) = half(&l.input, l.iw, l.ih);
@@ -123,14 +175,26 @@ pub fn guided_synthesis_stats(input: &RgbImage, target: &RgbImage, p: &SynthPara
         if iw < patch + 2 || ih < patch + 2 || tw < 2 || th < 2 {
             break;
         }
-        levels.push(Level { input: i2, iw, ih, target: t2, tw, th });
+        levels.push(Level {
+            input: i2,
+            iw,
+            ih,
+            target: t2,
+            tw,
+            th,
+        });
     }
     let mut stats = SynthStats::default();
     let mut nnf: Option<Nnf> = None;
     let mut out = Vec::new();
     for (li, lv) in levels.iter().enumerate().rev() {
         let patch = level_patch(p.patch, li);
-        let src = Source { px: &lv.input, w: lv.iw, h: lv.ih, r: patch / 2 };
+        let src = Source {
+            px: &lv.input,
+            w: lv.iw,
+            h: lv.ih,
+            r: patch / 2,
+        };
         let offsets = patch_offsets(patch, p.step);
         let seed = p.seed.wrapping_add(li as u64 * 1000);
         let mut field = match nnf.take() {
@@ -152,7 +216,15 @@ pub fn guided_synthesis_stats(input: &RgbImage, target: &RgbImage, p: &SynthPara
         let mut first = 1;
         let mut it1 = 0;
         for i in 0..p.max_init_iters {
-            let it = Iter { src: Source { ..src }, offsets: &offsets, radius: lr, alpha: p.alpha, reverse: i % 2 == 1, strips, seed: seed.wrapping_add(i as u64 + 1) };
+            let it = Iter {
+                src: Source { ..src },
+                offsets: &offsets,
+                radius: lr,
+                alpha: p.alpha,
+                reverse: i % 2 == 1,
+                strips,
+                seed: seed.wrapping_add(i as u64 + 1),
+            };
             let changed = iterate(&it, &Mode::Plain { a: &lv.target }, &mut field, &mut o);
             it1 += 1;
             if i == 0 {
@@ -166,8 +238,24 @@ pub fn guided_synthesis_stats(input: &RgbImage, target: &RgbImage, p: &SynthPara
         // Stage (ii): synthesis with the L-shaped mixed patch, normal scanline order only.
         let mut it2 = 0;
         for i in 0..p.max_synth_iters {
-            let it = Iter { src: Source { ..src }, offsets: &offsets, radius: lr, alpha: p.alpha, reverse: false, strips, seed: seed.wrapping_add(100 + i as u64) };
-            let changed = iterate(&it, &Mode::Mixed { target: &lv.target, l: p.l }, &mut field, &mut o);
+            let it = Iter {
+                src: Source { ..src },
+                offsets: &offsets,
+                radius: lr,
+                alpha: p.alpha,
+                reverse: false,
+                strips,
+                seed: seed.wrapping_add(100 + i as u64),
+            };
+            let changed = iterate(
+                &it,
+                &Mode::Mixed {
+                    target: &lv.target,
+                    l: p.l,
+                },
+                &mut field,
+                &mut o,
+            );
             it2 += 1;
             if changed as f64 / first as f64 <= p.stop_ratio {
                 break;
@@ -179,7 +267,10 @@ pub fn guided_synthesis_stats(input: &RgbImage, target: &RgbImage, p: &SynthPara
         out = o;
     }
     let (w, h) = (target.width(), target.height());
-    Ok((RgbImage::from_fn(w, h, |x, y| Rgb(out[(y * w + x) as usize])), stats))
+    Ok((
+        RgbImage::from_fn(w, h, |x, y| Rgb(out[(y * w + x) as usize])),
+        stats,
+    ))
 }
 
 fn level_patch(patch: usize, level: usize) -> usize {
@@ -191,12 +282,23 @@ fn upsample(coarse: &Nnf, w: usize, h: usize, src: &Source) -> Nnf {
     let mut pos = Vec::with_capacity(w * h);
     for y in 0..h {
         for x in 0..w {
-            let (cx, cy) = ((x / 2).min(coarse.width - 1), (y / 2).min(coarse.height - 1));
+            let (cx, cy) = (
+                (x / 2).min(coarse.width - 1),
+                (y / 2).min(coarse.height - 1),
+            );
             let (bx, by) = coarse.pos[cy * coarse.width + cx];
-            pos.push(src.clamp(2 * bx as i64 + (x % 2) as i64, 2 * by as i64 + (y % 2) as i64));
+            pos.push(src.clamp(
+                2 * bx as i64 + (x % 2) as i64,
+                2 * by as i64 + (y % 2) as i64,
+            ));
         }
     }
-    Nnf { width: w, height: h, pos, dist: vec![0; w * h] }
+    Nnf {
+        width: w,
+        height: h,
+        pos,
+        dist: vec![0; w * h],
+    }
 }
 
 #[cfg(test)]
@@ -208,10 +310,31 @@ mod tests {
         // With the input as its own guide every patch has an exact match: the output is the input
         // (up to the few pixels left when the update ratio stops the stages early)
         // away from the borders.
-        let img = RgbImage::from_fn(48, 40, |x, y| Rgb([(x * 5 + y) as u8, (y * 6) as u8 ^ (x as u8 * 3), ((x * y) % 251) as u8]));
-        for p in [SynthParams { patch: 7, ..Default::default() }, SynthParams { patch: 7, levels: 2, step: 2, strips: 3, ..Default::default() }] {
+        let img = RgbImage::from_fn(48, 40, |x, y| {
+            Rgb([
+                (x * 5 + y) as u8,
+                (y * 6) as u8 ^ (x as u8 * 3),
+                ((x * y) % 251) as u8,
+            ])
+        });
+        for p in [
+            SynthParams {
+                patch: 7,
+                ..Default::default()
+            },
+            SynthParams {
+                patch: 7,
+                levels: 2,
+                step: 2,
+                strips: 3,
+                ..Default::default()
+            },
+        ] {
             let (out, stats) = guided_synthesis_stats(&img, &img, &p).unwrap();
-            let bad = (3..37).flat_map(|y| (3..45).map(move |x| (x, y))).filter(|&(x, y)| out.get_pixel(x, y) != img.get_pixel(x, y)).count();
+            let bad = (3..37)
+                .flat_map(|y| (3..45).map(move |x| (x, y)))
+                .filter(|&(x, y)| out.get_pixel(x, y) != img.get_pixel(x, y))
+                .count();
             assert!(bad <= 30, "{p:?}: {bad} interior pixels differ; {stats:?}");
         }
     }
@@ -219,7 +342,21 @@ mod tests {
     #[test]
     fn bad_params_are_refused() {
         let img = RgbImage::new(20, 20);
-        assert!(matches!(guided_synthesis(&img, &img, &SynthParams::default()), Err(Error::ImageTooSmall { need: 41, .. })));
-        assert!(matches!(guided_synthesis(&img, &img, &SynthParams { patch: 5, l: 0, ..Default::default() }), Err(Error::BadParam { .. })));
+        assert!(matches!(
+            guided_synthesis(&img, &img, &SynthParams::default()),
+            Err(Error::ImageTooSmall { need: 41, .. })
+        ));
+        assert!(matches!(
+            guided_synthesis(
+                &img,
+                &img,
+                &SynthParams {
+                    patch: 5,
+                    l: 0,
+                    ..Default::default()
+                }
+            ),
+            Err(Error::BadParam { .. })
+        ));
     }
 }
