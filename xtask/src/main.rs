@@ -41,17 +41,44 @@ fn main() -> Result<()> {
             fmt.args(["fmt", "--all", "--", "--check"]);
             run(fmt)?;
             let mut clippy = cargo();
-            clippy.args(["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"]);
+            clippy.args([
+                "clippy",
+                "--workspace",
+                "--all-targets",
+                "--",
+                "-D",
+                "warnings",
+            ]);
             run(clippy)
         }
         "cross-check" => {
             let mut c = cargo();
-            c.args(["run", "--release", "--quiet", "-p", "vt-cv", "--bin", "cross-check", "--"]).args(rest);
+            c.args([
+                "run",
+                "--release",
+                "--quiet",
+                "-p",
+                "vt-cv",
+                "--bin",
+                "cross-check",
+                "--",
+            ])
+            .args(rest);
             run(c)
         }
         "bench" => {
             let mut c = cargo();
-            c.args(["run", "--release", "--quiet", "-p", "vt-cli", "--bin", "vt-bench", "--"]).args(rest);
+            c.args([
+                "run",
+                "--release",
+                "--quiet",
+                "-p",
+                "vt-cli",
+                "--bin",
+                "vt-bench",
+                "--",
+            ])
+            .args(rest);
             run(c)?;
             if !rest.iter().any(|a| a == "--quick") {
                 let mut b = cargo();

@@ -83,23 +83,45 @@ impl AnalyzeArgs {
         let force = match self.model.as_str() {
             "auto" => None,
             m => Some(m.parse::<MotionModel>().map_err(|_| {
-                anyhow::anyhow!("--model '{m}' is not auto, translation, similarity, affine or homography")
+                anyhow::anyhow!(
+                    "--model '{m}' is not auto, translation, similarity, affine or homography"
+                )
             })?),
         };
         if !(self.point_sigma.is_finite() && self.point_sigma > 0.0) {
-            bail!("--point-sigma {} must be a positive number of pixels", self.point_sigma);
+            bail!(
+                "--point-sigma {} must be a positive number of pixels",
+                self.point_sigma
+            );
         }
         if self.blur_size % 2 == 0 {
             bail!("--blur-size {} must be odd", self.blur_size);
         }
         if self.window == 0 || self.min_length == 0 {
-            bail!("--window ({}) and --min-length ({}) must be at least 1", self.window, self.min_length);
+            bail!(
+                "--window ({}) and --min-length ({}) must be at least 1",
+                self.window,
+                self.min_length
+            );
         }
         Ok(AnalyzeParams {
-            blur: GaussianParams { ksize: self.blur_size, sigma: self.blur_sigma },
-            mask: MaskParams { threshold: self.threshold, open_radius: self.open, close_radius: self.close },
-            loops: LoopParams { window: self.window, min_length: self.min_length },
-            model: ModelParams { sigma: self.point_sigma, force },
+            blur: GaussianParams {
+                ksize: self.blur_size,
+                sigma: self.blur_sigma,
+            },
+            mask: MaskParams {
+                threshold: self.threshold,
+                open_radius: self.open,
+                close_radius: self.close,
+            },
+            loops: LoopParams {
+                window: self.window,
+                min_length: self.min_length,
+            },
+            model: ModelParams {
+                sigma: self.point_sigma,
+                force,
+            },
             cache_bytes: self.cache_mb << 20,
         })
     }
@@ -117,11 +139,18 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
         Some(p) => {
             let pts = vt_io::points::read_points(p)?;
             if pts.len() != m {
-                bail!("{}: {} lines of points, but {} views were given (one line per view)", p.display(), pts.len(), m);
+                bail!(
+                    "{}: {} lines of points, but {} views were given (one line per view)",
+                    p.display(),
+                    pts.len(),
+                    m
+                );
             }
             pts
         }
-        None if m > 1 => bail!("--points is required with {m} views (the homographies between views come from them)"),
+        None if m > 1 => bail!(
+            "--points is required with {m} views (the homographies between views come from them)"
+        ),
         None => Vec::new(),
     };
     let mut sources: Vec<ViewSource> = args
@@ -147,7 +176,8 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
     let started = Instant::now();
     let dir = AtomicDir::create(&args.out)?;
     let mut observer = AnalysisObserver::new(dir.path().to_path_buf());
-    let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> = sources.iter_mut().map(|s| s.as_source()).collect();
+    let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> =
+        sources.iter_mut().map(|s| s.as_source()).collect();
     let analysis = analyze(&mut refs, &points, &params, &mut observer);
     vt_core::analysis::Observer::finish(&mut observer);
     let analysis = analysis.map_err(|e| match (&e, &args.points) {
@@ -169,10 +199,17 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
 }
 
 fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
-    println!("{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>7}  {:>9}  {:>8}", "view", "frames", "loop (m, n)", "length", "cost", "moving", "model", "rms px");
+    println!(
+        "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>7}  {:>9}  {:>8}",
+        "view", "frames", "loop (m, n)", "length", "cost", "moving", "model", "rms px"
+    );
     let model = a.model().map(|m| m.name()).unwrap_or("-");
     for (p, v) in a.views.iter().enumerate() {
-        let rms = scene.views[p].to_next.as_ref().map(|l| format!("{:.3}", l.rms)).unwrap_or_else(|| "-".into());
+        let rms = scene.views[p]
+            .to_next
+            .as_ref()
+            .map(|l| format!("{:.3}", l.rms))
+            .unwrap_or_else(|| "-".into());
         println!(
             "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>6.1}%  {:>9}  {:>8}",
             p,
@@ -186,10 +223,26 @@ fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
         );
     }
     if let Some(sel) = &a.selection {
-        let scores: Vec<String> = sel.scores.iter().map(|(m, s)| format!("{m} {s:.1}")).collect();
-        println!("model: {}{} (GRIC: {})", sel.model, if sel.forced { ", forced" } else { "" }, scores.join(", "));
+        let scores: Vec<String> = sel
+            .scores
+            .iter()
+            .map(|(m, s)| format!("{m} {s:.1}"))
+            .collect();
+        println!(
+            "model: {}{} (GRIC: {})",
+            sel.model,
+            if sel.forced { ", forced" } else { "" },
+            scores.join(", ")
+        );
     }
-    let Timings { decode, median, masks, loops, homographies, transitions } = a.timings;
+    let Timings {
+        decode,
+        median,
+        masks,
+        loops,
+        homographies,
+        transitions,
+    } = a.timings;
     println!(
         "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2})",
         decode.as_secs_f64(),
@@ -203,12 +256,18 @@ fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
 
 /// Compares a scene with the truth of a synthetic texture scene; returns a printable report and
 /// fails when a check fails.
-pub fn check_against_truth(_scene_dir: &Path, truth_path: &Path, result: &AnalyzeResult) -> Result<String> {
-    let truth: crate::synth::TextureTruth =
-        serde_json::from_str(&std::fs::read_to_string(truth_path).with_context(|| truth_path.display().to_string())?)
-            .with_context(|| truth_path.display().to_string())?;
+pub fn check_against_truth(
+    _scene_dir: &Path,
+    truth_path: &Path,
+    result: &AnalyzeResult,
+) -> Result<String> {
+    let truth: crate::synth::TextureTruth = serde_json::from_str(
+        &std::fs::read_to_string(truth_path).with_context(|| truth_path.display().to_string())?,
+    )
+    .with_context(|| truth_path.display().to_string())?;
     let period = truth.period;
-    let phase = |p: usize, s: usize| (s as i64 - truth.phase[p] as i64).rem_euclid(period as i64) as usize;
+    let phase =
+        |p: usize, s: usize| (s as i64 - truth.phase[p] as i64).rem_euclid(period as i64) as usize;
     let circ = |a: usize, b: usize| {
         let d = a.abs_diff(b) % period;
         d.min(period - d)
@@ -221,12 +280,16 @@ pub fn check_against_truth(_scene_dir: &Path, truth_path: &Path, result: &Analyz
         let off = circ(len % period, 0);
         ok &= off <= 1;
         let mut worst = 0;
-        for (side, table, q) in [("next", &v.transitions.next, p + 1), ("prev", &v.transitions.prev, p.wrapping_sub(1))] {
+        for (side, table, q) in [
+            ("next", &v.transitions.next, p + 1),
+            ("prev", &v.transitions.prev, p.wrapping_sub(1)),
+        ] {
             if q >= result.scene.views.len() {
                 continue;
             }
             for (s, t) in table.iter().enumerate().take(v.frames + 1 - w) {
-                let t = t.with_context(|| format!("view {p} {side} transition of frame {s} missing"))?;
+                let t =
+                    t.with_context(|| format!("view {p} {side} transition of frame {s} missing"))?;
                 worst = worst.max(circ(phase(p, s), phase(q, t)));
             }
         }
@@ -237,7 +300,9 @@ pub fn check_against_truth(_scene_dir: &Path, truth_path: &Path, result: &Analyz
         ));
     }
     for (p, th) in truth.homographies_next.iter().enumerate() {
-        let Some(link) = &result.scene.views[p].to_next else { continue };
+        let Some(link) = &result.scene.views[p].to_next else {
+            continue;
+        };
         let h = link.homography()?;
         let t = vt_core::Homography::from_matrix(nalgebra::Matrix3::from_row_slice(&th.concat()))?;
         let (w, hh) = (result.scene.width as f64, result.scene.height as f64);
@@ -249,7 +314,10 @@ pub fn check_against_truth(_scene_dir: &Path, truth_path: &Path, result: &Analyz
             })
             .fold(0.0, f64::max);
         ok &= err < 0.5;
-        lines.push(format!("  H({p},{}) corner error vs truth: {err:.4} px", p + 1));
+        lines.push(format!(
+            "  H({p},{}) corner error vs truth: {err:.4} px",
+            p + 1
+        ));
     }
     lines.push(format!("  result: {}", if ok { "PASS" } else { "FAIL" }));
     let report = lines.join("\n");

@@ -56,13 +56,27 @@ fn main() {
 fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     std::fs::create_dir_all(&out).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
     let data = out.join("textures");
-    let params = vt_synth::TextureParams { views: 3, frames, ..Default::default() };
-    eprintln!("1/2 synthesising a {}-view scene ({} frames of {}x{} each) in {}", params.views, frames, params.width, params.height, data.display());
+    let params = vt_synth::TextureParams {
+        views: 3,
+        frames,
+        ..Default::default()
+    };
+    eprintln!(
+        "1/2 synthesising a {}-view scene ({} frames of {}x{} each) in {}",
+        params.views,
+        frames,
+        params.width,
+        params.height,
+        data.display()
+    );
     synth::write_textures(&data, &params)?;
     let scene = out.join("scene");
     eprintln!("2/2 analysing it into {}", scene.display());
-    let views: Vec<PathBuf> = (0..params.views).map(|p| data.join(synth::view_dir(p))).collect();
-    let args = analyze::AnalyzeArgs::for_demo(views, data.join("points.txt"), scene.clone(), frames);
+    let views: Vec<PathBuf> = (0..params.views)
+        .map(|p| data.join(synth::view_dir(p)))
+        .collect();
+    let args =
+        analyze::AnalyzeArgs::for_demo(views, data.join("points.txt"), scene.clone(), frames);
     let result = analyze::run(args)?;
     let report = analyze::check_against_truth(&scene, &data.join("truth.json"), &result)?;
     println!("{report}");

@@ -13,9 +13,11 @@ use vt_io::objects::ObjectWriter;
 pub fn bar(total: u64, msg: &str) -> ProgressBar {
     let pb = ProgressBar::new(total);
     pb.set_style(
-        ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .expect("static template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{msg:>24} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}",
+        )
+        .expect("static template")
+        .progress_chars("=> "),
     );
     pb.set_message(msg.to_string());
     pb
@@ -23,7 +25,10 @@ pub fn bar(total: u64, msg: &str) -> ProgressBar {
 
 fn spinner(msg: &str) -> ProgressBar {
     let pb = ProgressBar::new_spinner();
-    pb.set_style(ProgressStyle::with_template("{msg:>24} {spinner} {pos} {elapsed_precise}").expect("static template"));
+    pb.set_style(
+        ProgressStyle::with_template("{msg:>24} {spinner} {pos} {elapsed_precise}")
+            .expect("static template"),
+    );
     pb.set_message(msg.to_string());
     pb
 }
@@ -38,13 +43,20 @@ pub struct AnalysisObserver {
 impl AnalysisObserver {
     /// Writes object stores into `dir` (the scene's temporary directory).
     pub fn new(dir: PathBuf) -> Self {
-        Self { dir, current: None, writer: None }
+        Self {
+            dir,
+            current: None,
+            writer: None,
+        }
     }
 
     /// Closes the last object store.
     pub fn finish_objects(&mut self) -> vt_core::Result<()> {
         if let Some((p, w)) = self.writer.take() {
-            w.finish().map_err(|e| vt_core::Error::Source { view: format!("view {p}"), message: e.to_string() })?;
+            w.finish().map_err(|e| vt_core::Error::Source {
+                view: format!("view {p}"),
+                message: e.to_string(),
+            })?;
         }
         Ok(())
     }
@@ -81,12 +93,24 @@ impl Observer for AnalysisObserver {
         }
     }
 
-    fn object_frame(&mut self, view: usize, _frame: usize, mask: &Mask, raw: &RgbImage) -> vt_core::Result<()> {
-        let to_core = |e: vt_io::Error| vt_core::Error::Source { view: format!("view {view}"), message: e.to_string() };
+    fn object_frame(
+        &mut self,
+        view: usize,
+        _frame: usize,
+        mask: &Mask,
+        raw: &RgbImage,
+    ) -> vt_core::Result<()> {
+        let to_core = |e: vt_io::Error| vt_core::Error::Source {
+            view: format!("view {view}"),
+            message: e.to_string(),
+        };
         if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
             self.finish_objects()?;
             let path = self.dir.join(vt_io::scene::objects_name(view));
-            self.writer = Some((view, ObjectWriter::create(&path, raw.width(), raw.height()).map_err(to_core)?));
+            self.writer = Some((
+                view,
+                ObjectWriter::create(&path, raw.width(), raw.height()).map_err(to_core)?,
+            ));
         }
         let (_, w) = self.writer.as_mut().expect("set above");
         w.push(mask, raw).map_err(to_core)

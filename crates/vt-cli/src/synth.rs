@@ -50,11 +50,21 @@ pub struct TexturesArgs {
 }
 
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("size '{s}' is not WxH (e.g. 320x180)"))?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("width '{w}' is not a whole number"))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("height '{h}' is not a whole number"))?;
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("size '{s}' is not WxH (e.g. 320x180)"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("width '{w}' is not a whole number"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("height '{h}' is not a whole number"))?;
     if w < 8 || h < 8 || w > 16384 || h > 16384 {
-        return Err(format!("size {w}x{h} is out of range (8 to 16384 per side)"));
+        return Err(format!(
+            "size {w}x{h} is out of range (8 to 16384 per side)"
+        ));
     }
     Ok((w, h))
 }
@@ -83,7 +93,12 @@ pub fn run(cmd: SynthCommand) -> Result<()> {
                 ..Default::default()
             };
             write_textures(&a.out, &params)?;
-            println!("wrote {} views x {} frames to {}", a.views, a.frames, a.out.display());
+            println!(
+                "wrote {} views x {} frames to {}",
+                a.views,
+                a.frames,
+                a.out.display()
+            );
             Ok(())
         }
     }
@@ -146,9 +161,20 @@ pub fn write_textures(out: &Path, params: &TextureParams) -> Result<()> {
         })?;
     }
     pb.finish_and_clear();
-    let points: Vec<Vec<vt_core::Point>> =
-        (0..params.views).map(|p| scene.points(p).into_iter().map(|(x, y)| vt_core::Point::new(x, y)).collect()).collect();
-    std::fs::write(root.join("points.txt"), vt_io::points::format_points(&points)).context("points.txt")?;
+    let points: Vec<Vec<vt_core::Point>> = (0..params.views)
+        .map(|p| {
+            scene
+                .points(p)
+                .into_iter()
+                .map(|(x, y)| vt_core::Point::new(x, y))
+                .collect()
+        })
+        .collect();
+    std::fs::write(
+        root.join("points.txt"),
+        vt_io::points::format_points(&points),
+    )
+    .context("points.txt")?;
 
     let tdir = root.join("truth");
     std::fs::create_dir(&tdir).context("truth/")?;
@@ -166,7 +192,11 @@ pub fn write_textures(out: &Path, params: &TextureParams) -> Result<()> {
     let homographies_next = (0..m.saturating_sub(1))
         .map(|p| {
             let h = scene.plane_homography(p as f64, p as f64 + 1.0);
-            [[h[(0, 0)], h[(0, 1)], h[(0, 2)]], [h[(1, 0)], h[(1, 1)], h[(1, 2)]], [h[(2, 0)], h[(2, 1)], h[(2, 2)]]]
+            [
+                [h[(0, 0)], h[(0, 1)], h[(0, 2)]],
+                [h[(1, 0)], h[(1, 1)], h[(1, 2)]],
+                [h[(2, 0)], h[(2, 1)], h[(2, 2)]],
+            ]
         })
         .collect();
     let truth = TextureTruth {
@@ -179,7 +209,11 @@ pub fn write_textures(out: &Path, params: &TextureParams) -> Result<()> {
         homographies_next,
         renders,
     };
-    std::fs::write(root.join("truth.json"), serde_json::to_string_pretty(&truth)?).context("truth.json")?;
+    std::fs::write(
+        root.join("truth.json"),
+        serde_json::to_string_pretty(&truth)?,
+    )
+    .context("truth.json")?;
     dir.commit()?;
     Ok(())
 }

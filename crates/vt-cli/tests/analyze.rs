@@ -9,9 +9,17 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 fn vt(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_vt")).args(args).output().expect("run vt");
+    let out = Command::new(env!("CARGO_BIN_EXE_vt"))
+        .args(args)
+        .output()
+        .expect("run vt");
     if std::env::var_os("VT_TEST_VERBOSE").is_some() {
-        eprintln!("$ vt {}\n{}{}", args.join(" "), String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        eprintln!(
+            "$ vt {}\n{}{}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
     out
 }
@@ -34,12 +42,30 @@ fn vt_ok(args: &[&str]) -> String {
 fn vt_err(args: &[&str], want: &[&str]) -> String {
     let out = vt(args);
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(!out.status.success(), "vt {} succeeded but should fail", args.join(" "));
-    assert!(!stderr.contains("panicked"), "vt {} panicked:\n{stderr}", args.join(" "));
+    assert!(
+        !out.status.success(),
+        "vt {} succeeded but should fail",
+        args.join(" ")
+    );
+    assert!(
+        !stderr.contains("panicked"),
+        "vt {} panicked:\n{stderr}",
+        args.join(" ")
+    );
     let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(lines.len(), 1, "vt {}: expected one error line, got:\n{stderr}", args.join(" "));
+    assert_eq!(
+        lines.len(),
+        1,
+        "vt {}: expected one error line, got:\n{stderr}",
+        args.join(" ")
+    );
     for w in want {
-        assert!(lines[0].contains(w), "vt {}: error {:?} does not mention {w:?}", args.join(" "), lines[0]);
+        assert!(
+            lines[0].contains(w),
+            "vt {}: error {:?} does not mention {w:?}",
+            args.join(" "),
+            lines[0]
+        );
     }
     lines[0].to_string()
 }
@@ -49,7 +75,10 @@ fn s(p: &Path) -> &str {
 }
 
 fn read_json(p: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))).unwrap()
+    serde_json::from_str(
+        &std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())),
+    )
+    .unwrap()
 }
 
 struct Synth {
@@ -64,7 +93,14 @@ fn synth(root: &Path, name: &str, extra: &[&str]) -> Synth {
     vt_ok(&args);
     let truth = read_json(&dir.join("truth.json"));
     let m = truth["phase"].as_array().unwrap().len();
-    let views = (0..m).map(|p| dir.join(format!("view_{p:02}")).to_str().unwrap().to_string()).collect();
+    let views = (0..m)
+        .map(|p| {
+            dir.join(format!("view_{p:02}"))
+                .to_str()
+                .unwrap()
+                .to_string()
+        })
+        .collect();
     Synth { dir, views }
 }
 
@@ -88,38 +124,73 @@ fn circ(a: i64, b: i64, period: i64) -> i64 {
 /// homography at the image corners within 0.5 px.
 fn check_truth(scene: &Value, truth: &Value) {
     let period = truth["period"].as_i64().unwrap();
-    let phase0: Vec<i64> = truth["phase"].as_array().unwrap().iter().map(|v| v.as_i64().unwrap()).collect();
+    let phase0: Vec<i64> = truth["phase"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect();
     let phase = |p: usize, s: i64| (s - phase0[p]).rem_euclid(period);
     let views = scene["views"].as_array().unwrap();
     let w = scene["params"]["loops"]["window"].as_i64().unwrap();
-    let (width, height) = (scene["width"].as_f64().unwrap(), scene["height"].as_f64().unwrap());
+    let (width, height) = (
+        scene["width"].as_f64().unwrap(),
+        scene["height"].as_f64().unwrap(),
+    );
     for (p, v) in views.iter().enumerate() {
-        let (m, n) = (v["loop"]["start"].as_i64().unwrap(), v["loop"]["end"].as_i64().unwrap());
-        assert!(circ(n - m, 0, period) <= 1, "view {p}: loop ({m}, {n}) is not a multiple of period {period}");
+        let (m, n) = (
+            v["loop"]["start"].as_i64().unwrap(),
+            v["loop"]["end"].as_i64().unwrap(),
+        );
+        assert!(
+            circ(n - m, 0, period) <= 1,
+            "view {p}: loop ({m}, {n}) is not a multiple of period {period}"
+        );
         let frames = v["frames"].as_i64().unwrap();
         for (side, q) in [("next", p as i64 + 1), ("prev", p as i64 - 1)] {
             let table = v["transitions"][side].as_array().unwrap();
             assert_eq!(table.len() as i64, frames);
             if q < 0 || q as usize >= views.len() {
-                assert!(table.iter().all(Value::is_null), "view {p} has {side} transitions but no {side} view");
+                assert!(
+                    table.iter().all(Value::is_null),
+                    "view {p} has {side} transitions but no {side} view"
+                );
                 continue;
             }
             let q = q as usize;
             let q_end = views[q]["loop"]["end"].as_i64().unwrap();
             for (s, t) in table.iter().enumerate().take((frames - w + 1) as usize) {
-                let t = t.as_i64().unwrap_or_else(|| panic!("view {p} {side}[{s}] is null"));
-                assert!(t + 1 < q_end, "view {p} {side}[{s}] = {t} breaks t + 1 < n = {q_end}");
+                let t = t
+                    .as_i64()
+                    .unwrap_or_else(|| panic!("view {p} {side}[{s}] is null"));
+                assert!(
+                    t + 1 < q_end,
+                    "view {p} {side}[{s}] = {t} breaks t + 1 < n = {q_end}"
+                );
                 let err = circ(phase(p, s as i64), phase(q, t), period);
-                assert!(err <= 1, "view {p} {side}[{s}] = {t}: phase {} vs {} (error {err})", phase(p, s as i64), phase(q, t));
+                assert!(
+                    err <= 1,
+                    "view {p} {side}[{s}] = {t}: phase {} vs {} (error {err})",
+                    phase(p, s as i64),
+                    phase(q, t)
+                );
             }
         }
     }
-    for (p, th) in truth["homographies_next"].as_array().unwrap().iter().enumerate() {
+    for (p, th) in truth["homographies_next"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+    {
         let h = &views[p]["to_next"]["homography"];
         let apply = |m: &Value, x: f64, y: f64| {
             let r = |i: usize, j: usize| m[i][j].as_f64().unwrap();
             let z = r(2, 0) * x + r(2, 1) * y + r(2, 2);
-            ((r(0, 0) * x + r(0, 1) * y + r(0, 2)) / z, (r(1, 0) * x + r(1, 1) * y + r(1, 2)) / z)
+            (
+                (r(0, 0) * x + r(0, 1) * y + r(0, 2)) / z,
+                (r(1, 0) * x + r(1, 1) * y + r(1, 2)) / z,
+            )
         };
         for (x, y) in [(0.0, 0.0), (width, 0.0), (0.0, height), (width, height)] {
             let (a, b) = (apply(h, x, y), apply(th, x, y));
@@ -129,7 +200,9 @@ fn check_truth(scene: &Value, truth: &Value) {
     }
 }
 
-const SMALL: [&str; 10] = ["--views", "3", "--frames", "60", "--size", "128x72", "--period", "12", "--seed", "7"];
+const SMALL: [&str; 10] = [
+    "--views", "3", "--frames", "60", "--size", "128x72", "--period", "12", "--seed", "7",
+];
 
 #[test]
 fn parallel_rig_recovers_loops_transitions_homographies_and_picks_translation() {
@@ -140,8 +213,14 @@ fn parallel_rig_recovers_loops_transitions_homographies_and_picks_translation() 
     assert_eq!(scene["model"]["chosen"], "translation");
     assert_eq!(scene["format"], "vt-scene");
     for p in 0..3 {
-        assert!(tmp.path().join(format!("scene/background_{p:03}.png")).is_file());
-        assert!(tmp.path().join(format!("scene/objects_{p:03}.bin")).is_file());
+        assert!(tmp
+            .path()
+            .join(format!("scene/background_{p:03}.png"))
+            .is_file());
+        assert!(tmp
+            .path()
+            .join(format!("scene/objects_{p:03}.bin"))
+            .is_file());
     }
 }
 
@@ -153,12 +232,23 @@ fn converging_rig_picks_homography_and_forcing_a_model_is_honoured() {
     let syn = synth(tmp.path(), "conv", &args);
     // The synthetic points are exact to 0.0005 px; say so, or GRIC rightly finds that a
     // translation explains them within the default 1 px marking noise at this small size.
-    let scene = analyze(&syn, &tmp.path().join("scene"), &["--min-length", "20", "--point-sigma", "0.02"]);
+    let scene = analyze(
+        &syn,
+        &tmp.path().join("scene"),
+        &["--min-length", "20", "--point-sigma", "0.02"],
+    );
     check_truth(&scene, &read_json(&syn.dir.join("truth.json")));
     assert_eq!(scene["model"]["chosen"], "homography");
     let coarse = analyze(&syn, &tmp.path().join("coarse"), &["--min-length", "20"]);
-    assert_ne!(coarse["model"]["chosen"], "homography", "within 1 px noise a simpler model suffices");
-    let forced = analyze(&syn, &tmp.path().join("forced"), &["--min-length", "20", "--model", "affine"]);
+    assert_ne!(
+        coarse["model"]["chosen"], "homography",
+        "within 1 px noise a simpler model suffices"
+    );
+    let forced = analyze(
+        &syn,
+        &tmp.path().join("forced"),
+        &["--min-length", "20", "--model", "affine"],
+    );
     assert_eq!(forced["model"]["chosen"], "affine");
     assert_eq!(forced["model"]["forced"], true);
 }
@@ -166,10 +256,18 @@ fn converging_rig_picks_homography_and_forcing_a_model_is_honoured() {
 #[test]
 fn same_seed_same_bytes() {
     let tmp = tempfile::tempdir().unwrap();
-    let args = ["--views", "2", "--frames", "5", "--size", "40x24", "--seed", "11"];
+    let args = [
+        "--views", "2", "--frames", "5", "--size", "40x24", "--seed", "11",
+    ];
     let a = synth(tmp.path(), "a", &args);
     let b = synth(tmp.path(), "b", &args);
-    let c = synth(tmp.path(), "c", &["--views", "2", "--frames", "5", "--size", "40x24", "--seed", "12"]);
+    let c = synth(
+        tmp.path(),
+        "c",
+        &[
+            "--views", "2", "--frames", "5", "--size", "40x24", "--seed", "12",
+        ],
+    );
     let files = |d: &Path| {
         let mut v = Vec::new();
         let mut stack = vec![d.to_path_buf()];
@@ -179,7 +277,10 @@ fn same_seed_same_bytes() {
                 if p.is_dir() {
                     stack.push(p);
                 } else {
-                    v.push((p.strip_prefix(d).unwrap().to_path_buf(), std::fs::read(&p).unwrap()));
+                    v.push((
+                        p.strip_prefix(d).unwrap().to_path_buf(),
+                        std::fs::read(&p).unwrap(),
+                    ));
                 }
             }
         }
@@ -198,23 +299,54 @@ fn real_tree_video_gives_its_68_frames_and_a_loop() {
     let stdout = vt_ok(&["analyze", s(&tree), "--out", s(&out), "--min-length", "20"]);
     let scene = read_json(&out.join("scene.json"));
     let v = &scene["views"][0];
-    assert_eq!(v["frames"], 68, "variable-frame-rate video must give its real frames");
-    let (m, n) = (v["loop"]["start"].as_u64().unwrap(), v["loop"]["end"].as_u64().unwrap());
+    assert_eq!(
+        v["frames"], 68,
+        "variable-frame-rate video must give its real frames"
+    );
+    let (m, n) = (
+        v["loop"]["start"].as_u64().unwrap(),
+        v["loop"]["end"].as_u64().unwrap(),
+    );
     assert!(n - m >= 20 && n + 3 - 1 < 68, "loop ({m}, {n})");
-    assert!(stdout.contains("loop (m, n)"), "summary table printed:\n{stdout}");
+    assert!(
+        stdout.contains("loop (m, n)"),
+        "summary table printed:\n{stdout}"
+    );
     assert!(scene["model"].is_null(), "one view, no model");
 }
 
 #[test]
 fn mp4_views_work_like_frame_folders() {
     let tmp = tempfile::tempdir().unwrap();
-    let syn = synth(tmp.path(), "mp4", &["--views", "2", "--frames", "40", "--size", "96x64", "--period", "10"]);
+    let syn = synth(
+        tmp.path(),
+        "mp4",
+        &[
+            "--views", "2", "--frames", "40", "--size", "96x64", "--period", "10",
+        ],
+    );
     let mut videos = Vec::new();
     for (p, v) in syn.views.iter().enumerate() {
         let mp4 = tmp.path().join(format!("view{p}.mp4"));
         let st = Command::new("ffmpeg")
-            .args(["-v", "error", "-y", "-framerate", "25", "-i", &format!("{v}/frame_%05d.png")])
-            .args(["-c:v", "libx264", "-crf", "12", "-pix_fmt", "yuv444p", s(&mp4)])
+            .args([
+                "-v",
+                "error",
+                "-y",
+                "-framerate",
+                "25",
+                "-i",
+                &format!("{v}/frame_%05d.png"),
+            ])
+            .args([
+                "-c:v",
+                "libx264",
+                "-crf",
+                "12",
+                "-pix_fmt",
+                "yuv444p",
+                s(&mp4),
+            ])
             .status()
             .expect("ffmpeg is installed by the test command");
         assert!(st.success());
@@ -222,7 +354,17 @@ fn mp4_views_work_like_frame_folders() {
     }
     let out = tmp.path().join("scene");
     let points = syn.dir.join("points.txt");
-    vt_ok(&["analyze", &videos[0], &videos[1], "--points", s(&points), "--out", s(&out), "--min-length", "15"]);
+    vt_ok(&[
+        "analyze",
+        &videos[0],
+        &videos[1],
+        "--points",
+        s(&points),
+        "--out",
+        s(&out),
+        "--min-length",
+        "15",
+    ]);
     let scene = read_json(&out.join("scene.json"));
     assert_eq!(scene["views"][1]["frames"], 40);
     check_truth(&scene, &read_json(&syn.dir.join("truth.json")));
@@ -232,8 +374,18 @@ fn mp4_views_work_like_frame_folders() {
 fn bad_input_gives_one_clear_line_and_leaves_no_scene() {
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();
-    let syn = synth(t, "ok", &["--views", "2", "--frames", "30", "--size", "64x40", "--period", "8"]);
-    let other = synth(t, "other", &["--views", "1", "--frames", "30", "--size", "48x40"]);
+    let syn = synth(
+        t,
+        "ok",
+        &[
+            "--views", "2", "--frames", "30", "--size", "64x40", "--period", "8",
+        ],
+    );
+    let other = synth(
+        t,
+        "other",
+        &["--views", "1", "--frames", "30", "--size", "48x40"],
+    );
     let points = syn.dir.join("points.txt");
     let (v0, v1) = (syn.views[0].as_str(), syn.views[1].as_str());
     let out = t.join("out");
@@ -247,20 +399,48 @@ fn bad_input_gives_one_clear_line_and_leaves_no_scene() {
     let collinear = write("line.txt", b"0 0 1 1 2 2 3 3\n0 0 1 1 2 2 3 3\n");
     let nan = write("nan.txt", b"1 2 30 4 5 60 7 8\n1 2 3 4 5 nan 7 8\n");
     let garbage = write("garbage.mp4", b"this is not a video");
-    let tree = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi")).unwrap();
+    let tree = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi"))
+        .unwrap();
     let truncated = write("truncated.avi", &tree[..600_000]);
     let missing = t.join("missing_view");
     let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
-        (vec![v0, other.views[0].as_str(), "--points", s(&points)], vec!["different sizes", "64x40", "48x40"]),
-        (vec![v0, v1, "--points", s(&points), "--min-length", "40"], vec!["view 0", "30 frames", "43"]),
-        (vec![v0, v1, "--points", s(&three)], vec!["three.txt:1", "3 points"]),
-        (vec![v0, v1, "--points", s(&collinear)], vec!["line.txt", "view 0", "one line"]),
-        (vec![v0, v1, "--points", s(&nan)], vec!["nan.txt:2", "'nan'"]),
-        (vec![s(&garbage), "--min-length", "5"], vec!["garbage.mp4", "not a readable video"]),
-        (vec![s(&truncated), "--min-length", "5"], vec!["truncated.avi", "truncated"]),
-        (vec![v0, s(&missing), "--points", s(&points)], vec!["view 1", "missing_view", "no such file"]),
+        (
+            vec![v0, other.views[0].as_str(), "--points", s(&points)],
+            vec!["different sizes", "64x40", "48x40"],
+        ),
+        (
+            vec![v0, v1, "--points", s(&points), "--min-length", "40"],
+            vec!["view 0", "30 frames", "43"],
+        ),
+        (
+            vec![v0, v1, "--points", s(&three)],
+            vec!["three.txt:1", "3 points"],
+        ),
+        (
+            vec![v0, v1, "--points", s(&collinear)],
+            vec!["line.txt", "view 0", "one line"],
+        ),
+        (
+            vec![v0, v1, "--points", s(&nan)],
+            vec!["nan.txt:2", "'nan'"],
+        ),
+        (
+            vec![s(&garbage), "--min-length", "5"],
+            vec!["garbage.mp4", "not a readable video"],
+        ),
+        (
+            vec![s(&truncated), "--min-length", "5"],
+            vec!["truncated.avi", "truncated"],
+        ),
+        (
+            vec![v0, s(&missing), "--points", s(&points)],
+            vec!["view 1", "missing_view", "no such file"],
+        ),
         (vec![v0, v1], vec!["--points is required"]),
-        (vec![v0, v1, "--points", s(&points), "--window", "0"], vec!["--window"]),
+        (
+            vec![v0, v1, "--points", s(&points), "--window", "0"],
+            vec!["--window"],
+        ),
     ];
     for (args, want) in cases {
         let mut full = vec!["analyze"];
@@ -268,13 +448,33 @@ fn bad_input_gives_one_clear_line_and_leaves_no_scene() {
         full.extend(["--out", o]);
         vt_err(&full, &want);
         assert!(!out.exists(), "vt {} left {}", full.join(" "), o);
-        let leftovers: Vec<_> = std::fs::read_dir(t).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().starts_with(".out")).collect();
-        assert!(leftovers.is_empty(), "temporary directories left behind: {leftovers:?}");
+        let leftovers: Vec<_> = std::fs::read_dir(t)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().starts_with(".out"))
+            .collect();
+        assert!(
+            leftovers.is_empty(),
+            "temporary directories left behind: {leftovers:?}"
+        );
     }
 
     // A failed run never harms a good scene already there.
-    vt_ok(&["analyze", v0, v1, "--points", s(&points), "--out", o, "--min-length", "10"]);
+    vt_ok(&[
+        "analyze",
+        v0,
+        v1,
+        "--points",
+        s(&points),
+        "--out",
+        o,
+        "--min-length",
+        "10",
+    ]);
     let before = std::fs::read(out.join("scene.json")).unwrap();
-    vt_err(&["analyze", v0, v1, "--points", s(&nan), "--out", o], &["nan.txt:2"]);
+    vt_err(
+        &["analyze", v0, v1, "--points", s(&nan), "--out", o],
+        &["nan.txt:2"],
+    );
     assert_eq!(std::fs::read(out.join("scene.json")).unwrap(), before);
 }

@@ -28,18 +28,22 @@ fn bench(c: &mut Criterion) {
     g.bench_function("loop_search_500x640x360", |b| {
         b.iter(|| find_loop(&ms, &LoopParams::default(), "bench").unwrap())
     });
-    let frame = RgbImage::from_fn(640, 360, |x, y| image::Rgb([x as u8, y as u8, (x ^ y) as u8]));
+    let frame = RgbImage::from_fn(640, 360, |x, y| {
+        image::Rgb([x as u8, y as u8, (x ^ y) as u8])
+    });
     let mut out = RgbImage::new(640, 360);
     g.bench_function("gaussian3_640x360", |b| {
         b.iter(|| gaussian_blur_into(&frame, &GaussianParams::default(), &mut out).unwrap())
     });
     let mut acc = MedianAccumulator::new(640, 360);
-    g.bench_function("median_push_640x360", |b| b.iter(|| {
-        if acc.n_frames() >= MedianAccumulator::MAX_FRAMES - 1 {
-            acc = MedianAccumulator::new(640, 360);
-        }
-        acc.push(&frame).unwrap()
-    }));
+    g.bench_function("median_push_640x360", |b| {
+        b.iter(|| {
+            if acc.n_frames() >= MedianAccumulator::MAX_FRAMES - 1 {
+                acc = MedianAccumulator::new(640, 360);
+            }
+            acc.push(&frame).unwrap()
+        })
+    });
     g.finish();
 }
 

@@ -26,7 +26,10 @@ pub trait FrameSource {
     /// A name for messages (usually the path).
     fn name(&self) -> &str;
     /// Calls `f(index, frame)` for every frame in order and returns how many there were.
-    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>) -> Result<usize>;
+    fn for_each_frame(
+        &mut self,
+        f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>,
+    ) -> Result<usize>;
 }
 
 /// Frames already in memory.
@@ -41,7 +44,10 @@ impl FrameSource for MemorySource {
     fn name(&self) -> &str {
         &self.name
     }
-    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>) -> Result<usize> {
+    fn for_each_frame(
+        &mut self,
+        f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>,
+    ) -> Result<usize> {
         for (i, fr) in self.frames.iter().enumerate() {
             f(i, fr)?;
         }
@@ -65,7 +71,11 @@ pub struct MaskParams {
 
 impl Default for MaskParams {
     fn default() -> Self {
-        Self { threshold: 25, open_radius: 0, close_radius: 0 }
+        Self {
+            threshold: 25,
+            open_radius: 0,
+            close_radius: 0,
+        }
     }
 }
 
@@ -93,7 +103,11 @@ pub fn threshold_mask(frame: &RgbImage, background: &RgbImage, threshold: u8) ->
 }
 
 /// [`threshold_mask`] followed by the clean-up of `params`.
-pub fn foreground_mask(frame: &RgbImage, background: &RgbImage, params: &MaskParams) -> Result<Mask> {
+pub fn foreground_mask(
+    frame: &RgbImage,
+    background: &RgbImage,
+    params: &MaskParams,
+) -> Result<Mask> {
     let m = threshold_mask(frame, background, params.threshold)?;
     Ok(m.open(params.open_radius).close(params.close_radius))
 }
@@ -156,7 +170,13 @@ pub trait Observer {
     fn finish(&mut self) {}
     /// Frame `frame` of `view` has moving-object mask `mask` (pixels of `raw` under it are the
     /// object, eq. (4)-(5)); frames arrive in order. An error aborts the analysis.
-    fn object_frame(&mut self, _view: usize, _frame: usize, _mask: &Mask, _raw: &RgbImage) -> Result<()> {
+    fn object_frame(
+        &mut self,
+        _view: usize,
+        _frame: usize,
+        _mask: &Mask,
+        _raw: &RgbImage,
+    ) -> Result<()> {
         Ok(())
     }
 }
@@ -230,7 +250,13 @@ pub struct SceneAnalysis {
 }
 
 fn size_err(what: String, expected: (u32, u32), got: (u32, u32)) -> Error {
-    Error::SizeMismatch { what, expected_w: expected.0, expected_h: expected.1, got_w: got.0, got_h: got.1 }
+    Error::SizeMismatch {
+        what,
+        expected_w: expected.0,
+        expected_h: expected.1,
+        got_w: got.0,
+        got_h: got.1,
+    }
 }
 
 /// Runs A-1..A-3 on `sources` (one per view, in order) with `points[p]` the marked points of view p
@@ -243,15 +269,25 @@ pub fn analyze(
 ) -> Result<SceneAnalysis> {
     let m = sources.len();
     if m == 0 {
-        return Err(Error::InvalidParameter { name: "views", value: "0".into(), why: "at least one view is needed".into() });
+        return Err(Error::InvalidParameter {
+            name: "views",
+            value: "0".into(),
+            why: "at least one view is needed".into(),
+        });
     }
     if m > 1 {
         if points.len() != m {
-            return Err(Error::DegeneratePoints(format!("{m} views but points for {} views", points.len())));
+            return Err(Error::DegeneratePoints(format!(
+                "{m} views but points for {} views",
+                points.len()
+            )));
         }
         let k0 = points[0].len();
         if let Some((p, pts)) = points.iter().enumerate().find(|(_, v)| v.len() != k0) {
-            return Err(Error::DegeneratePoints(format!("view 0 has {k0} points but view {p} has {}", pts.len())));
+            return Err(Error::DegeneratePoints(format!(
+                "view 0 has {k0} points but view {p} has {}",
+                pts.len()
+            )));
         }
     }
     let mut timings = Timings::default();
@@ -260,8 +296,9 @@ pub fn analyze(
     if m > 1 {
         let t0 = Instant::now();
         observer.start(Stage::Homographies, None, Some((m - 1) as u64));
-        let pairs: Vec<(&[Point], &[Point])> =
-            (0..m - 1).map(|p| (points[p].as_slice(), points[p + 1].as_slice())).collect();
+        let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
+            .map(|p| (points[p].as_slice(), points[p + 1].as_slice()))
+            .collect();
         let sel = select_model(&pairs, &params.model)?;
         observer.finish();
         timings.homographies += t0.elapsed();
@@ -283,16 +320,38 @@ pub fn analyze(
         for p in 0..m - 1 {
             let h = sel.fits[p].homography;
             let (a, b) = (&views[p], &views[p + 1]);
-            let fwd = transition_table(&warp_masks(&a.masks, &h, width, height), &b.masks, b.best_loop.end, params.loops.window)?;
+            let fwd = transition_table(
+                &warp_masks(&a.masks, &h, width, height),
+                &b.masks,
+                b.best_loop.end,
+                params.loops.window,
+            )?;
             observer.tick();
-            let back = transition_table(&warp_masks(&b.masks, &h.inverse(), width, height), &a.masks, a.best_loop.end, params.loops.window)?;
+            let back = transition_table(
+                &warp_masks(&b.masks, &h.inverse(), width, height),
+                &a.masks,
+                a.best_loop.end,
+                params.loops.window,
+            )?;
             observer.tick();
-            links.push(Link { homography: h, rms: sel.fits[p].rms, forward: fwd, backward: back });
+            links.push(Link {
+                homography: h,
+                rms: sel.fits[p].rms,
+                forward: fwd,
+                backward: back,
+            });
         }
         observer.finish();
         timings.transitions += t0.elapsed();
     }
-    Ok(SceneAnalysis { width, height, views, selection, links, timings })
+    Ok(SceneAnalysis {
+        width,
+        height,
+        views,
+        selection,
+        links,
+        timings,
+    })
 }
 
 /// The model chosen, if any.
@@ -325,22 +384,36 @@ fn analyze_view(
         let t = Instant::now();
         let dims = frame.dimensions();
         if dims.0 == 0 || dims.1 == 0 {
-            return Err(Error::EmptyImage { what: label(&format!(" frame {i}")), w: dims.0, h: dims.1 });
+            return Err(Error::EmptyImage {
+                what: label(&format!(" frame {i}")),
+                w: dims.0,
+                h: dims.1,
+            });
         }
         match size {
             None => *size = Some(dims),
             Some(s) if *s != dims => {
                 if acc.is_none() {
-                    return Err(Error::ViewSizes { first: *s, view: label(""), size: dims });
+                    return Err(Error::ViewSizes {
+                        first: *s,
+                        view: label(""),
+                        size: dims,
+                    });
                 }
                 return Err(size_err(label(&format!(" frame {i}")), *s, dims));
             }
             _ => {}
         }
-        acc.get_or_insert_with(|| MedianAccumulator::new(dims.0, dims.1)).push(frame).map_err(|e| match e {
-            Error::TooManyFrames { got, max, .. } => Error::TooManyFrames { what: label(""), got, max },
-            other => other,
-        })?;
+        acc.get_or_insert_with(|| MedianAccumulator::new(dims.0, dims.1))
+            .push(frame)
+            .map_err(|e| match e {
+                Error::TooManyFrames { got, max, .. } => Error::TooManyFrames {
+                    what: label(""),
+                    got,
+                    max,
+                },
+                other => other,
+            })?;
         if let Some(c) = cache.as_mut() {
             cached_bytes += frame.as_raw().len();
             if cached_bytes <= params.cache_bytes {
@@ -361,7 +434,10 @@ fn analyze_view(
             what: label(""),
             got: n1,
             need,
-            why: format!("a loop needs w + k = {} + {} frames", params.loops.window, params.loops.min_length),
+            why: format!(
+                "a loop needs w + k = {} + {} frames",
+                params.loops.window, params.loops.min_length
+            ),
         });
     }
     let t = Instant::now();
@@ -393,7 +469,11 @@ fn analyze_view(
         let n2 = src.for_each_frame(&mut |i, frame| {
             let t = Instant::now();
             if frame.dimensions() != bg_blur.dimensions() {
-                return Err(size_err(label(&format!(" frame {i}")), bg_blur.dimensions(), frame.dimensions()));
+                return Err(size_err(
+                    label(&format!(" frame {i}")),
+                    bg_blur.dimensions(),
+                    frame.dimensions(),
+                ));
             }
             gaussian_blur_into(frame, &params.blur, &mut blurred)?;
             let m = foreground_mask(&blurred, &bg_blur, &params.mask)?;
@@ -404,7 +484,10 @@ fn analyze_view(
             Ok(())
         })?;
         if n2 != n1 {
-            return Err(Error::Source { view: label(""), message: format!("gave {n1} frames on the first read and {n2} on the second") });
+            return Err(Error::Source {
+                view: label(""),
+                message: format!("gave {n1} frames on the first read and {n2} on the second"),
+            });
         }
         timings.decode += t_pass.elapsed().saturating_sub(inside);
         timings.masks += inside;
@@ -418,7 +501,14 @@ fn analyze_view(
     timings.loops += t.elapsed();
     let total_px = masks.len() as f64 * masks[0].len() as f64;
     let moving_fraction = masks.iter().map(|m| m.count_ones() as f64).sum::<f64>() / total_px;
-    Ok(ViewResult { name, n_frames: n1, background, masks, best_loop, moving_fraction })
+    Ok(ViewResult {
+        name,
+        n_frames: n1,
+        background,
+        masks,
+        best_loop,
+        moving_fraction,
+    })
 }
 
 #[cfg(test)]
@@ -434,19 +524,45 @@ mod tests {
                 let cy = 16.0 + 6.0 * ph.cos();
                 RgbImage::from_fn(48, 32, |x, y| {
                     let inside = (x as f64 - cx).abs() < 4.0 && (y as f64 - cy).abs() < 4.0;
-                    if inside { image::Rgb([250, 20, 20]) } else { image::Rgb([(x * 3) as u8, (y * 5) as u8, 90]) }
+                    if inside {
+                        image::Rgb([250, 20, 20])
+                    } else {
+                        image::Rgb([(x * 3) as u8, (y * 5) as u8, 90])
+                    }
                 })
             })
             .collect();
-        MemorySource { name: format!("mem{shift}"), frames }
+        MemorySource {
+            name: format!("mem{shift}"),
+            frames,
+        }
     }
 
     #[test]
     fn two_view_scene_end_to_end() {
         let (mut a, mut b) = (view(0, 0, 40), view(5, 3, 40));
-        let pts = |dx: f64| vec![Point::new(2.0 + dx, 2.0), Point::new(40.0 + dx, 3.0), Point::new(41.0 + dx, 30.0), Point::new(3.0 + dx, 29.0)];
-        let params = AnalyzeParams { loops: LoopParams { window: 3, min_length: 15 }, ..Default::default() };
-        let res = analyze(&mut [&mut a, &mut b], &[pts(0.0), pts(5.0)], &params, &mut Quiet).unwrap();
+        let pts = |dx: f64| {
+            vec![
+                Point::new(2.0 + dx, 2.0),
+                Point::new(40.0 + dx, 3.0),
+                Point::new(41.0 + dx, 30.0),
+                Point::new(3.0 + dx, 29.0),
+            ]
+        };
+        let params = AnalyzeParams {
+            loops: LoopParams {
+                window: 3,
+                min_length: 15,
+            },
+            ..Default::default()
+        };
+        let res = analyze(
+            &mut [&mut a, &mut b],
+            &[pts(0.0), pts(5.0)],
+            &params,
+            &mut Quiet,
+        )
+        .unwrap();
         assert_eq!(res.model(), Some(MotionModel::Translation));
         for v in &res.views {
             assert_eq!(v.best_loop.len() % 10, 0);
@@ -464,10 +580,33 @@ mod tests {
     #[test]
     fn views_of_different_sizes_are_named() {
         let mut a = view(0, 0, 20);
-        let mut b = MemorySource { name: "small".into(), frames: vec![RgbImage::new(10, 10); 20] };
-        let params = AnalyzeParams { loops: LoopParams { window: 2, min_length: 5 }, ..Default::default() };
-        let pts = vec![Point::new(0.0, 0.0), Point::new(9.0, 0.0), Point::new(9.0, 9.0), Point::new(0.0, 9.0)];
-        let err = analyze(&mut [&mut a, &mut b], &[pts.clone(), pts], &params, &mut Quiet).unwrap_err();
-        assert_eq!(err.to_string(), "views have different sizes: view 0 is 48x32, view 1 (small) is 10x10");
+        let mut b = MemorySource {
+            name: "small".into(),
+            frames: vec![RgbImage::new(10, 10); 20],
+        };
+        let params = AnalyzeParams {
+            loops: LoopParams {
+                window: 2,
+                min_length: 5,
+            },
+            ..Default::default()
+        };
+        let pts = vec![
+            Point::new(0.0, 0.0),
+            Point::new(9.0, 0.0),
+            Point::new(9.0, 9.0),
+            Point::new(0.0, 9.0),
+        ];
+        let err = analyze(
+            &mut [&mut a, &mut b],
+            &[pts.clone(), pts],
+            &params,
+            &mut Quiet,
+        )
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "views have different sizes: view 0 is 48x32, view 1 (small) is 10x10"
+        );
     }
 }

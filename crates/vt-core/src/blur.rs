@@ -24,7 +24,10 @@ pub struct GaussianParams {
 
 impl Default for GaussianParams {
     fn default() -> Self {
-        Self { ksize: 3, sigma: 0.0 }
+        Self {
+            ksize: 3,
+            sigma: 0.0,
+        }
     }
 }
 
@@ -45,12 +48,18 @@ pub fn gaussian_kernel(ksize: usize, sigma: f64) -> Result<Vec<f64>> {
         &[1.0],
         &[0.25, 0.5, 0.25],
         &[0.0625, 0.25, 0.375, 0.25, 0.0625],
-        &[0.03125, 0.109375, 0.21875, 0.28125, 0.21875, 0.109375, 0.03125],
+        &[
+            0.03125, 0.109375, 0.21875, 0.28125, 0.21875, 0.109375, 0.03125,
+        ],
     ];
     if sigma <= 0.0 && ksize <= 7 {
         return Ok(SMALL[ksize / 2].to_vec());
     }
-    let sigma = if sigma > 0.0 { sigma } else { ((ksize - 1) as f64 * 0.5 - 1.0) * 0.3 + 0.8 };
+    let sigma = if sigma > 0.0 {
+        sigma
+    } else {
+        ((ksize - 1) as f64 * 0.5 - 1.0) * 0.3 + 0.8
+    };
     let scale2x = -0.5 / (sigma * sigma);
     let mut k: Vec<f64> = (0..ksize)
         .map(|i| {
@@ -89,7 +98,11 @@ pub fn gaussian_blur(src: &RgbImage, params: &GaussianParams) -> Result<RgbImage
 }
 
 /// Blurs `src` into `out`, which must have the same size.
-pub fn gaussian_blur_into(src: &RgbImage, params: &GaussianParams, out: &mut RgbImage) -> Result<()> {
+pub fn gaussian_blur_into(
+    src: &RgbImage,
+    params: &GaussianParams,
+    out: &mut RgbImage,
+) -> Result<()> {
     if out.dimensions() != src.dimensions() {
         return Err(Error::SizeMismatch {
             what: "blur output".into(),
@@ -99,7 +112,10 @@ pub fn gaussian_blur_into(src: &RgbImage, params: &GaussianParams, out: &mut Rgb
             got_h: out.height(),
         });
     }
-    let kernel: Vec<f32> = gaussian_kernel(params.ksize, params.sigma)?.iter().map(|&v| v as f32).collect();
+    let kernel: Vec<f32> = gaussian_kernel(params.ksize, params.sigma)?
+        .iter()
+        .map(|&v| v as f32)
+        .collect();
     let (w, h) = (src.width() as usize, src.height() as usize);
     if w == 0 || h == 0 {
         return Ok(());
@@ -122,16 +138,19 @@ pub fn gaussian_blur_into(src: &RgbImage, params: &GaussianParams, out: &mut Rgb
         }
     });
     // Vertical pass, rounded to u8.
-    out.as_mut().par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-        for (i, o) in row.iter_mut().enumerate() {
-            let mut acc = 0f32;
-            for (j, &kv) in kernel.iter().enumerate() {
-                let yy = reflect101(y as isize + j as isize - r as isize, h);
-                acc += kv * tmp[yy * w * 3 + i];
+    out.as_mut()
+        .par_chunks_mut(w * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (i, o) in row.iter_mut().enumerate() {
+                let mut acc = 0f32;
+                for (j, &kv) in kernel.iter().enumerate() {
+                    let yy = reflect101(y as isize + j as isize - r as isize, h);
+                    acc += kv * tmp[yy * w * 3 + i];
+                }
+                *o = acc.round().clamp(0.0, 255.0) as u8;
             }
-            *o = acc.round().clamp(0.0, 255.0) as u8;
-        }
-    });
+        });
     Ok(())
 }
 
@@ -145,11 +164,16 @@ mod tests {
     fn kernel_matches_opencv_definition() {
         // Small tables (OpenCV smooth.dispatch / getGaussianKernel, sigma <= 0).
         assert_eq!(gaussian_kernel(3, 0.0).unwrap(), vec![0.25, 0.5, 0.25]);
-        assert_eq!(gaussian_kernel(5, -1.0).unwrap(), vec![0.0625, 0.25, 0.375, 0.25, 0.0625]);
+        assert_eq!(
+            gaussian_kernel(5, -1.0).unwrap(),
+            vec![0.0625, 0.25, 0.375, 0.25, 0.0625]
+        );
         // Formula with derived sigma for ksize 9: sigma = 0.3*(4-1)+0.8 = 1.7.
         let k = gaussian_kernel(9, 0.0).unwrap();
         let s: f64 = 1.7;
-        let raw: Vec<f64> = (0..9).map(|i| (-((i as f64 - 4.0).powi(2)) / (2.0 * s * s)).exp()).collect();
+        let raw: Vec<f64> = (0..9)
+            .map(|i| (-((i as f64 - 4.0).powi(2)) / (2.0 * s * s)).exp())
+            .collect();
         let sum: f64 = raw.iter().sum();
         for (a, b) in k.iter().zip(raw.iter().map(|v| v / sum)) {
             assert_relative_eq!(*a, b, max_relative = 1e-14);
@@ -172,7 +196,17 @@ mod tests {
     #[test]
     fn one_pixel_and_constant_images_are_fixed_points() {
         let one = RgbImage::from_pixel(1, 1, image::Rgb([7, 200, 33]));
-        assert_eq!(gaussian_blur(&one, &GaussianParams { ksize: 7, sigma: 2.0 }).unwrap(), one);
+        assert_eq!(
+            gaussian_blur(
+                &one,
+                &GaussianParams {
+                    ksize: 7,
+                    sigma: 2.0
+                }
+            )
+            .unwrap(),
+            one
+        );
     }
 
     proptest! {

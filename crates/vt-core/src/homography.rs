@@ -25,14 +25,20 @@ impl Homography {
 
     /// The identity map.
     pub fn identity() -> Self {
-        Self { m: Matrix3::identity(), inv: Matrix3::identity() }
+        Self {
+            m: Matrix3::identity(),
+            inv: Matrix3::identity(),
+        }
     }
 
     /// A homography from its matrix; fails for a non-finite or (numerically) singular matrix.
     /// The matrix is scaled to unit Frobenius norm with a non-negative last element.
     pub fn from_matrix(m: Matrix3<f64>) -> Result<Self> {
         if m.iter().any(|v| !v.is_finite()) {
-            return Err(Error::NonFinite(format!("homography matrix {:?}", m.as_slice())));
+            return Err(Error::NonFinite(format!(
+                "homography matrix {:?}",
+                m.as_slice()
+            )));
         }
         let norm = m.norm();
         if norm == 0.0 {
@@ -49,7 +55,9 @@ impl Homography {
                 Self::MIN_CONDITION
             )));
         }
-        let inv = m.try_inverse().ok_or_else(|| Error::SingularHomography("not invertible".into()))?;
+        let inv = m
+            .try_inverse()
+            .ok_or_else(|| Error::SingularHomography("not invertible".into()))?;
         if inv.iter().any(|v| !v.is_finite()) {
             return Err(Error::SingularHomography("inverse is not finite".into()));
         }
@@ -75,7 +83,10 @@ impl Homography {
 
     /// The inverse map.
     pub fn inverse(&self) -> Homography {
-        Self::from_matrix(self.inv).unwrap_or(Homography { m: self.inv, inv: self.m })
+        Self::from_matrix(self.inv).unwrap_or(Homography {
+            m: self.inv,
+            inv: self.m,
+        })
     }
 
     /// `self` after `first`: maps `x` to `self(first(x))`.
@@ -145,7 +156,13 @@ pub(crate) fn check_points(src: &[Point], dst: &[Point], min: usize, what: &str)
 }
 
 /// [`check_points`] with the two sides named in messages (e.g. "view 0", "view 1").
-pub(crate) fn check_named_points(src: &[Point], dst: &[Point], min: usize, what: &str, names: (&str, &str)) -> Result<()> {
+pub(crate) fn check_named_points(
+    src: &[Point],
+    dst: &[Point],
+    min: usize,
+    what: &str,
+    names: (&str, &str),
+) -> Result<()> {
     if src.len() != dst.len() {
         return Err(Error::DegeneratePoints(format!(
             "{} {} points but {} {} points",
@@ -156,12 +173,18 @@ pub(crate) fn check_named_points(src: &[Point], dst: &[Point], min: usize, what:
         )));
     }
     if src.len() < min {
-        return Err(Error::DegeneratePoints(format!("{what} needs at least {min} point pairs, got {}", src.len())));
+        return Err(Error::DegeneratePoints(format!(
+            "{what} needs at least {min} point pairs, got {}",
+            src.len()
+        )));
     }
     for (side, pts) in [(names.0, src), (names.1, dst)] {
         for (i, p) in pts.iter().enumerate() {
             if !p.x.is_finite() || !p.y.is_finite() {
-                return Err(Error::NonFinite(format!("{side}: point {i} ({}, {})", p.x, p.y)));
+                return Err(Error::NonFinite(format!(
+                    "{side}: point {i} ({}, {})",
+                    p.x, p.y
+                )));
             }
         }
         let spread = spread(pts);
@@ -176,7 +199,9 @@ pub(crate) fn check_named_points(src: &[Point], dst: &[Point], min: usize, what:
             }
         }
         if min >= 3 && collinear(pts) {
-            return Err(Error::DegeneratePoints(format!("{side}: all points lie on one line")));
+            return Err(Error::DegeneratePoints(format!(
+                "{side}: all points lie on one line"
+            )));
         }
     }
     Ok(())
@@ -189,7 +214,10 @@ fn spread(pts: &[Point]) -> f64 {
 
 fn centroid(pts: &[Point]) -> Point {
     let n = pts.len() as f64;
-    Point::new(pts.iter().map(|p| p.x).sum::<f64>() / n, pts.iter().map(|p| p.y).sum::<f64>() / n)
+    Point::new(
+        pts.iter().map(|p| p.x).sum::<f64>() / n,
+        pts.iter().map(|p| p.y).sum::<f64>() / n,
+    )
 }
 
 /// True when the points' second principal extent is below 1e-9 of the first.
@@ -213,7 +241,11 @@ fn collinear(pts: &[Point]) -> bool {
 pub(crate) fn normalizer(pts: &[Point]) -> Matrix3<f64> {
     let c = centroid(pts);
     let mean = pts.iter().map(|p| (p - c).norm()).sum::<f64>() / pts.len() as f64;
-    let s = if mean > 0.0 { std::f64::consts::SQRT_2 / mean } else { 1.0 };
+    let s = if mean > 0.0 {
+        std::f64::consts::SQRT_2 / mean
+    } else {
+        1.0
+    };
     Matrix3::new(s, 0.0, -s * c.x, 0.0, s, -s * c.y, 0.0, 0.0, 1.0)
 }
 
@@ -257,7 +289,9 @@ fn estimate(src: &[Point], dst: &[Point]) -> Result<HomographyFit> {
     let h = v_t.row(order[0]);
     let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
     let hn = refine_lm(hn, &ns, &nd);
-    let ti = td.try_inverse().expect("normaliser is a similarity, always invertible");
+    let ti = td
+        .try_inverse()
+        .expect("normaliser is a similarity, always invertible");
     let homography = Homography::from_matrix(ti * hn * ts).map_err(|e| {
         Error::DegeneratePoints(format!(
             "the point configuration does not determine a homography ({e}); are three of four points on one line?"
@@ -288,7 +322,9 @@ fn refine_lm(h0: Matrix3<f64>, src: &[Point], dst: &[Point]) -> Matrix3<f64> {
         Some(sum)
     };
     let mut h = h0 / h0.norm();
-    let Some(mut err) = residuals(&h) else { return h0 };
+    let Some(mut err) = residuals(&h) else {
+        return h0;
+    };
     let mut lambda = 1e-3;
     for _ in 0..50 {
         if err < 1e-30 {
@@ -351,7 +387,9 @@ mod tests {
     fn corners_error(a: &Homography, b: &Homography, w: f64, h: f64) -> f64 {
         [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
             .iter()
-            .map(|&(x, y)| (a.apply(Point::new(x, y)).unwrap() - b.apply(Point::new(x, y)).unwrap()).norm())
+            .map(|&(x, y)| {
+                (a.apply(Point::new(x, y)).unwrap() - b.apply(Point::new(x, y)).unwrap()).norm()
+            })
             .fold(0.0, f64::max)
     }
 
@@ -366,7 +404,17 @@ mod tests {
             -4e-4f64..4e-4,
         )
             .prop_map(|(s, r, sh, tx, ty, p0, p1)| {
-                let m = Matrix3::new(s * r.cos(), -s * r.sin() + sh, tx, s * r.sin(), s * r.cos(), ty, p0, p1, 1.0);
+                let m = Matrix3::new(
+                    s * r.cos(),
+                    -s * r.sin() + sh,
+                    tx,
+                    s * r.sin(),
+                    s * r.cos(),
+                    ty,
+                    p0,
+                    p1,
+                    1.0,
+                );
                 Homography::from_matrix(m).unwrap()
             })
     }
@@ -403,11 +451,20 @@ mod tests {
 
     #[test]
     fn far_from_origin_points_are_stable() {
-        let h = Homography::from_matrix(Matrix3::new(1.01, 0.02, 5.0, -0.01, 0.99, -3.0, 1e-7, -2e-7, 1.0)).unwrap();
-        let src: Vec<Point> = [(0.0, 0.0), (300.0, 10.0), (280.0, 250.0), (-20.0, 270.0), (150.0, 120.0)]
-            .iter()
-            .map(|&(x, y)| Point::new(x + 5e4, y + 8e4))
-            .collect();
+        let h = Homography::from_matrix(Matrix3::new(
+            1.01, 0.02, 5.0, -0.01, 0.99, -3.0, 1e-7, -2e-7, 1.0,
+        ))
+        .unwrap();
+        let src: Vec<Point> = [
+            (0.0, 0.0),
+            (300.0, 10.0),
+            (280.0, 250.0),
+            (-20.0, 270.0),
+            (150.0, 120.0),
+        ]
+        .iter()
+        .map(|&(x, y)| Point::new(x + 5e4, y + 8e4))
+        .collect();
         let dst: Vec<Point> = src.iter().map(|p| h.apply(*p).unwrap()).collect();
         let fit = Homography::from_correspondences(&src, &dst).unwrap();
         assert!(fit.rms < 1e-6, "rms {}", fit.rms);
@@ -428,11 +485,27 @@ mod tests {
             ("non-finite", &nan, "non-finite"),
             ("too few", &sq[..3].to_vec(), "at least 4"),
         ] {
-            let err = Homography::from_correspondences(src, &sq[..src.len()]).unwrap_err().to_string();
+            let err = Homography::from_correspondences(src, &sq[..src.len()])
+                .unwrap_err()
+                .to_string();
             assert!(err.contains(want), "{name}: {err}");
         }
         assert!(Homography::from_matrix(Matrix3::zeros()).is_err());
-        assert!(Homography::from_matrix(Matrix3::new(1.0, 2.0, 3.0, 2.0, 4.0, 6.0, 0.0, 0.0, 1.0)).is_err());
-        assert!(Homography::from_matrix(Matrix3::new(f64::INFINITY, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)).is_err());
+        assert!(
+            Homography::from_matrix(Matrix3::new(1.0, 2.0, 3.0, 2.0, 4.0, 6.0, 0.0, 0.0, 1.0))
+                .is_err()
+        );
+        assert!(Homography::from_matrix(Matrix3::new(
+            f64::INFINITY,
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            1.0
+        ))
+        .is_err());
     }
 }

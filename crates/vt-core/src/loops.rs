@@ -25,7 +25,10 @@ pub struct LoopParams {
 
 impl Default for LoopParams {
     fn default() -> Self {
-        Self { window: 3, min_length: 100 }
+        Self {
+            window: 3,
+            min_length: 100,
+        }
     }
 }
 
@@ -55,10 +58,18 @@ impl Loop {
 /// Checks `w`, `k` and the frame count; returns the largest valid `n` (`N - w`).
 fn check(masks: &[Mask], params: &LoopParams, what: &str) -> Result<usize> {
     if params.window == 0 {
-        return Err(Error::InvalidParameter { name: "window", value: "0".into(), why: "w must be at least 1".into() });
+        return Err(Error::InvalidParameter {
+            name: "window",
+            value: "0".into(),
+            why: "w must be at least 1".into(),
+        });
     }
     if params.min_length == 0 {
-        return Err(Error::InvalidParameter { name: "min_length", value: "0".into(), why: "k must be at least 1".into() });
+        return Err(Error::InvalidParameter {
+            name: "min_length",
+            value: "0".into(),
+            why: "k must be at least 1".into(),
+        });
     }
     let need = params.window + params.min_length;
     if masks.len() < need {
@@ -66,7 +77,10 @@ fn check(masks: &[Mask], params: &LoopParams, what: &str) -> Result<usize> {
             what: what.to_string(),
             got: masks.len(),
             need,
-            why: format!("a loop needs w + k = {} + {} frames", params.window, params.min_length),
+            why: format!(
+                "a loop needs w + k = {} + {} frames",
+                params.window, params.min_length
+            ),
         });
     }
     Ok(masks.len() - params.window)
@@ -93,7 +107,13 @@ pub fn find_loop(masks: &[Mask], params: &LoopParams, what: &str) -> Result<Loop
 /// The `count` best *distinct* loops, best first: each differs from every better one by more than
 /// `min_separation` frames in `m` or in `n` (Chebyshev distance), so near-copies of one good loop
 /// do not crowd out a second, different one. `count = 1` gives [`find_loop`].
-pub fn find_loops(masks: &[Mask], params: &LoopParams, count: usize, min_separation: usize, what: &str) -> Result<Vec<Loop>> {
+pub fn find_loops(
+    masks: &[Mask],
+    params: &LoopParams,
+    count: usize,
+    min_separation: usize,
+    what: &str,
+) -> Result<Vec<Loop>> {
     let n_max = check(masks, params, what)?;
     for (i, m) in masks.iter().enumerate() {
         if (m.width(), m.height()) != (masks[0].width(), masks[0].height()) {
@@ -112,7 +132,11 @@ pub fn find_loops(masks: &[Mask], params: &LoopParams, count: usize, min_separat
     let cost = |m: usize, nn: usize| (0..w).map(|i| d[(m + i) * n + nn + i]).sum::<u64>();
     let mut all: Vec<Loop> = (0..=n_max - k)
         .flat_map(|m| (m + k..=n_max).map(move |e| (m, e)))
-        .map(|(m, e)| Loop { start: m, end: e, cost: cost(m, e) })
+        .map(|(m, e)| Loop {
+            start: m,
+            end: e,
+            cost: cost(m, e),
+        })
         .collect();
     all.sort_unstable_by_key(|l| (l.cost, l.start, l.end));
     let mut out: Vec<Loop> = Vec::with_capacity(count);
@@ -120,7 +144,9 @@ pub fn find_loops(masks: &[Mask], params: &LoopParams, count: usize, min_separat
         if out.len() >= count {
             break;
         }
-        let distinct = out.iter().all(|o| o.start.abs_diff(l.start).max(o.end.abs_diff(l.end)) > min_separation);
+        let distinct = out
+            .iter()
+            .all(|o| o.start.abs_diff(l.start).max(o.end.abs_diff(l.end)) > min_separation);
         if distinct {
             out.push(l);
         }
@@ -153,7 +179,15 @@ mod tests {
     #[test]
     fn loop_length_is_a_multiple_of_the_period() {
         let masks = periodic(60, 13);
-        let l = find_loop(&masks, &LoopParams { window: 3, min_length: 20 }, "test").unwrap();
+        let l = find_loop(
+            &masks,
+            &LoopParams {
+                window: 3,
+                min_length: 20,
+            },
+            "test",
+        )
+        .unwrap();
         assert_eq!(l.len() % 13, 0, "{l:?}");
         assert!(l.len() >= 20);
     }
@@ -161,7 +195,17 @@ mod tests {
     #[test]
     fn distinct_loops_are_separated() {
         let masks = periodic(80, 11);
-        let loops = find_loops(&masks, &LoopParams { window: 2, min_length: 15 }, 5, 3, "test").unwrap();
+        let loops = find_loops(
+            &masks,
+            &LoopParams {
+                window: 2,
+                min_length: 15,
+            },
+            5,
+            3,
+            "test",
+        )
+        .unwrap();
         assert_eq!(loops.len(), 5);
         for (i, a) in loops.iter().enumerate() {
             for b in &loops[..i] {
@@ -174,8 +218,19 @@ mod tests {
     #[test]
     fn too_few_frames_names_the_numbers() {
         let masks = periodic(10, 5);
-        let err = find_loop(&masks, &LoopParams { window: 3, min_length: 8 }, "view 2").unwrap_err();
-        assert_eq!(err.to_string(), "view 2: 10 frames, need at least 11 (a loop needs w + k = 3 + 8 frames)");
+        let err = find_loop(
+            &masks,
+            &LoopParams {
+                window: 3,
+                min_length: 8,
+            },
+            "view 2",
+        )
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "view 2: 10 frames, need at least 11 (a loop needs w + k = 3 + 8 frames)"
+        );
     }
 
     proptest! {

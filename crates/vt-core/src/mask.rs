@@ -18,7 +18,13 @@ pub struct Mask {
 
 impl std::fmt::Debug for Mask {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Mask({}x{}, {} set)", self.width, self.height, self.count_ones())
+        write!(
+            f,
+            "Mask({}x{}, {} set)",
+            self.width,
+            self.height,
+            self.count_ones()
+        )
     }
 }
 
@@ -29,7 +35,11 @@ fn n_words(width: u32, height: u32) -> usize {
 impl Mask {
     /// An all-clear mask.
     pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height, words: vec![0; n_words(width, height)] }
+        Self {
+            width,
+            height,
+            words: vec![0; n_words(width, height)],
+        }
     }
 
     /// A mask from a predicate on pixel coordinates.
@@ -69,7 +79,9 @@ impl Mask {
     /// One byte per pixel: 255 where set, 0 elsewhere (OpenCV's mask convention).
     pub fn to_bytes(&self) -> Vec<u8> {
         let n = self.len();
-        (0..n).map(|i| if self.get_index(i) { 255 } else { 0 }).collect()
+        (0..n)
+            .map(|i| if self.get_index(i) { 255 } else { 0 })
+            .collect()
     }
 
     /// Width in pixels.
@@ -100,7 +112,10 @@ impl Mask {
     /// Pixel value at `(x, y)`. Panics when out of bounds, like slice indexing.
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> bool {
-        assert!(x < self.width && y < self.height, "mask index ({x},{y}) out of bounds");
+        assert!(
+            x < self.width && y < self.height,
+            "mask index ({x},{y}) out of bounds"
+        );
         self.get_index(y as usize * self.width as usize + x as usize)
     }
 
@@ -112,7 +127,10 @@ impl Mask {
     /// Sets the pixel at `(x, y)`. Panics when out of bounds.
     #[inline]
     pub fn set(&mut self, x: u32, y: u32, value: bool) {
-        assert!(x < self.width && y < self.height, "mask index ({x},{y}) out of bounds");
+        assert!(
+            x < self.width && y < self.height,
+            "mask index ({x},{y}) out of bounds"
+        );
         let i = y as usize * self.width as usize + x as usize;
         let bit = 1u64 << (i & 63);
         if value {
@@ -247,7 +265,10 @@ pub fn xor_count_in(a: &Mask, b: &Mask, words: Range<usize>) -> u64 {
     );
     let aw = &a.words[words.clone()];
     let bw = &b.words[words];
-    aw.iter().zip(bw).map(|(x, y)| (x ^ y).count_ones() as u64).sum()
+    aw.iter()
+        .zip(bw)
+        .map(|(x, y)| (x ^ y).count_ones() as u64)
+        .sum()
 }
 
 /// Smallest word range covering the active words of every mask given.
@@ -335,7 +356,9 @@ mod tests {
 
     #[test]
     fn opening_removes_a_speck_and_keeps_a_block() {
-        let m = Mask::from_fn(20, 20, |x, y| (x == 2 && y == 2) || (8..15).contains(&x) && (8..15).contains(&y));
+        let m = Mask::from_fn(20, 20, |x, y| {
+            (x == 2 && y == 2) || (8..15).contains(&x) && (8..15).contains(&y)
+        });
         let o = m.open(1);
         assert!(!o.get(2, 2));
         assert_eq!(o.count_ones(), 49);

@@ -30,7 +30,12 @@ impl MedianAccumulator {
     /// An empty accumulator for `width x height` RGB frames.
     pub fn new(width: u32, height: u32) -> Self {
         let n = width as usize * height as usize * 3 * BINS;
-        Self { width, height, counts: vec![0; n], n_frames: 0 }
+        Self {
+            width,
+            height,
+            counts: vec![0; n],
+            n_frames: 0,
+        }
     }
 
     /// Frames pushed so far.
@@ -155,6 +160,9 @@ mod tests {
         let mut acc = MedianAccumulator::new(4, 3);
         assert!(matches!(acc.median(), Err(Error::TooFewFrames { .. })));
         let err = acc.push(&RgbImage::new(3, 4)).unwrap_err();
-        assert_eq!(err.to_string(), "median frame 0: size mismatch: expected 4x3, got 3x4");
+        assert_eq!(
+            err.to_string(),
+            "median frame 0: size mismatch: expected 4x3, got 3x4"
+        );
     }
 }

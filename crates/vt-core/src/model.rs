@@ -40,8 +40,12 @@ pub enum MotionModel {
 
 impl MotionModel {
     /// All models, simplest first.
-    pub const ALL: [MotionModel; 4] =
-        [MotionModel::Translation, MotionModel::Similarity, MotionModel::Affine, MotionModel::Homography];
+    pub const ALL: [MotionModel; 4] = [
+        MotionModel::Translation,
+        MotionModel::Similarity,
+        MotionModel::Affine,
+        MotionModel::Homography,
+    ];
 
     /// Degrees of freedom.
     pub fn dof(self) -> usize {
@@ -67,11 +71,14 @@ impl MotionModel {
 impl std::str::FromStr for MotionModel {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        MotionModel::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| Error::InvalidParameter {
-            name: "model",
-            value: s.to_string(),
-            why: "expected translation, similarity, affine or homography".into(),
-        })
+        MotionModel::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| Error::InvalidParameter {
+                name: "model",
+                value: s.to_string(),
+                why: "expected translation, similarity, affine or homography".into(),
+            })
     }
 }
 
@@ -92,7 +99,10 @@ pub struct ModelParams {
 
 impl Default for ModelParams {
     fn default() -> Self {
-        Self { sigma: 1.0, force: None }
+        Self {
+            sigma: 1.0,
+            force: None,
+        }
     }
 }
 
@@ -124,12 +134,19 @@ pub fn fit_model(model: MotionModel, src: &[Point], dst: &[Point], sigma: f64) -
         MotionModel::Translation => {
             check_points(src, dst, 1, "a translation")?;
             let n = src.len() as f64;
-            let t = src.iter().zip(dst).fold(nalgebra::Vector2::zeros(), |acc, (s, d)| acc + (d - s)) / n;
+            let t = src
+                .iter()
+                .zip(dst)
+                .fold(nalgebra::Vector2::zeros(), |acc, (s, d)| acc + (d - s))
+                / n;
             Homography::translation(t.x, t.y)
         }
         MotionModel::Similarity => {
             check_points(src, dst, 2, "a similarity")?;
-            let (ts, td) = (crate::homography::normalizer(src), crate::homography::normalizer(dst));
+            let (ts, td) = (
+                crate::homography::normalizer(src),
+                crate::homography::normalizer(dst),
+            );
             // Unknowns (a, b, tx, ty): x' = a x - b y + tx, y' = b x + a y + ty.
             let mut ata = Matrix4::<f64>::zeros();
             let mut atb = Vector4::<f64>::zeros();
@@ -140,16 +157,18 @@ pub fn fit_model(model: MotionModel, src: &[Point], dst: &[Point], sigma: f64) -
                 ata += r0 * r0.transpose() + r1 * r1.transpose();
                 atb += r0 * d.x + r1 * d.y;
             }
-            let p = ata
-                .lu()
-                .solve(&atb)
-                .ok_or_else(|| Error::DegeneratePoints("similarity normal equations are singular".into()))?;
+            let p = ata.lu().solve(&atb).ok_or_else(|| {
+                Error::DegeneratePoints("similarity normal equations are singular".into())
+            })?;
             let m = Matrix3::new(p[0], -p[1], p[2], p[1], p[0], p[3], 0.0, 0.0, 1.0);
             denormalize(&ts, &td, m)?
         }
         MotionModel::Affine => {
             check_points(src, dst, 3, "an affine map")?;
-            let (ts, td) = (crate::homography::normalizer(src), crate::homography::normalizer(dst));
+            let (ts, td) = (
+                crate::homography::normalizer(src),
+                crate::homography::normalizer(dst),
+            );
             let mut ata = Matrix6::<f64>::zeros();
             let mut atb = Vector6::<f64>::zeros();
             for (s, d) in src.iter().zip(dst) {
@@ -159,17 +178,18 @@ pub fn fit_model(model: MotionModel, src: &[Point], dst: &[Point], sigma: f64) -
                 ata += r0 * r0.transpose() + r1 * r1.transpose();
                 atb += r0 * d.x + r1 * d.y;
             }
-            let p = ata
-                .lu()
-                .solve(&atb)
-                .ok_or_else(|| Error::DegeneratePoints("affine normal equations are singular".into()))?;
+            let p = ata.lu().solve(&atb).ok_or_else(|| {
+                Error::DegeneratePoints("affine normal equations are singular".into())
+            })?;
             let m = Matrix3::new(p[0], p[1], p[2], p[3], p[4], p[5], 0.0, 0.0, 1.0);
             denormalize(&ts, &td, m)?
         }
     };
     let rms = homography.rms_error(src, dst);
     if !rms.is_finite() {
-        return Err(Error::DegeneratePoints(format!("the fitted {model} sends a point to infinity")));
+        return Err(Error::DegeneratePoints(format!(
+            "the fitted {model} sends a point to infinity"
+        )));
     }
     let n = src.len() as f64;
     let (r, d) = (4.0f64, 2.0f64);
@@ -177,12 +197,18 @@ pub fn fit_model(model: MotionModel, src: &[Point], dst: &[Point], sigma: f64) -
         .iter()
         .zip(dst)
         .map(|(s, t)| {
-            let e2 = (homography.apply(*s).expect("finite rms implies finite map") - t).norm_squared();
+            let e2 =
+                (homography.apply(*s).expect("finite rms implies finite map") - t).norm_squared();
             e2 / (sigma * sigma)
         })
         .sum();
     let gric = data + n * d * r.ln() + model.dof() as f64 * (r * n).ln();
-    Ok(ModelFit { model, homography, rms, gric })
+    Ok(ModelFit {
+        model,
+        homography,
+        rms,
+        gric,
+    })
 }
 
 fn norm_pt(t: &Matrix3<f64>, p: &Point) -> Point {
@@ -190,7 +216,9 @@ fn norm_pt(t: &Matrix3<f64>, p: &Point) -> Point {
 }
 
 fn denormalize(ts: &Matrix3<f64>, td: &Matrix3<f64>, m: Matrix3<f64>) -> Result<Homography> {
-    let ti = td.try_inverse().expect("normaliser is a similarity, always invertible");
+    let ti = td
+        .try_inverse()
+        .expect("normaliser is a similarity, always invertible");
     Homography::from_matrix(ti * m * ts)
         .map_err(|e| Error::DegeneratePoints(format!("the points give a singular map ({e})")))
 }
@@ -226,8 +254,10 @@ pub fn select_model(pairs: &[(&[Point], &[Point])], params: &ModelParams) -> Res
     let mut scores = Vec::new();
     let mut first_err = None;
     for model in candidates {
-        let fits: Result<Vec<ModelFit>> =
-            pairs.iter().map(|(s, d)| fit_model(model, s, d, params.sigma)).collect();
+        let fits: Result<Vec<ModelFit>> = pairs
+            .iter()
+            .map(|(s, d)| fit_model(model, s, d, params.sigma))
+            .collect();
         match fits {
             Ok(fits) => {
                 let total: f64 = fits.iter().map(|f| f.gric).sum();
@@ -242,7 +272,12 @@ pub fn select_model(pairs: &[(&[Point], &[Point])], params: &ModelParams) -> Res
         }
     }
     match best {
-        Some((_, model, fits)) => Ok(Selection { model, forced: params.force.is_some(), scores, fits }),
+        Some((_, model, fits)) => Ok(Selection {
+            model,
+            forced: params.force.is_some(),
+            scores,
+            fits,
+        }),
         None => Err(first_err.unwrap_or_else(|| Error::DegeneratePoints("no view pairs".into()))),
     }
 }
@@ -282,7 +317,10 @@ mod tests {
                 .enumerate()
                 .map(|(i, p)| {
                     let q = h.apply(*p).unwrap();
-                    Point::new(q.x + noise(2 * i + seed * 100, 0.3), q.y + noise(2 * i + 1 + seed * 100, 0.3))
+                    Point::new(
+                        q.x + noise(2 * i + seed * 100, 0.3),
+                        q.y + noise(2 * i + 1 + seed * 100, 0.3),
+                    )
                 })
                 .collect();
             // Two view pairs sharing one model, as in a three-view scene.
@@ -293,20 +331,38 @@ mod tests {
 
     #[test]
     fn selects_the_true_model() {
-        check(Matrix3::new(1.0, 0.0, 37.5, 0.0, 1.0, -2.0, 0.0, 0.0, 1.0), MotionModel::Translation);
-        check(Matrix3::new(0.93, 0.12, 20.0, -0.08, 1.1, 5.0, 0.0, 0.0, 1.0), MotionModel::Affine);
-        check(Matrix3::new(0.95, 0.05, 15.0, -0.03, 1.02, 4.0, 4e-4, -3e-4, 1.0), MotionModel::Homography);
+        check(
+            Matrix3::new(1.0, 0.0, 37.5, 0.0, 1.0, -2.0, 0.0, 0.0, 1.0),
+            MotionModel::Translation,
+        );
+        check(
+            Matrix3::new(0.93, 0.12, 20.0, -0.08, 1.1, 5.0, 0.0, 0.0, 1.0),
+            MotionModel::Affine,
+        );
+        check(
+            Matrix3::new(0.95, 0.05, 15.0, -0.03, 1.02, 4.0, 4e-4, -3e-4, 1.0),
+            MotionModel::Homography,
+        );
     }
 
     #[test]
     fn forced_model_is_used_and_reported() {
         let src = points(6, 9);
         let dst: Vec<Point> = src.iter().map(|p| Point::new(p.x + 3.0, p.y)).collect();
-        let params = ModelParams { force: Some(MotionModel::Homography), ..Default::default() };
+        let params = ModelParams {
+            force: Some(MotionModel::Homography),
+            ..Default::default()
+        };
         let sel = select_model(&[(&src, &dst)], &params).unwrap();
-        assert_eq!((sel.model, sel.forced, sel.scores.len()), (MotionModel::Homography, true, 1));
+        assert_eq!(
+            (sel.model, sel.forced, sel.scores.len()),
+            (MotionModel::Homography, true, 1)
+        );
         assert!(sel.fits[0].rms < 1e-6);
-        assert_eq!("affine".parse::<MotionModel>().unwrap(), MotionModel::Affine);
+        assert_eq!(
+            "affine".parse::<MotionModel>().unwrap(),
+            MotionModel::Affine
+        );
         assert!("projective".parse::<MotionModel>().is_err());
     }
 }

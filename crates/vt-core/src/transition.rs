@@ -18,18 +18,30 @@ use crate::{Error, Homography, Mask, Result};
 pub fn warp_masks(masks: &[Mask], h: &Homography, width: u32, height: u32) -> Vec<Mask> {
     masks
         .par_iter()
-        .map_init(|| Mask::new(width, height), |buf, m| {
-            warp_mask_into(m, h, buf);
-            buf.clone()
-        })
+        .map_init(
+            || Mask::new(width, height),
+            |buf, m| {
+                warp_mask_into(m, h, buf);
+                buf.clone()
+            },
+        )
         .collect()
 }
 
 /// Eq. (2) for every frame of the source view. `warped` are the source view's masks already
 /// warped into the target view, `target` the target's masks, `target_loop_end` its `n_{p'}`.
-pub fn transition_table(warped: &[Mask], target: &[Mask], target_loop_end: usize, window: usize) -> Result<Vec<Option<usize>>> {
+pub fn transition_table(
+    warped: &[Mask],
+    target: &[Mask],
+    target_loop_end: usize,
+    window: usize,
+) -> Result<Vec<Option<usize>>> {
     if window == 0 {
-        return Err(Error::InvalidParameter { name: "window", value: "0".into(), why: "w must be at least 1".into() });
+        return Err(Error::InvalidParameter {
+            name: "window",
+            value: "0".into(),
+            why: "w must be at least 1".into(),
+        });
     }
     if let (Some(a), Some(b)) = (warped.first(), target.first()) {
         if (a.width(), a.height()) != (b.width(), b.height()) {
@@ -46,7 +58,7 @@ pub fn transition_table(warped: &[Mask], target: &[Mask], target_loop_end: usize
         return Ok(vec![None; warped.len()]);
     }
     let t_max = target_loop_end - 2; // t + 1 < n_{p'}
-    // Frames of the target any window may touch: t + i <= t_max + w - 1 (< N_{p'} since n + w - 1 < N).
+                                     // Frames of the target any window may touch: t + i <= t_max + w - 1 (< N_{p'} since n + w - 1 < N).
     let t_frames = (t_max + window).min(target.len());
     if t_max + 1 > t_frames {
         return Err(Error::TooFewFrames {
@@ -70,7 +82,12 @@ pub fn transition_table(warped: &[Mask], target: &[Mask], target_loop_end: usize
             let ws = window.min(ns - s);
             (0..=t_max)
                 .filter(|t| t + ws <= t_frames)
-                .map(|t| ((0..ws).map(|i| d[(s + i) * t_frames + t + i]).sum::<u64>(), t))
+                .map(|t| {
+                    (
+                        (0..ws).map(|i| d[(s + i) * t_frames + t + i]).sum::<u64>(),
+                        t,
+                    )
+                })
                 .min()
                 .map(|(_, t)| t)
         })
@@ -96,7 +113,9 @@ mod tests {
         // Source view: phase 0 at frame 0; target: phase 0 at frame 4, 7 px to the right.
         let (period, offset) = (12, 4);
         let src: Vec<Mask> = (0..40).map(|f| blob(f, period, 0)).collect();
-        let dst: Vec<Mask> = (0..40).map(|f| blob(f + period - offset, period, 7)).collect();
+        let dst: Vec<Mask> = (0..40)
+            .map(|f| blob(f + period - offset, period, 7))
+            .collect();
         let warped = warp_masks(&src, &Homography::translation(7.0, 0.0), 64, 32);
         let table = transition_table(&warped, &dst, 30, 3).unwrap();
         for (s, t) in table.iter().enumerate() {
@@ -115,7 +134,14 @@ mod tests {
         for s in 0..src.len() {
             let ws = w.min(src.len() - s);
             let best = (0..n_end - 1)
-                .map(|t| ((0..ws).map(|i| xor_count(&src[s + i], &dst[t + i])).sum::<u64>(), t))
+                .map(|t| {
+                    (
+                        (0..ws)
+                            .map(|i| xor_count(&src[s + i], &dst[t + i]))
+                            .sum::<u64>(),
+                        t,
+                    )
+                })
                 .min()
                 .unwrap()
                 .1;

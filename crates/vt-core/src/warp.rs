@@ -20,14 +20,20 @@ pub fn warp_mask(src: &Mask, h: &Homography, width: u32, height: u32) -> Mask {
 /// Warps `src` by `h` into `out` (cleared first), reusing its storage.
 pub fn warp_mask_into(src: &Mask, h: &Homography, out: &mut Mask) {
     out.clear();
-    let Some((x0, y0, x1, y1)) = src.bounding_box() else { return };
+    let Some((x0, y0, x1, y1)) = src.bounding_box() else {
+        return;
+    };
     let (ow, oh) = (out.width(), out.height());
     let region = forward_box(h, (x0, y0, x1, y1), ow, oh).unwrap_or((0, 0, ow, oh));
     let inv = h.raw().1;
     let (sw, sh) = (src.width() as f64, src.height() as f64);
     for y in region.1..region.3 {
         let yf = y as f64;
-        let (bx, by, bw) = (inv[(0, 1)] * yf + inv[(0, 2)], inv[(1, 1)] * yf + inv[(1, 2)], inv[(2, 1)] * yf + inv[(2, 2)]);
+        let (bx, by, bw) = (
+            inv[(0, 1)] * yf + inv[(0, 2)],
+            inv[(1, 1)] * yf + inv[(1, 2)],
+            inv[(2, 1)] * yf + inv[(2, 2)],
+        );
         for x in region.0..region.2 {
             let xf = x as f64;
             let w = bw + inv[(2, 0)] * xf;
@@ -46,15 +52,33 @@ pub fn warp_mask_into(src: &Mask, h: &Homography, out: &mut Mask) {
 
 /// Output-pixel box covering the forward image of a source box (expanded by 2 px), or `None`
 /// when part of the box maps across the line at infinity (then the whole output is visited).
-fn forward_box(h: &Homography, (x0, y0, x1, y1): (u32, u32, u32, u32), ow: u32, oh: u32) -> Option<(u32, u32, u32, u32)> {
+fn forward_box(
+    h: &Homography,
+    (x0, y0, x1, y1): (u32, u32, u32, u32),
+    ow: u32,
+    oh: u32,
+) -> Option<(u32, u32, u32, u32)> {
     let m = h.raw().0;
-    let corners = [(x0 as f64 - 1.0, y0 as f64 - 1.0), (x1 as f64, y0 as f64 - 1.0), (x0 as f64 - 1.0, y1 as f64), (x1 as f64, y1 as f64)];
+    let corners = [
+        (x0 as f64 - 1.0, y0 as f64 - 1.0),
+        (x1 as f64, y0 as f64 - 1.0),
+        (x0 as f64 - 1.0, y1 as f64),
+        (x1 as f64, y1 as f64),
+    ];
     // w is affine in (x, y): same strict sign at the 4 corners means the same sign on the box.
-    let ws: Vec<f64> = corners.iter().map(|&(x, y)| m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)]).collect();
+    let ws: Vec<f64> = corners
+        .iter()
+        .map(|&(x, y)| m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)])
+        .collect();
     if !(ws.iter().all(|&w| w > 0.0) || ws.iter().all(|&w| w < 0.0)) {
         return None;
     }
-    let (mut lx, mut ly, mut hx, mut hy) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+    let (mut lx, mut ly, mut hx, mut hy) = (
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    );
     for &(x, y) in &corners {
         let p = h.apply(Point::new(x, y))?;
         lx = lx.min(p.x);
@@ -63,7 +87,12 @@ fn forward_box(h: &Homography, (x0, y0, x1, y1): (u32, u32, u32, u32), ow: u32, 
         hy = hy.max(p.y);
     }
     let clamp = |v: f64, hi: u32| v.max(0.0).min(hi as f64) as u32;
-    Some((clamp(lx.floor() - 2.0, ow), clamp(ly.floor() - 2.0, oh), clamp(hx.ceil() + 3.0, ow), clamp(hy.ceil() + 3.0, oh)))
+    Some((
+        clamp(lx.floor() - 2.0, ow),
+        clamp(ly.floor() - 2.0, oh),
+        clamp(hx.ceil() + 3.0, ow),
+        clamp(hy.ceil() + 3.0, oh),
+    ))
 }
 
 /// How colour images are sampled when warped.
@@ -79,7 +108,13 @@ pub enum Interpolation {
 
 /// Warps an RGB image by `h` into a new `width x height` image; outside the source is black
 /// (OpenCV `BORDER_CONSTANT`, value 0, including the partial weights at the border).
-pub fn warp_rgb(src: &RgbImage, h: &Homography, width: u32, height: u32, interp: Interpolation) -> RgbImage {
+pub fn warp_rgb(
+    src: &RgbImage,
+    h: &Homography,
+    width: u32,
+    height: u32,
+    interp: Interpolation,
+) -> RgbImage {
     let mut out = RgbImage::new(width, height);
     warp_rgb_into(src, h, interp, &mut out);
     out
@@ -98,44 +133,56 @@ pub fn warp_rgb_into(src: &RgbImage, h: &Homography, interp: Interpolation, out:
         let i = (y as usize * sw as usize + x as usize) * 3;
         [sraw[i] as f32, sraw[i + 1] as f32, sraw[i + 2] as f32]
     };
-    out.as_mut().par_chunks_mut(ow * 3).enumerate().for_each(|(y, row)| {
-        let yf = y as f64;
-        let (bx, by, bw) = (inv[(0, 1)] * yf + inv[(0, 2)], inv[(1, 1)] * yf + inv[(1, 2)], inv[(2, 1)] * yf + inv[(2, 2)]);
-        for x in 0..ow {
-            let xf = x as f64;
-            let w = bw + inv[(2, 0)] * xf;
-            let o = &mut row[x * 3..x * 3 + 3];
-            if w == 0.0 {
-                o.fill(0);
-                continue;
-            }
-            let w = 1.0 / w;
-            let (sx, sy) = ((bx + inv[(0, 0)] * xf) * w, (by + inv[(1, 0)] * xf) * w);
-            if !(sx.is_finite() && sy.is_finite()) || sx.abs() > 1e9 || sy.abs() > 1e9 {
-                o.fill(0);
-                continue;
-            }
-            match interp {
-                Interpolation::Nearest => {
-                    let c = px(sx.round_ties_even() as i64, sy.round_ties_even() as i64);
-                    for k in 0..3 {
-                        o[k] = c[k] as u8;
+    out.as_mut()
+        .par_chunks_mut(ow * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let yf = y as f64;
+            let (bx, by, bw) = (
+                inv[(0, 1)] * yf + inv[(0, 2)],
+                inv[(1, 1)] * yf + inv[(1, 2)],
+                inv[(2, 1)] * yf + inv[(2, 2)],
+            );
+            for x in 0..ow {
+                let xf = x as f64;
+                let w = bw + inv[(2, 0)] * xf;
+                let o = &mut row[x * 3..x * 3 + 3];
+                if w == 0.0 {
+                    o.fill(0);
+                    continue;
+                }
+                let w = 1.0 / w;
+                let (sx, sy) = ((bx + inv[(0, 0)] * xf) * w, (by + inv[(1, 0)] * xf) * w);
+                if !(sx.is_finite() && sy.is_finite()) || sx.abs() > 1e9 || sy.abs() > 1e9 {
+                    o.fill(0);
+                    continue;
+                }
+                match interp {
+                    Interpolation::Nearest => {
+                        let c = px(sx.round_ties_even() as i64, sy.round_ties_even() as i64);
+                        for k in 0..3 {
+                            o[k] = c[k] as u8;
+                        }
+                    }
+                    Interpolation::Bilinear => {
+                        let (x0, y0) = (sx.floor(), sy.floor());
+                        let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
+                        let (x0, y0) = (x0 as i64, y0 as i64);
+                        let (a, b, c, d) = (
+                            px(x0, y0),
+                            px(x0 + 1, y0),
+                            px(x0, y0 + 1),
+                            px(x0 + 1, y0 + 1),
+                        );
+                        for k in 0..3 {
+                            let top = a[k] + (b[k] - a[k]) * fx;
+                            let bottom = c[k] + (d[k] - c[k]) * fx;
+                            o[k] = (top + (bottom - top) * fy).round().clamp(0.0, 255.0) as u8;
+                        }
                     }
                 }
-                Interpolation::Bilinear => {
-                    let (x0, y0) = (sx.floor(), sy.floor());
-                    let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
-                    let (x0, y0) = (x0 as i64, y0 as i64);
-                    let (a, b, c, d) = (px(x0, y0), px(x0 + 1, y0), px(x0, y0 + 1), px(x0 + 1, y0 + 1));
-                    for k in 0..3 {
-                        let top = a[k] + (b[k] - a[k]) * fx;
-                        let bottom = c[k] + (d[k] - c[k]) * fx;
-                        o[k] = (top + (bottom - top) * fy).round().clamp(0.0, 255.0) as u8;
-                    }
-                }
             }
-        }
-    });
+        });
 }
 
 #[cfg(test)]
@@ -150,11 +197,17 @@ mod tests {
             let inv = h.raw().1;
             let (xf, yf) = (x as f64, y as f64);
             let ww = inv[(2, 0)] * xf + (inv[(2, 1)] * yf + inv[(2, 2)]);
-            if ww == 0.0 { return false; }
+            if ww == 0.0 {
+                return false;
+            }
             let ww = 1.0 / ww;
             let sx = ((inv[(0, 1)] * yf + inv[(0, 2)] + inv[(0, 0)] * xf) * ww).round_ties_even();
             let sy = ((inv[(1, 1)] * yf + inv[(1, 2)] + inv[(1, 0)] * xf) * ww).round_ties_even();
-            sx >= 0.0 && sy >= 0.0 && sx < src.width() as f64 && sy < src.height() as f64 && src.get(sx as u32, sy as u32)
+            sx >= 0.0
+                && sy >= 0.0
+                && sx < src.width() as f64
+                && sy < src.height() as f64
+                && src.get(sx as u32, sy as u32)
         })
     }
 
@@ -163,10 +216,12 @@ mod tests {
         let m = Mask::from_fn(50, 40, |x, y| (x * 7 + y * 3) % 5 == 0 && x > 10 && y < 30);
         assert_eq!(warp_mask(&m, &Homography::identity(), 50, 40), m);
         let t = warp_mask(&m, &Homography::translation(3.0, -2.0), 50, 40);
-        for y in 0..40 { for x in 0..50 {
-            let want = x >= 3 && y + 2 < 40 && m.get(x - 3, y + 2);
-            assert_eq!(t.get(x, y), want, "({x},{y})");
-        }}
+        for y in 0..40 {
+            for x in 0..50 {
+                let want = x >= 3 && y + 2 < 40 && m.get(x - 3, y + 2);
+                assert_eq!(t.get(x, y), want, "({x},{y})");
+            }
+        }
     }
 
     #[test]
@@ -179,7 +234,13 @@ mod tests {
             assert_eq!(t.get_pixel(1, 5).0, [0, 0, 0], "outside is black");
         }
         // Half a pixel right: bilinear averages neighbours (x*10 -> x*10 - 5).
-        let t = warp_rgb(&img, &Homography::translation(0.5, 0.0), 20, 10, Interpolation::Bilinear);
+        let t = warp_rgb(
+            &img,
+            &Homography::translation(0.5, 0.0),
+            20,
+            10,
+            Interpolation::Bilinear,
+        );
         assert_eq!(t.get_pixel(6, 3).0[0], 55);
     }
 

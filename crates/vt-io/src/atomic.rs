@@ -17,7 +17,10 @@ impl AtomicDir {
     pub fn create(target: &Path) -> Result<Self> {
         let name = target
             .file_name()
-            .ok_or_else(|| Error::View { path: target.to_path_buf(), message: "output path has no file name".into() })?
+            .ok_or_else(|| Error::View {
+                path: target.to_path_buf(),
+                message: "output path has no file name".into(),
+            })?
             .to_string_lossy()
             .to_string();
         let parent = match target.parent() {
@@ -25,14 +28,24 @@ impl AtomicDir {
             _ => PathBuf::from("."),
         };
         if !parent.is_dir() {
-            return Err(Error::io(&parent, std::io::Error::new(std::io::ErrorKind::NotFound, "output's parent directory does not exist")));
+            return Err(Error::io(
+                &parent,
+                std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "output's parent directory does not exist",
+                ),
+            ));
         }
         let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
         if tmp.exists() {
             std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
         }
         std::fs::create_dir(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        Ok(Self { target: target.to_path_buf(), tmp, committed: false })
+        Ok(Self {
+            target: target.to_path_buf(),
+            tmp,
+            committed: false,
+        })
     }
 
     /// Where to write the contents now.
@@ -44,7 +57,10 @@ impl AtomicDir {
     pub fn commit(mut self) -> Result<PathBuf> {
         let old = self.tmp.with_file_name(format!(
             ".{}.old-{}",
-            self.target.file_name().expect("checked in create").to_string_lossy(),
+            self.target
+                .file_name()
+                .expect("checked in create")
+                .to_string_lossy(),
             std::process::id()
         ));
         let had_old = self.target.exists();
@@ -59,7 +75,11 @@ impl AtomicDir {
         }
         self.committed = true;
         if had_old {
-            let _ = if old.is_dir() { std::fs::remove_dir_all(&old) } else { std::fs::remove_file(&old) };
+            let _ = if old.is_dir() {
+                std::fs::remove_dir_all(&old)
+            } else {
+                std::fs::remove_file(&old)
+            };
         }
         Ok(self.target.clone())
     }
@@ -89,7 +109,11 @@ mod tests {
             // Dropped: an error happened.
         }
         assert!(target.join("old.txt").exists());
-        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1, "no temporary left behind");
+        assert_eq!(
+            std::fs::read_dir(root.path()).unwrap().count(),
+            1,
+            "no temporary left behind"
+        );
         let d = AtomicDir::create(&target).unwrap();
         std::fs::write(d.path().join("new.txt"), "new").unwrap();
         d.commit().unwrap();

@@ -66,6 +66,9 @@ pub enum Error {
 impl Error {
     /// Wraps an OS error with its path.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io { path: path.into(), source }
+        Error::Io {
+            path: path.into(),
+            source,
+        }
     }
 }

@@ -20,7 +20,9 @@ pub const VIDEO_EXTENSIONS: [&str; 6] = ["mp4", "avi", "mov", "mkv", "webm", "m4
 pub const FRAME_EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
 
 fn has_ext(path: &Path, exts: &[&str]) -> bool {
-    path.extension().and_then(|e| e.to_str()).is_some_and(|e| exts.iter().any(|x| x.eq_ignore_ascii_case(e)))
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| exts.iter().any(|x| x.eq_ignore_ascii_case(e)))
 }
 
 /// A view's frames, from either kind of input.
@@ -35,7 +37,10 @@ impl ViewSource {
     /// Opens a view: a folder of frames or a video file, decided by what the path is.
     pub fn open(path: &Path) -> Result<Self> {
         if !path.exists() {
-            return Err(Error::View { path: path.to_path_buf(), message: "no such file or directory".into() });
+            return Err(Error::View {
+                path: path.to_path_buf(),
+                message: "no such file or directory".into(),
+            });
         }
         if path.is_dir() {
             return Ok(ViewSource::Folder(FolderSource::open(path)?));
@@ -82,7 +87,9 @@ fn missing_tool(tool: &str, path: &Path, e: std::io::Error) -> Error {
     Error::Video {
         path: path.to_path_buf(),
         message: if e.kind() == std::io::ErrorKind::NotFound {
-            format!("cannot decode videos: `{tool}` is not installed (Debian: apt-get install ffmpeg)")
+            format!(
+                "cannot decode videos: `{tool}` is not installed (Debian: apt-get install ffmpeg)"
+            )
         } else {
             format!("cannot run {tool}: {e}")
         },
@@ -90,26 +97,56 @@ fn missing_tool(tool: &str, path: &Path, e: std::io::Error) -> Error {
 }
 
 fn last_line(s: &str) -> String {
-    s.lines().map(str::trim).filter(|l| !l.is_empty()).last().unwrap_or("unknown error").to_string()
+    s.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .last()
+        .unwrap_or("unknown error")
+        .to_string()
 }
 
 impl VideoSource {
     /// Probes the video's size with `ffprobe`.
     pub fn open(path: &Path) -> Result<Self> {
         let out = Command::new("ffprobe")
-            .args(["-v", "error", "-select_streams", "v:0", "-show_entries", "stream=width,height", "-of", "csv=p=0"])
+            .args([
+                "-v",
+                "error",
+                "-select_streams",
+                "v:0",
+                "-show_entries",
+                "stream=width,height",
+                "-of",
+                "csv=p=0",
+            ])
             .arg(path)
             .stdin(Stdio::null())
             .output()
             .map_err(|e| missing_tool("ffprobe", path, e))?;
         let stdout = String::from_utf8_lossy(&out.stdout);
-        let dims: Vec<u32> = stdout.trim().split(',').filter_map(|s| s.trim().parse().ok()).collect();
+        let dims: Vec<u32> = stdout
+            .trim()
+            .split(',')
+            .filter_map(|s| s.trim().parse().ok())
+            .collect();
         if !out.status.success() || dims.len() != 2 || dims[0] == 0 || dims[1] == 0 {
             let err = String::from_utf8_lossy(&out.stderr);
-            let why = if out.status.success() { "no video stream".to_string() } else { last_line(&err) };
-            return Err(Error::Video { path: path.to_path_buf(), message: format!("not a readable video ({why})") });
+            let why = if out.status.success() {
+                "no video stream".to_string()
+            } else {
+                last_line(&err)
+            };
+            return Err(Error::Video {
+                path: path.to_path_buf(),
+                message: format!("not a readable video ({why})"),
+            });
         }
-        Ok(Self { path: path.to_path_buf(), name: path.display().to_string(), width: dims[0], height: dims[1] })
+        Ok(Self {
+            path: path.to_path_buf(),
+            name: path.display().to_string(),
+            width: dims[0],
+            height: dims[1],
+        })
     }
 
     /// Frame size.
@@ -123,12 +160,28 @@ impl FrameSource for VideoSource {
         &self.name
     }
 
-    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>) -> vt_core::Result<usize> {
-        let src_err = |message: String| vt_core::Error::Source { view: self.name.clone(), message };
+    fn for_each_frame(
+        &mut self,
+        f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
+        let src_err = |message: String| vt_core::Error::Source {
+            view: self.name.clone(),
+            message,
+        };
         let mut child = Command::new("ffmpeg")
             .args(["-v", "error", "-xerror", "-nostdin", "-i"])
             .arg(&self.path)
-            .args(["-map", "0:v:0", "-fps_mode", "passthrough", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+            .args([
+                "-map",
+                "0:v:0",
+                "-fps_mode",
+                "passthrough",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "rgb24",
+                "-",
+            ])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -159,9 +212,12 @@ impl FrameSource for VideoSource {
                 break Ok(());
             }
             if filled < frame_bytes {
-                break Err(src_err(format!("truncated: frame {n} has {filled} of {frame_bytes} bytes")));
+                break Err(src_err(format!(
+                    "truncated: frame {n} has {filled} of {frame_bytes} bytes"
+                )));
             }
-            let img = RgbImage::from_raw(self.width, self.height, std::mem::take(&mut buf)).expect("buffer is w*h*3");
+            let img = RgbImage::from_raw(self.width, self.height, std::mem::take(&mut buf))
+                .expect("buffer is w*h*3");
             let r = f(n, &img);
             buf = img.into_raw();
             if let Err(e) = r {
@@ -173,7 +229,9 @@ impl FrameSource for VideoSource {
         if result.is_err() {
             let _ = child.kill();
         }
-        let status = child.wait().map_err(|e| src_err(format!("waiting for ffmpeg: {e}")))?;
+        let status = child
+            .wait()
+            .map_err(|e| src_err(format!("waiting for ffmpeg: {e}")))?;
         let err = err_thread.join().unwrap_or_default();
         result?;
         if !status.success() {
@@ -209,8 +267,15 @@ impl FolderSource {
             path: dir.to_path_buf(),
             message: format!("folder has no frames ({})", FRAME_EXTENSIONS.join(", ")),
         })?;
-        let size = image::image_dimensions(first).map_err(|e| Error::Image { path: first.clone(), message: e.to_string() })?;
-        Ok(Self { name: dir.display().to_string(), files, size })
+        let size = image::image_dimensions(first).map_err(|e| Error::Image {
+            path: first.clone(),
+            message: e.to_string(),
+        })?;
+        Ok(Self {
+            name: dir.display().to_string(),
+            files,
+            size,
+        })
     }
 
     /// Number of frames.
@@ -226,7 +291,10 @@ impl FolderSource {
 
 /// Reads an image file as RGB, naming the file in errors.
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    let img = image::open(path).map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })?;
+    let img = image::open(path).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
     Ok(img.to_rgb8())
 }
 
@@ -235,14 +303,20 @@ impl FrameSource for FolderSource {
         &self.name
     }
 
-    fn for_each_frame(&mut self, f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>) -> vt_core::Result<usize> {
+    fn for_each_frame(
+        &mut self,
+        f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
         // Decode a chunk of frames in parallel, hand them over in order.
         let chunk = 2 * rayon::current_num_threads().max(1);
         let mut n = 0;
         for files in self.files.chunks(chunk) {
             let frames: Vec<Result<RgbImage>> = files.par_iter().map(|p| read_rgb(p)).collect();
             for fr in frames {
-                let fr = fr.map_err(|e| vt_core::Error::Source { view: self.name.clone(), message: e.to_string() })?;
+                let fr = fr.map_err(|e| vt_core::Error::Source {
+                    view: self.name.clone(),
+                    message: e.to_string(),
+                })?;
                 f(n, &fr)?;
                 n += 1;
             }
@@ -259,6 +333,14 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<()> {
     let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
     let w = std::io::BufWriter::new(file);
     PngEncoder::new_with_quality(w, CompressionType::Fast, FilterType::Adaptive)
-        .write_image(img.as_raw(), img.width(), img.height(), image::ExtendedColorType::Rgb8)
-        .map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| Error::Image {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })
 }

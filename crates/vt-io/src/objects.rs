@@ -47,13 +47,25 @@ impl ObjectWriter {
         head.extend_from_slice(&width.to_le_bytes());
         head.extend_from_slice(&height.to_le_bytes());
         out.write_all(&head).map_err(|e| Error::io(path, e))?;
-        Ok(Self { path: path.to_path_buf(), out, width, height, offsets: Vec::new(), pos: HEADER as u64 })
+        Ok(Self {
+            path: path.to_path_buf(),
+            out,
+            width,
+            height,
+            offsets: Vec::new(),
+            pos: HEADER as u64,
+        })
     }
 
     /// Appends the next frame: the pixels of `raw` under `mask`.
     pub fn push(&mut self, mask: &Mask, raw: &RgbImage) -> Result<()> {
-        if (mask.width(), mask.height()) != (self.width, self.height) || raw.dimensions() != (self.width, self.height) {
-            return Err(Error::Scene { path: self.path.clone(), message: "object frame of the wrong size".into() });
+        if (mask.width(), mask.height()) != (self.width, self.height)
+            || raw.dimensions() != (self.width, self.height)
+        {
+            return Err(Error::Scene {
+                path: self.path.clone(),
+                message: "object frame of the wrong size".into(),
+            });
         }
         let (x0, y0, x1, y1) = mask.bounding_box().unwrap_or((0, 0, 0, 0));
         let mut rec = Vec::new();
@@ -77,7 +89,9 @@ impl ObjectWriter {
         rec.extend_from_slice(&rgb);
         self.offsets.push(self.pos);
         self.pos += rec.len() as u64;
-        self.out.write_all(&rec).map_err(|e| Error::io(&self.path, e))
+        self.out
+            .write_all(&rec)
+            .map_err(|e| Error::io(&self.path, e))
     }
 
     /// Frames pushed so far.
@@ -143,27 +157,46 @@ impl ObjectStore {
     /// Loads and validates a store.
     pub fn load(path: &Path) -> Result<Self> {
         let data = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let bad = |m: String| Error::Scene { path: path.to_path_buf(), message: m };
+        let bad = |m: String| Error::Scene {
+            path: path.to_path_buf(),
+            message: m,
+        };
         if data.len() < HEADER || &data[..8] != MAGIC {
             return Err(bad("not a vt object store (bad magic)".into()));
         }
         if data.len() < HEADER + 24 || &data[data.len() - 8..] != END {
-            return Err(bad("corrupted or truncated object store (no end marker)".into()));
+            return Err(bad(
+                "corrupted or truncated object store (no end marker)".into()
+            ));
         }
         let u32_at = |o: usize| u32::from_le_bytes(data[o..o + 4].try_into().expect("4 bytes"));
         let u64_at = |o: usize| u64::from_le_bytes(data[o..o + 8].try_into().expect("8 bytes"));
         let (width, height) = (u32_at(8), u32_at(12));
         let n = u64_at(data.len() - 16) as usize;
-        let table_len = n.checked_add(1).and_then(|k| k.checked_mul(8)).filter(|&l| l + 16 + HEADER <= data.len());
+        let table_len = n
+            .checked_add(1)
+            .and_then(|k| k.checked_mul(8))
+            .filter(|&l| l + 16 + HEADER <= data.len());
         let Some(table_len) = table_len else {
-            return Err(bad(format!("corrupted: {n} frames do not fit in {} bytes", data.len())));
+            return Err(bad(format!(
+                "corrupted: {n} frames do not fit in {} bytes",
+                data.len()
+            )));
         };
         let table_start = data.len() - 16 - table_len;
         let offsets: Vec<u64> = (0..=n).map(|i| u64_at(table_start + 8 * i)).collect();
-        if offsets.windows(2).any(|w| w[1] < w[0] + 16) || offsets.first() != Some(&(HEADER as u64)) || offsets[n] != table_start as u64 {
+        if offsets.windows(2).any(|w| w[1] < w[0] + 16)
+            || offsets.first() != Some(&(HEADER as u64))
+            || offsets[n] != table_start as u64
+        {
             return Err(bad("corrupted: offset table does not match the file".into()));
         }
-        let store = Self { width, height, data, offsets };
+        let store = Self {
+            width,
+            height,
+            data,
+            offsets,
+        };
         for i in 0..n {
             let (x0, y0, x1, y1) = store.raw_bbox(i);
             let ok = x0 <= x1 && y0 <= y1 && x1 <= width && y1 <= height;
@@ -178,7 +211,13 @@ impl ObjectStore {
 
     fn raw_bbox(&self, i: usize) -> (u32, u32, u32, u32) {
         let o = self.offsets[i] as usize;
-        let g = |k: usize| u32::from_le_bytes(self.data[o + 4 * k..o + 4 * k + 4].try_into().expect("4 bytes"));
+        let g = |k: usize| {
+            u32::from_le_bytes(
+                self.data[o + 4 * k..o + 4 * k + 4]
+                    .try_into()
+                    .expect("4 bytes"),
+            )
+        };
         (g(0), g(1), g(2), g(3))
     }
 
@@ -202,7 +241,11 @@ impl ObjectStore {
         let bbox = self.raw_bbox(i);
         let (o, end) = (self.offsets[i] as usize + 16, self.offsets[i + 1] as usize);
         let nb = (((bbox.2 - bbox.0) * (bbox.3 - bbox.1)) as usize).div_ceil(8);
-        ObjectFrame { bbox, bits: &self.data[o..o + nb], rgb: &self.data[o + nb..end] }
+        ObjectFrame {
+            bbox,
+            bits: &self.data[o..o + nb],
+            rgb: &self.data[o + nb..end],
+        }
     }
 
     /// Frame `i`'s mask as a full-size [`Mask`].
@@ -222,7 +265,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("o.bin");
         let raw = RgbImage::from_fn(13, 9, |x, y| image::Rgb([x as u8, y as u8, 7]));
-        let masks = [Mask::from_fn(13, 9, |x, y| (x + y) % 3 == 0 && x > 2), Mask::new(13, 9), Mask::from_fn(13, 9, |_, _| true)];
+        let masks = [
+            Mask::from_fn(13, 9, |x, y| (x + y) % 3 == 0 && x > 2),
+            Mask::new(13, 9),
+            Mask::from_fn(13, 9, |_, _| true),
+        ];
         let mut w = ObjectWriter::create(&path, 13, 9).unwrap();
         for m in &masks {
             w.push(m, &raw).unwrap();
@@ -232,7 +279,8 @@ mod tests {
         assert_eq!(s.len(), 3);
         for (i, m) in masks.iter().enumerate() {
             assert_eq!(&s.mask(i), m);
-            s.frame(i).for_each_pixel(|x, y, c| assert_eq!(c, raw.get_pixel(x, y).0));
+            s.frame(i)
+                .for_each_pixel(|x, y, c| assert_eq!(c, raw.get_pixel(x, y).0));
         }
         let bytes = std::fs::read(&path).unwrap();
         for (cut, flip) in [(5, None), (0, Some(20)), (0, Some(bytes.len() - 20))] {
@@ -241,8 +289,14 @@ mod tests {
                 b[i] ^= 0x5a;
             }
             std::fs::write(&path, &b).unwrap();
-            let err = ObjectStore::load(&path).err().map(|e| e.to_string()).unwrap_or_default();
-            assert!(err.contains("corrupted"), "cut {cut} flip {flip:?}: {err:?}");
+            let err = ObjectStore::load(&path)
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default();
+            assert!(
+                err.contains("corrupted"),
+                "cut {cut} flip {flip:?}: {err:?}"
+            );
         }
     }
 }

@@ -18,7 +18,11 @@ use crate::{Error, Result};
 
 /// Parses a points file's text. `path` is only used in messages.
 pub fn parse_points(text: &str, path: &Path) -> Result<Vec<Vec<Point>>> {
-    let err = |line: usize, message: String| Error::Points { path: path.to_path_buf(), line, message };
+    let err = |line: usize, message: String| Error::Points {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
     let mut views = Vec::new();
     let mut first: Option<(usize, usize)> = None;
     for (i, raw) in text.lines().enumerate() {
@@ -28,31 +32,48 @@ pub fn parse_points(text: &str, path: &Path) -> Result<Vec<Vec<Point>>> {
             continue;
         }
         let mut nums = Vec::new();
-        for tok in line.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()) {
-            let v: f64 = tok.parse().map_err(|_| err(line_no, format!("'{tok}' is not a number")))?;
+        for tok in line
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|t| !t.is_empty())
+        {
+            let v: f64 = tok
+                .parse()
+                .map_err(|_| err(line_no, format!("'{tok}' is not a number")))?;
             if !v.is_finite() {
                 return Err(err(line_no, format!("'{tok}' is not a finite number")));
             }
             nums.push(v);
         }
         if nums.len() % 2 != 0 {
-            return Err(err(line_no, format!("{} numbers: points need x y pairs", nums.len())));
+            return Err(err(
+                line_no,
+                format!("{} numbers: points need x y pairs", nums.len()),
+            ));
         }
         let k = nums.len() / 2;
         if k < 4 {
-            return Err(err(line_no, format!("{k} points; a homography needs at least 4")));
+            return Err(err(
+                line_no,
+                format!("{k} points; a homography needs at least 4"),
+            ));
         }
         match first {
             None => first = Some((line_no, k)),
             Some((l0, k0)) if k0 != k => {
-                return Err(err(line_no, format!("{k} points, but line {l0} has {k0}: every view marks the same points")))
+                return Err(err(
+                    line_no,
+                    format!("{k} points, but line {l0} has {k0}: every view marks the same points"),
+                ))
             }
             _ => {}
         }
         views.push(nums.chunks(2).map(|c| Point::new(c[0], c[1])).collect());
     }
     if views.is_empty() {
-        return Err(err(0, "no points: expected one line of x y pairs per view".into()));
+        return Err(err(
+            0,
+            "no points: expected one line of x y pairs per view".into(),
+        ));
     }
     Ok(views)
 }
@@ -65,7 +86,9 @@ pub fn read_points(path: &Path) -> Result<Vec<Vec<Point>>> {
 
 /// Formats points in the file format (3 decimals).
 pub fn format_points(views: &[Vec<Point>]) -> String {
-    let mut s = String::from("# vt points: one line per view, in view order; x y pairs in pixels (origin top-left)\n");
+    let mut s = String::from(
+        "# vt points: one line per view, in view order; x y pairs in pixels (origin top-left)\n",
+    );
     for v in views {
         let line: Vec<String> = v.iter().map(|p| format!("{:.3} {:.3}", p.x, p.y)).collect();
         s.push_str(&line.join("  "));
@@ -79,7 +102,9 @@ mod tests {
     use super::*;
 
     fn check(text: &str, want: &str) {
-        let got = parse_points(text, Path::new("p.txt")).map(|v| v.len().to_string()).unwrap_or_else(|e| e.to_string());
+        let got = parse_points(text, Path::new("p.txt"))
+            .map(|v| v.len().to_string())
+            .unwrap_or_else(|e| e.to_string());
         assert_eq!(got, want, "input: {text:?}");
     }
 
@@ -87,18 +112,41 @@ mod tests {
     fn cases() {
         check("# c\n1 2 3 4 5 6 7 8\n\n1 2 3 4 5 6 7 9 # x\n", "2");
         check("1,2, 3,4, 5,6, 7,8\n", "1");
-        check("1 2 3 4 5 6 7 nan\n", "p.txt:1: 'nan' is not a finite number");
-        check("1 2 3 4 5 6 7 inf\n", "p.txt:1: 'inf' is not a finite number");
+        check(
+            "1 2 3 4 5 6 7 nan\n",
+            "p.txt:1: 'nan' is not a finite number",
+        );
+        check(
+            "1 2 3 4 5 6 7 inf\n",
+            "p.txt:1: 'inf' is not a finite number",
+        );
         check("1 2 3 4 5 6 7 x\n", "p.txt:1: 'x' is not a number");
-        check("1 2 3 4 5 6\n", "p.txt:1: 3 points; a homography needs at least 4");
-        check("1 2 3 4 5 6 7\n", "p.txt:1: 7 numbers: points need x y pairs");
-        check("1 2 3 4 5 6 7 8\n1 2 3 4 5 6 7 8 9 10\n", "p.txt:2: 5 points, but line 1 has 4: every view marks the same points");
-        check("# nothing\n", "p.txt:0: no points: expected one line of x y pairs per view");
+        check(
+            "1 2 3 4 5 6\n",
+            "p.txt:1: 3 points; a homography needs at least 4",
+        );
+        check(
+            "1 2 3 4 5 6 7\n",
+            "p.txt:1: 7 numbers: points need x y pairs",
+        );
+        check(
+            "1 2 3 4 5 6 7 8\n1 2 3 4 5 6 7 8 9 10\n",
+            "p.txt:2: 5 points, but line 1 has 4: every view marks the same points",
+        );
+        check(
+            "# nothing\n",
+            "p.txt:0: no points: expected one line of x y pairs per view",
+        );
     }
 
     #[test]
     fn round_trip() {
-        let v = vec![vec![Point::new(1.25, 2.0), Point::new(3.0, 4.5), Point::new(5.0, 6.0), Point::new(7.0, 8.125)]];
+        let v = vec![vec![
+            Point::new(1.25, 2.0),
+            Point::new(3.0, 4.5),
+            Point::new(5.0, 6.0),
+            Point::new(7.0, 8.125),
+        ]];
         assert_eq!(parse_points(&format_points(&v), Path::new("x")).unwrap(), v);
     }
 }

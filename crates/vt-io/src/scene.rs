@@ -105,7 +105,14 @@ pub struct LinkEntry {
 impl LinkEntry {
     fn from_h(h: &Homography, rms: f64) -> Self {
         let m = h.matrix();
-        Self { homography: [[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]], rms }
+        Self {
+            homography: [
+                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+            ],
+            rms,
+        }
     }
 
     /// The homography, validated.
@@ -116,7 +123,9 @@ impl LinkEntry {
 }
 
 fn nalgebra_matrix(h: &[[f64; 3]; 3]) -> nalgebra::Matrix3<f64> {
-    nalgebra::Matrix3::new(h[0][0], h[0][1], h[0][2], h[1][0], h[1][1], h[1][2], h[2][0], h[2][1], h[2][2])
+    nalgebra::Matrix3::new(
+        h[0][0], h[0][1], h[0][2], h[1][0], h[1][1], h[1][2], h[2][0], h[2][1], h[2][2],
+    )
 }
 
 /// Eq. (2) tables, one entry per frame of this view.
@@ -144,7 +153,11 @@ impl SceneFile {
         let model = a.selection.as_ref().map(|s| ModelEntry {
             chosen: s.model,
             forced: s.forced,
-            gric: s.scores.iter().map(|(k, v)| (k.name().to_string(), *v)).collect(),
+            gric: s
+                .scores
+                .iter()
+                .map(|(k, v)| (k.name().to_string(), *v))
+                .collect(),
         });
         let views = a
             .views
@@ -157,15 +170,24 @@ impl SceneFile {
                 ViewEntry {
                     name: v.name.clone(),
                     frames: v.n_frames,
-                    points: points.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect()).unwrap_or_default(),
+                    points: points
+                        .get(p)
+                        .map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
+                        .unwrap_or_default(),
                     background: background_name(p),
                     objects: objects_name(p),
                     moving_fraction: v.moving_fraction,
-                    loop_: LoopEntry { start: v.best_loop.start, end: v.best_loop.end, cost: v.best_loop.cost },
+                    loop_: LoopEntry {
+                        start: v.best_loop.start,
+                        end: v.best_loop.end,
+                        cost: v.best_loop.cost,
+                    },
                     to_next: next.map(|l| LinkEntry::from_h(&l.homography, l.rms)),
                     to_prev: prev.map(|l| LinkEntry::from_h(&l.homography.inverse(), l.rms)),
                     transitions: Transitions {
-                        next: next.map(|l| l.forward.clone()).unwrap_or_else(|| none.clone()),
+                        next: next
+                            .map(|l| l.forward.clone())
+                            .unwrap_or_else(|| none.clone()),
                         prev: prev.map(|l| l.backward.clone()).unwrap_or(none),
                     },
                 }
@@ -186,7 +208,10 @@ impl SceneFile {
     /// Writes scene.json into `dir`.
     pub fn write(&self, dir: &Path) -> Result<()> {
         let path = dir.join("scene.json");
-        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Scene { path: path.clone(), message: e.to_string() })?;
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Scene {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
         std::fs::write(&path, text).map_err(|e| Error::io(&path, e))
     }
 
@@ -194,8 +219,12 @@ impl SceneFile {
     pub fn read(dir: &Path) -> Result<Self> {
         let path = dir.join("scene.json");
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        let bad = |message: String| Error::Scene { path: path.clone(), message };
-        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(format!("corrupted: not valid JSON ({e})")))?;
+        let bad = |message: String| Error::Scene {
+            path: path.clone(),
+            message,
+        };
+        let value: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| bad(format!("corrupted: not valid JSON ({e})")))?;
         if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
             return Err(bad(format!("not a vt scene (format is not \"{FORMAT}\")")));
         }
@@ -205,7 +234,8 @@ impl SceneFile {
                 "scene format version {version}, but this vt reads version {VERSION}: re-run `vt analyze` to rebuild it"
             )));
         }
-        let scene: SceneFile = serde_json::from_value(value).map_err(|e| bad(format!("corrupted: {e}")))?;
+        let scene: SceneFile =
+            serde_json::from_value(value).map_err(|e| bad(format!("corrupted: {e}")))?;
         scene.validate().map_err(bad)?;
         Ok(scene)
     }
@@ -218,27 +248,50 @@ impl SceneFile {
         for (p, v) in self.views.iter().enumerate() {
             let l = v.loop_;
             if !(l.start < l.end && l.end < v.frames) {
-                return Err(format!("view {p}: loop ({}, {}) does not fit {} frames", l.start, l.end, v.frames));
+                return Err(format!(
+                    "view {p}: loop ({}, {}) does not fit {} frames",
+                    l.start, l.end, v.frames
+                ));
             }
-            for (side, table, exists) in [("next", &v.transitions.next, p + 1 < m), ("prev", &v.transitions.prev, p > 0)] {
+            for (side, table, exists) in [
+                ("next", &v.transitions.next, p + 1 < m),
+                ("prev", &v.transitions.prev, p > 0),
+            ] {
                 if table.len() != v.frames {
-                    return Err(format!("view {p}: {} {side} transitions for {} frames", table.len(), v.frames));
+                    return Err(format!(
+                        "view {p}: {} {side} transitions for {} frames",
+                        table.len(),
+                        v.frames
+                    ));
                 }
                 if exists {
                     let q = if side == "next" { p + 1 } else { p - 1 };
                     let end = self.views[q].loop_.end;
-                    if let Some((s, t)) = table.iter().enumerate().find_map(|(s, t)| t.filter(|&t| t + 1 >= end).map(|t| (s, t))) {
+                    if let Some((s, t)) = table
+                        .iter()
+                        .enumerate()
+                        .find_map(|(s, t)| t.filter(|&t| t + 1 >= end).map(|t| (s, t)))
+                    {
                         return Err(format!("view {p}: {side} transition of frame {s} is {t}, beyond view {q}'s loop end {end}"));
                     }
                 }
             }
-            for (side, link, exists) in [("to_next", &v.to_next, p + 1 < m), ("to_prev", &v.to_prev, p > 0)] {
+            for (side, link, exists) in [
+                ("to_next", &v.to_next, p + 1 < m),
+                ("to_prev", &v.to_prev, p > 0),
+            ] {
                 match (link, exists) {
                     (Some(l), true) => {
-                        l.homography().map_err(|e| format!("view {p}: {side}: {e}"))?;
+                        l.homography()
+                            .map_err(|e| format!("view {p}: {side}: {e}"))?;
                     }
                     (None, false) => {}
-                    _ => return Err(format!("view {p}: {side} homography is {}", if exists { "missing" } else { "unexpected" })),
+                    _ => {
+                        return Err(format!(
+                            "view {p}: {side} homography is {}",
+                            if exists { "missing" } else { "unexpected" }
+                        ))
+                    }
                 }
             }
         }

@@ -100,7 +100,14 @@ const WALL_DEPTH: f64 = 9.0;
 /// Pillars: (x centre, half width, depth), all spanning the full height.
 const PILLARS: [(f64, f64, f64); 2] = [(-1.1, 0.18, 6.0), (0.95, 0.14, 7.0)];
 /// Marked points on the object plane (x, y), the "box" the thesis places in the scene.
-const MARKERS: [(f64, f64); 6] = [(-0.75, -0.5), (0.8, -0.45), (0.7, 0.55), (-0.65, 0.5), (0.05, -0.62), (-0.1, 0.62)];
+const MARKERS: [(f64, f64); 6] = [
+    (-0.75, -0.5),
+    (0.8, -0.45),
+    (0.7, 0.55),
+    (-0.65, 0.5),
+    (0.05, -0.62),
+    (-0.1, 0.62),
+];
 
 /// System A's synthetic scene.
 #[derive(Debug, Clone)]
@@ -124,7 +131,9 @@ fn unit(h: u64) -> f64 {
 }
 
 fn hash(parts: &[u64]) -> u64 {
-    parts.iter().fold(0x51_7CC1_B727_220A, |acc, &p| mix(acc ^ mix(p)))
+    parts
+        .iter()
+        .fold(0x51_7CC1_B727_220A, |acc, &p| mix(acc ^ mix(p)))
 }
 
 /// Smooth value noise in [0, 1] on a unit lattice.
@@ -140,27 +149,50 @@ fn value_noise(seed: u64, x: f64, y: f64) -> f64 {
 }
 
 fn lerp3(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
-    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t]
+    [
+        a[0] + (b[0] - a[0]) * t,
+        a[1] + (b[1] - a[1]) * t,
+        a[2] + (b[2] - a[2]) * t,
+    ]
 }
 
 impl TextureScene {
     /// Builds the scene; fails on parameters that cannot make one.
     pub fn new(params: TextureParams) -> Result<Self, String> {
-        if params.views == 0 || params.frames == 0 || params.period < 2 || params.width < 8 || params.height < 8 {
+        if params.views == 0
+            || params.frames == 0
+            || params.period < 2
+            || params.width < 8
+            || params.height < 8
+        {
             return Err(format!(
                 "need views >= 1, frames >= 1, period >= 2 and a size of at least 8x8 (got {} views, {} frames, period {}, {}x{})",
                 params.views, params.frames, params.period, params.width, params.height
             ));
         }
-        if !(params.baseline.is_finite() && params.baseline > 0.0) || !(params.noise.is_finite() && params.noise >= 0.0) {
-            return Err(format!("baseline must be > 0 and noise >= 0 (got {}, {})", params.baseline, params.noise));
+        if !(params.baseline.is_finite() && params.baseline > 0.0)
+            || !(params.noise.is_finite() && params.noise >= 0.0)
+        {
+            return Err(format!(
+                "baseline must be > 0 and noise >= 0 (got {}, {})",
+                params.baseline, params.noise
+            ));
         }
-        let cameras = (0..params.views).map(|p| Self::camera_at(&params, p as f64)).collect();
-        let phases = (0..params.views).map(|p| (mix(hash(&[params.seed, 1, p as u64])) % params.period as u64) as usize).collect();
+        let cameras = (0..params.views)
+            .map(|p| Self::camera_at(&params, p as f64))
+            .collect();
+        let phases = (0..params.views)
+            .map(|p| (mix(hash(&[params.seed, 1, p as u64])) % params.period as u64) as usize)
+            .collect();
         let gains = (0..params.views)
             .map(|p| 1.0 + params.exposure * (2.0 * unit(hash(&[params.seed, 2, p as u64])) - 1.0))
             .collect();
-        Ok(Self { params, cameras, phases, gains })
+        Ok(Self {
+            params,
+            cameras,
+            phases,
+            gains,
+        })
     }
 
     /// The parameters.
@@ -177,15 +209,31 @@ impl TextureScene {
     fn camera_at(params: &TextureParams, q: f64) -> Camera {
         let (w, h) = (params.width as f64, params.height as f64);
         let f = 0.9 * w;
-        let k = Matrix3::new(f, 0.0, (w - 1.0) / 2.0, 0.0, f, (h - 1.0) / 2.0, 0.0, 0.0, 1.0);
+        let k = Matrix3::new(
+            f,
+            0.0,
+            (w - 1.0) / 2.0,
+            0.0,
+            f,
+            (h - 1.0) / 2.0,
+            0.0,
+            0.0,
+            1.0,
+        );
         let x = (q - (params.views as f64 - 1.0) / 2.0) * params.baseline;
         let yaw = match params.rig {
             Rig::Parallel => 0.0,
             Rig::Converging => (-x).atan2(OBJECT_DEPTH),
         };
         // Camera looks along +z rotated by yaw about the y axis; r is world-to-camera.
-        let r = Rotation3::from_axis_angle(&Vector3::y_axis(), yaw).inverse().into_inner();
-        Camera { k, r, centre: Point3::new(x, 0.0, 0.0) }
+        let r = Rotation3::from_axis_angle(&Vector3::y_axis(), yaw)
+            .inverse()
+            .into_inner();
+        Camera {
+            k,
+            r,
+            centre: Point3::new(x, 0.0, 0.0),
+        }
     }
 
     /// `phase[p]`: the frame of view p where the motion is at phase 0.
@@ -206,7 +254,10 @@ impl TextureScene {
 
     /// The marked points of view p (exact projections of the markers).
     pub fn points(&self, view: usize) -> Vec<(f64, f64)> {
-        MARKERS.iter().map(|&(x, y)| self.cameras[view].project(&Point3::new(x, y, OBJECT_DEPTH))).collect()
+        MARKERS
+            .iter()
+            .map(|&(x, y)| self.cameras[view].project(&Point3::new(x, y, OBJECT_DEPTH)))
+            .collect()
     }
 
     /// The true homography of the object plane from view `a`'s image to view `b`'s:
@@ -214,7 +265,8 @@ impl TextureScene {
     pub fn plane_homography(&self, a: f64, b: f64) -> Matrix3<f64> {
         let (ca, cb) = (self.camera(a), self.camera(b));
         let n = Vector3::new(0.0, 0.0, 1.0);
-        let m = (ca.centre - cb.centre) * n.transpose() + Matrix3::identity() * (OBJECT_DEPTH - n.dot(&ca.centre.coords));
+        let m = (ca.centre - cb.centre) * n.transpose()
+            + Matrix3::identity() * (OBJECT_DEPTH - n.dot(&ca.centre.coords));
         let h = cb.k * cb.r * m * ca.r.transpose() * ca.k.try_inverse().expect("K is invertible");
         h / h[(2, 2)]
     }
@@ -224,7 +276,11 @@ impl TextureScene {
     /// of the time, as the median background of A-1 assumes.
     fn pose(&self, phase: f64) -> (f64, f64, f64) {
         let a = phase * std::f64::consts::TAU;
-        (0.55 * a.sin(), 0.12 * (2.0 * a).sin() + 0.05 * a.cos(), 0.35 * (a + 0.5).sin())
+        (
+            0.55 * a.sin(),
+            0.12 * (2.0 * a).sin() + 0.05 * a.cos(),
+            0.35 * (a + 0.5).sin(),
+        )
     }
 
     /// Colour along a ray from `origin`, with the object at `phase` (fraction of a period).
@@ -238,7 +294,10 @@ impl TextureScene {
         let (ox, oy, rot) = self.pose(phase);
         let (px, py) = at_depth(OBJECT_DEPTH);
         let (dx, dy) = (px - ox, py - oy);
-        let (u, v) = (dx * rot.cos() + dy * rot.sin(), -dx * rot.sin() + dy * rot.cos());
+        let (u, v) = (
+            dx * rot.cos() + dy * rot.sin(),
+            -dx * rot.sin() + dy * rot.cos(),
+        );
         let e = (u / 0.3).powi(2) + (v / 0.2).powi(2);
         if e < 1.0 {
             let vein = 0.5 + 0.5 * (u * 38.0).sin() * (v * 20.0).cos();
@@ -250,7 +309,11 @@ impl TextureScene {
             let n1 = value_noise(seed ^ 11, x * 3.0, y * 3.0);
             let n2 = value_noise(seed ^ 13, x * 8.0, y * 8.0);
             let bands = 0.5 + 0.5 * (x * 5.0 + 2.0 * n1).sin();
-            lerp3(lerp3([60.0, 80.0, 140.0], [200.0, 170.0, 120.0], n1), [120.0, 60.0, 50.0], 0.4 * bands * n2)
+            lerp3(
+                lerp3([60.0, 80.0, 140.0], [200.0, 170.0, 120.0], n1),
+                [120.0, 60.0, 50.0],
+                0.4 * bands * n2,
+            )
         };
         if self.params.planar {
             // The background lies on the object's plane, just behind it.
@@ -328,7 +391,15 @@ mod tests {
     use super::*;
 
     fn small(rig: Rig) -> TextureScene {
-        TextureScene::new(TextureParams { width: 96, height: 64, frames: 20, period: 8, rig, ..Default::default() }).unwrap()
+        TextureScene::new(TextureParams {
+            width: 96,
+            height: 64,
+            frames: 20,
+            period: 8,
+            rig,
+            ..Default::default()
+        })
+        .unwrap()
     }
 
     #[test]
@@ -349,10 +420,16 @@ mod tests {
             let h = s.plane_homography(0.0, 2.0);
             for ((x0, y0), (x2, y2)) in s.points(0).into_iter().zip(s.points(2)) {
                 let v = h * Vector3::new(x0, y0, 1.0);
-                assert!((v.x / v.z - x2).abs() < 1e-9 && (v.y / v.z - y2).abs() < 1e-9, "{rig:?}");
+                assert!(
+                    (v.x / v.z - x2).abs() < 1e-9 && (v.y / v.z - y2).abs() < 1e-9,
+                    "{rig:?}"
+                );
             }
             if rig == Rig::Parallel {
-                assert!(h[(2, 0)].abs() < 1e-15 && (h[(0, 0)] - 1.0).abs() < 1e-12, "parallel rig is a translation");
+                assert!(
+                    h[(2, 0)].abs() < 1e-15 && (h[(0, 0)] - 1.0).abs() < 1e-12,
+                    "parallel rig is a translation"
+                );
             } else {
                 assert!(h[(2, 0)].abs() > 1e-6, "converging rig is projective");
             }
@@ -361,10 +438,17 @@ mod tests {
 
     #[test]
     fn markers_are_in_every_view() {
-        let s = TextureScene::new(TextureParams { views: 15, ..Default::default() }).unwrap();
+        let s = TextureScene::new(TextureParams {
+            views: 15,
+            ..Default::default()
+        })
+        .unwrap();
         for p in 0..15 {
             for (x, y) in s.points(p) {
-                assert!(x > 0.0 && y > 0.0 && x < 319.0 && y < 179.0, "view {p}: ({x}, {y})");
+                assert!(
+                    x > 0.0 && y > 0.0 && x < 319.0 && y < 179.0,
+                    "view {p}: ({x}, {y})"
+                );
             }
         }
     }
