@@ -1,1 +1,154 @@
-fn main() {}
+//! Benchmarks of System B on the synthetic object (8 ring views, 400x400, as in the paper):
+//! visual hull 256^3, photo hull, and guided synthesis at patch 41 and 7, with quality (PSNR and
+//! SSIM against the ray-cast truth) per speed option printed alongside.
+//!
+//! `VT_BENCH_FULL=1` adds the paper-exact patch-41 synthesis at 400x400 (minutes).
+
+use std::time::Instant;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use vt_fv::eval::{psnr, ssim};
+use vt_fv::hull::{visual_hull, HullParams};
+use vt_fv::synth::{generate, SynthData, SynthParams as SceneParams};
+use vt_fv::{photo_hull, render_rough, PhotoParams, SynthParams, VoxelModel};
+
+fn data() -> SynthData {
+    generate(&SceneParams {
+        extra_angles_deg: vec![5.0, 10.0],
+        ..Default::default()
+    })
+    .unwrap()
+}
+
+fn model(d: &SynthData, n: usize) -> VoxelModel {
+    let g = visual_hull(
+        &d.cameras,
+        &d.masks,
+        &HullParams {
+            dims: [n; 3],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    photo_hull(
+        g,
+        &d.cameras,
+        &d.photos,
+        &PhotoParams::default(),
+        &mut |_, _, _| {},
+    )
+    .unwrap()
+}
+
+fn bench(c: &mut Criterion) {
+    let d = data();
+    let mut g = c.benchmark_group("fv");
+    g.sample_size(10);
+    for n in [128, 256] {
+        let params = HullParams {
+            dims: [n; 3],
+            ..Default::default()
+        };
+        g.bench_function(format!("visual_hull_{n}^3_8x400x400"), |b| {
+            b.iter(|| visual_hull(&d.cameras, &d.masks, &params).unwrap())
+        });
+    }
+    let vh128 = visual_hull(
+        &d.cameras,
+        &d.masks,
+        &HullParams {
+            dims: [128; 3],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    g.bench_function("photo_hull_128^3", |b| {
+        b.iter(|| {
+            photo_hull(
+                vh128.clone(),
+                &d.cameras,
+                &d.photos,
+                &PhotoParams::default(),
+                &mut |_, _, _| {},
+            )
+            .unwrap()
+        })
+    });
+    g.finish();
+
+    let t = Instant::now();
+    let m = model(&d, 256);
+    println!("photo hull 256^3 (visual hull included): {:.2} s, {} passes, {} voxels removed, {} surface voxels", t.elapsed().as_secs_f64(), m.passes, m.removed, m.surface.len());
+
+    let full = std::env::var("VT_BENCH_FULL").is_ok_and(|v| v == "1");
+    let mut configs: Vec<(&str, SynthParams)> = vec![
+        (
+            "patch 7 exact",
+            SynthParams {
+                patch: 7,
+                ..Default::default()
+            },
+        ),
+        (
+            "patch 7 strips",
+            SynthParams {
+                patch: 7,
+                strips: 0,
+                ..Default::default()
+            },
+        ),
+        (
+            "patch 7 fast",
+            SynthParams {
+                patch: 7,
+                ..SynthParams::fast()
+            },
+        ),
+        (
+            "patch 41 fast (3 levels, step 2, strips)",
+            SynthParams::fast(),
+        ),
+        (
+            "patch 41 step 4 + 3 levels + strips",
+            SynthParams {
+                step: 4,
+                ..SynthParams::fast()
+            },
+        ),
+        (
+            "patch 41 step 2, 1 level, strips",
+            SynthParams {
+                step: 2,
+                strips: 0,
+                ..Default::default()
+            },
+        ),
+    ];
+    if full {
+        configs.push(("patch 41 exact (paper)", SynthParams::default()));
+    }
+    for (k, cam) in d.extra_cameras.iter().enumerate() {
+        let rough = render_rough(&m, cam, 400, 400);
+        let (truth, mask) = (&d.extra_truth[k], Some(&d.extra_masks[k]));
+        let reference = vt_fv::pipeline::nearest_reference(&d.cameras, cam).unwrap();
+        println!(
+            "view at {} deg (reference {reference}): rough PSNR {:.2} dB SSIM {:.3}",
+            [5, 10][k],
+            psnr(&rough.image, truth, mask).unwrap(),
+            ssim(&rough.image, truth, mask).unwrap()
+        );
+        for (name, p) in &configs {
+            let t = Instant::now();
+            let out = vt_fv::guided_synthesis(&d.photos[reference], &rough.image, p).unwrap();
+            println!(
+                "  guided {name}: {:.2} s, PSNR {:.2} dB SSIM {:.3}",
+                t.elapsed().as_secs_f64(),
+                psnr(&out, truth, mask).unwrap(),
+                ssim(&out, truth, mask).unwrap()
+            );
+        }
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

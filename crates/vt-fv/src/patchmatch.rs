@@ -354,7 +354,7 @@ impl Strip<'_> {
 }
 
 pub(crate) fn check_patch(what: &str, w: usize, h: usize, patch: usize) -> Result<()> {
-    if patch == 0 || patch % 2 == 0 {
+    if patch.is_multiple_of(2) {
         return Err(Error::BadParam {
             name: "patch".into(),
             value: patch.to_string(),

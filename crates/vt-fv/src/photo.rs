@@ -288,7 +288,7 @@ pub fn photo_hull(
             b: images.len(),
         });
     }
-    if !(params.threshold >= 0.0) {
+    if params.threshold.is_nan() || params.threshold < 0.0 {
         return Err(Error::BadParam {
             name: "threshold".into(),
             value: params.threshold.to_string(),
