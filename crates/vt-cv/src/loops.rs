@@ -1,0 +1,122 @@
+//! Loop search, eq. (1) of the seed thesis, on OpenCV XOR costs; mirrors
+//! [`vt_core::loops::find_loop`] and [`vt_core::loops::find_loops`] with the same checks,
+//! the same candidate set (`n - m >= k`, `n + w - 1 < N`) and the same tie-breaking (smallest
+//! cost, then smallest `m`, then smallest `n`).
+
+use opencv::core::Mat;
+use rayon::prelude::*;
+use vt_core::loops::{Loop, LoopParams};
+use vt_core::{Error as CoreError, Mask};
+
+use crate::convert::mask_to_mat;
+use crate::error::Result;
+use crate::mask::xor_count_mat;
+
+/// Masks as 0/255 mats, checking that they share mask 0's size.
+pub(crate) fn masks_to_mats(masks: &[Mask], what: &str) -> Result<Vec<Mat>> {
+    masks
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            if (m.width(), m.height()) != (masks[0].width(), masks[0].height()) {
+                return Err(CoreError::SizeMismatch {
+                    what: format!("{what} mask {i}"),
+                    expected_w: masks[0].width(),
+                    expected_h: masks[0].height(),
+                    got_w: m.width(),
+                    got_h: m.height(),
+                }
+                .into());
+            }
+            mask_to_mat(m)
+        })
+        .collect()
+}
+
+/// Row-major `n x n` matrix of OpenCV `XOR(I(a), I(b))` for `b - a >= k` (0 elsewhere).
+pub fn pair_costs(mats: &[Mat], k: usize) -> Result<Vec<u64>> {
+    let n = mats.len();
+    let mut d = vec![0u64; n * n];
+    d.par_chunks_mut(n.max(1)).enumerate().try_for_each_init(
+        Mat::default,
+        |scratch, (a, row)| -> Result<()> {
+            for b in a + k..n {
+                row[b] = xor_count_mat(&mats[a], &mats[b], scratch)?;
+            }
+            Ok(())
+        },
+    )?;
+    Ok(d)
+}
+
+/// The best loop of eq. (1) (twin of [`vt_core::loops::find_loop`]).
+pub fn find_loop(masks: &[Mask], params: &LoopParams, what: &str) -> Result<Loop> {
+    Ok(find_loops(masks, params, 1, 0, what)?[0])
+}
+
+/// The `count` best distinct loops (twin of [`vt_core::loops::find_loops`]).
+pub fn find_loops(
+    masks: &[Mask],
+    params: &LoopParams,
+    count: usize,
+    min_separation: usize,
+    what: &str,
+) -> Result<Vec<Loop>> {
+    if params.window == 0 {
+        return Err(CoreError::InvalidParameter {
+            name: "window",
+            value: "0".into(),
+            why: "w must be at least 1".into(),
+        }
+        .into());
+    }
+    if params.min_length == 0 {
+        return Err(CoreError::InvalidParameter {
+            name: "min_length",
+            value: "0".into(),
+            why: "k must be at least 1".into(),
+        }
+        .into());
+    }
+    let need = params.window + params.min_length;
+    if masks.len() < need {
+        return Err(CoreError::TooFewFrames {
+            what: what.to_string(),
+            got: masks.len(),
+            need,
+            why: format!(
+                "a loop needs w + k = {} + {} frames",
+                params.window, params.min_length
+            ),
+        }
+        .into());
+    }
+    let mats = masks_to_mats(masks, what)?;
+    let n = masks.len();
+    let (w, k) = (params.window, params.min_length);
+    let n_max = n - w;
+    let d = pair_costs(&mats, k)?;
+    let cost = |m: usize, e: usize| (0..w).map(|i| d[(m + i) * n + e + i]).sum::<u64>();
+    let mut all: Vec<Loop> = (0..=n_max - k)
+        .flat_map(|m| (m + k..=n_max).map(move |e| (m, e)))
+        .map(|(m, e)| Loop {
+            start: m,
+            end: e,
+            cost: cost(m, e),
+        })
+        .collect();
+    all.sort_unstable_by_key(|l| (l.cost, l.start, l.end));
+    let mut out: Vec<Loop> = Vec::with_capacity(count);
+    for l in all {
+        if out.len() >= count {
+            break;
+        }
+        if out
+            .iter()
+            .all(|o| o.start.abs_diff(l.start).max(o.end.abs_diff(l.end)) > min_separation)
+        {
+            out.push(l);
+        }
+    }
+    Ok(out)
+}
