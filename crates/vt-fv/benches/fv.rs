@@ -9,7 +9,7 @@ use std::time::Instant;
 use criterion::{criterion_group, criterion_main, Criterion};
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::{visual_hull, HullParams};
-use vt_fv::synth::{generate, SynthData, SynthParams as SceneParams};
+use vt_fv::synth::{generate, SceneParams, SynthData};
 use vt_fv::{photo_hull, render_rough, PhotoParams, SynthParams, VoxelModel};
 
 fn data() -> SynthData {

@@ -246,7 +246,7 @@ fn box_entry(bx: &Aabb, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
 
 /// How to photograph the synthetic object.
 #[derive(Debug, Clone, PartialEq)]
-pub struct SynthParams {
+pub struct SceneParams {
     /// Cameras on the ring, evenly spaced from angle 0 (8, as in the paper).
     pub n_views: usize,
     /// Image width (400, as in the paper).
@@ -265,7 +265,7 @@ pub struct SynthParams {
     pub supersample: u32,
 }
 
-impl Default for SynthParams {
+impl Default for SceneParams {
     fn default() -> Self {
         Self {
             n_views: 8,
@@ -300,7 +300,7 @@ pub struct SynthData {
 }
 
 /// The camera at `angle_deg` on the synthetic ring.
-pub fn ring_camera(p: &SynthParams, angle_deg: f64) -> Result<Camera> {
+pub fn ring_camera(p: &SceneParams, angle_deg: f64) -> Result<Camera> {
     let f = p.focal_factor * p.width as f64;
     let k = Matrix3::new(
         f,
@@ -325,7 +325,7 @@ pub fn ring_camera(p: &SynthParams, angle_deg: f64) -> Result<Camera> {
 }
 
 /// Ray casts the default [`SynthObject`] from `n_views` ring cameras and the extra viewpoints.
-pub fn generate(p: &SynthParams) -> Result<SynthData> {
+pub fn generate(p: &SceneParams) -> Result<SynthData> {
     if p.n_views == 0 {
         return Err(Error::TooFew {
             what: "synthetic views".into(),
@@ -376,7 +376,7 @@ mod tests {
     #[test]
     fn rays_hit_what_contains_says() {
         let obj = SynthObject::default();
-        let p = SynthParams {
+        let p = SceneParams {
             width: 40,
             height: 40,
             ..Default::default()

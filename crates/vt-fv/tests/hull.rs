@@ -3,11 +3,11 @@
 
 use nalgebra::Vector3;
 use vt_fv::hull::{visual_hull, visual_hull_naive, Aabb, HullParams};
-use vt_fv::synth::{generate, SynthParams};
+use vt_fv::synth::{generate, SceneParams};
 use vt_fv::{Camera, Error, Mask};
 
 fn small() -> vt_fv::synth::SynthData {
-    generate(&SynthParams {
+    generate(&SceneParams {
         width: 160,
         height: 160,
         extra_angles_deg: vec![],

@@ -3,12 +3,12 @@
 use std::time::Instant;
 use vt_fv::eval::psnr;
 use vt_fv::hull::HullParams;
-use vt_fv::synth::{generate, SynthParams};
+use vt_fv::synth::{generate, SceneParams};
 use vt_fv::{build_model, render_rough, PhotoParams};
 
 #[test]
 fn photo_hull_is_tighter_and_renders_close_to_truth() {
-    let d = generate(&SynthParams {
+    let d = generate(&SceneParams {
         width: 128,
         height: 128,
         extra_angles_deg: vec![22.5],

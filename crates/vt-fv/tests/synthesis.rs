@@ -8,7 +8,7 @@
 use std::time::Instant;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::HullParams;
-use vt_fv::synth::{generate, SynthParams as SceneParams};
+use vt_fv::synth::{generate, SceneParams};
 use vt_fv::{build_model, novel_view, PhotoParams, SynthParams};
 
 #[test]
