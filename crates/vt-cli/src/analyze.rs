@@ -32,6 +32,9 @@ pub struct AnalyzeArgs {
     /// Minimum loop length k of eq. (1) (thesis: 100).
     #[arg(long, default_value_t = 100)]
     min_length: usize,
+    /// Also store this many next-best distinct loops per view in scene.json.
+    #[arg(long, default_value_t = 0)]
+    alternatives: usize,
     /// Background-subtraction threshold, grey levels: moving if max over RGB |frame - bg| > T.
     #[arg(long, default_value_t = 25)]
     threshold: u8,
@@ -68,6 +71,7 @@ impl AnalyzeArgs {
             out,
             window: 3,
             min_length: (frames / 2).clamp(4, 100),
+            alternatives: 2,
             threshold: 25,
             blur_size: 3,
             blur_sigma: 0.0,
@@ -122,6 +126,7 @@ impl AnalyzeArgs {
                 sigma: self.point_sigma,
                 force,
             },
+            alternative_loops: self.alternatives,
             cache_bytes: self.cache_mb << 20,
         })
     }

@@ -208,9 +208,28 @@ const SMALL: [&str; 10] = [
 fn parallel_rig_recovers_loops_transitions_homographies_and_picks_translation() {
     let tmp = tempfile::tempdir().unwrap();
     let syn = synth(tmp.path(), "par", &SMALL);
-    let scene = analyze(&syn, &tmp.path().join("scene"), &["--min-length", "20"]);
+    let scene = analyze(
+        &syn,
+        &tmp.path().join("scene"),
+        &["--min-length", "20", "--alternatives", "3"],
+    );
     check_truth(&scene, &read_json(&syn.dir.join("truth.json")));
     assert_eq!(scene["model"]["chosen"], "translation");
+    for v in scene["views"].as_array().unwrap() {
+        let alts = v["alternatives"].as_array().unwrap();
+        assert_eq!(alts.len(), 3);
+        let best = v["loop"]["cost"].as_u64().unwrap();
+        for a in alts {
+            assert!(a["cost"].as_u64().unwrap() >= best);
+            let (m, n) = (a["start"].as_i64().unwrap(), a["end"].as_i64().unwrap());
+            assert!(
+                (m - v["loop"]["start"].as_i64().unwrap())
+                    .abs()
+                    .max((n - v["loop"]["end"].as_i64().unwrap()).abs())
+                    > 3
+            );
+        }
+    }
     assert_eq!(scene["format"], "vt-scene");
     for p in 0..3 {
         assert!(tmp

@@ -13,8 +13,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::blur::{gaussian_blur, gaussian_blur_into, GaussianParams};
-use crate::loops::{find_loop, Loop, LoopParams};
-use crate::median::MedianAccumulator;
+use crate::loops::{find_loops, Loop, LoopParams};
+use crate::median::{temporal_median, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
 use crate::transition::{transition_table, warp_masks};
 use crate::{Error, Homography, Mask, Point, Result};
@@ -90,16 +90,14 @@ pub fn threshold_mask(frame: &RgbImage, background: &RgbImage, threshold: u8) ->
             got_h: frame.height(),
         });
     }
-    let bytes: Vec<u8> = frame
-        .as_raw()
-        .chunks_exact(3)
-        .zip(background.as_raw().chunks_exact(3))
-        .map(|(f, b)| {
-            let d = (0..3).map(|c| f[c].abs_diff(b[c])).max().unwrap_or(0);
-            (d > threshold) as u8
-        })
-        .collect();
-    Mask::from_bytes(frame.width(), frame.height(), &bytes)
+    let (f, b) = (frame.as_raw(), background.as_raw());
+    Ok(Mask::from_index_fn(frame.width(), frame.height(), |i| {
+        let (f, b) = (&f[3 * i..3 * i + 3], &b[3 * i..3 * i + 3]);
+        f[0].abs_diff(b[0])
+            .max(f[1].abs_diff(b[1]))
+            .max(f[2].abs_diff(b[2]))
+            > threshold
+    }))
 }
 
 /// [`threshold_mask`] followed by the clean-up of `params`.
@@ -123,6 +121,10 @@ pub struct AnalyzeParams {
     pub loops: LoopParams,
     /// Geometric model selection.
     pub model: ModelParams,
+    /// Also report this many next-best *distinct* loops per view (see
+    /// [`crate::loops::find_loops`]; distinct = more than `window` frames apart in m or n).
+    #[serde(default)]
+    pub alternative_loops: usize,
     /// Keep a view's frames in memory between the two passes when they fit in this many bytes
     /// (not serialised into scenes: it changes speed, never results).
     #[serde(skip, default = "default_cache")]
@@ -140,6 +142,7 @@ impl Default for AnalyzeParams {
             mask: MaskParams::default(),
             loops: LoopParams::default(),
             model: ModelParams::default(),
+            alternative_loops: 0,
             cache_bytes: default_cache(),
         }
     }
@@ -215,6 +218,8 @@ pub struct ViewResult {
     pub masks: Vec<Mask>,
     /// `(m_p, n_p)` and its cost.
     pub best_loop: Loop,
+    /// The next-best distinct loops, best first ([`AnalyzeParams::alternative_loops`] of them at most).
+    pub alternatives: Vec<Loop>,
     /// Fraction of pixels set, averaged over frames (how much of the view moves).
     pub moving_fraction: f64,
 }
@@ -373,13 +378,22 @@ fn analyze_view(
     let name = src.name().to_string();
     let label = |extra: &str| format!("view {p} ({name}){extra}");
 
-    // Pass 1: median, caching frames while they fit.
+    // Pass 1: keep frames while they fit the cache budget; past it, stream them into a
+    // histogram median instead. Cached views get the faster row-blocked median.
     observer.start(Stage::Background, Some(p), None);
     let mut acc: Option<MedianAccumulator> = None;
     let mut cache: Option<Vec<RgbImage>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
     let mut inside = Duration::ZERO;
     let t_pass = Instant::now();
+    let too_many = |e: Error| match e {
+        Error::TooManyFrames { got, max, .. } => Error::TooManyFrames {
+            what: label(""),
+            got,
+            max,
+        },
+        other => other,
+    };
     let n1 = src.for_each_frame(&mut |i, frame| {
         let t = Instant::now();
         let dims = frame.dimensions();
@@ -392,34 +406,25 @@ fn analyze_view(
         }
         match size {
             None => *size = Some(dims),
-            Some(s) if *s != dims => {
-                if acc.is_none() {
-                    return Err(Error::ViewSizes {
-                        first: *s,
-                        view: label(""),
-                        size: dims,
-                    });
-                }
-                return Err(size_err(label(&format!(" frame {i}")), *s, dims));
+            Some(s) if *s != dims && i == 0 => {
+                return Err(Error::ViewSizes {
+                    first: *s,
+                    view: label(""),
+                    size: dims,
+                })
             }
+            Some(s) if *s != dims => return Err(size_err(label(&format!(" frame {i}")), *s, dims)),
             _ => {}
         }
-        acc.get_or_insert_with(|| MedianAccumulator::new(dims.0, dims.1))
-            .push(frame)
-            .map_err(|e| match e {
-                Error::TooManyFrames { got, max, .. } => Error::TooManyFrames {
-                    what: label(""),
-                    got,
-                    max,
-                },
-                other => other,
-            })?;
-        if let Some(c) = cache.as_mut() {
-            cached_bytes += frame.as_raw().len();
-            if cached_bytes <= params.cache_bytes {
-                c.push(frame.clone());
-            } else {
-                cache = None;
+        cached_bytes += frame.as_raw().len();
+        match cache.as_mut() {
+            Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.clone()),
+            _ => {
+                let a = acc.get_or_insert_with(|| MedianAccumulator::new(dims.0, dims.1));
+                for f in cache.take().unwrap_or_default() {
+                    a.push(&f).map_err(too_many)?;
+                }
+                a.push(frame).map_err(too_many)?;
             }
         }
         observer.tick();
@@ -441,9 +446,11 @@ fn analyze_view(
         });
     }
     let t = Instant::now();
-    let acc = acc.expect("n1 >= 1 frames were pushed");
-    let background = acc.median()?;
-    drop(acc);
+    let background = match (&cache, acc) {
+        (Some(frames), _) => temporal_median(frames).map_err(too_many)?,
+        (None, Some(acc)) => acc.median()?,
+        (None, None) => unreachable!("frames go to the cache or the accumulator"),
+    };
     let bg_blur = gaussian_blur(&background, &params.blur)?;
     timings.median += t.elapsed() + inside;
 
@@ -496,7 +503,15 @@ fn analyze_view(
 
     let t = Instant::now();
     observer.start(Stage::Loop, Some(p), None);
-    let best_loop = find_loop(&masks, &params.loops, &label(""))?;
+    let mut loops = find_loops(
+        &masks,
+        &params.loops,
+        1 + params.alternative_loops,
+        params.loops.window,
+        &label(""),
+    )?;
+    let alternatives = loops.split_off(1);
+    let best_loop = loops[0];
     observer.finish();
     timings.loops += t.elapsed();
     let total_px = masks.len() as f64 * masks[0].len() as f64;
@@ -507,6 +522,7 @@ fn analyze_view(
         background,
         masks,
         best_loop,
+        alternatives,
         moving_fraction,
     })
 }
@@ -564,6 +580,25 @@ mod tests {
         )
         .unwrap();
         assert_eq!(res.model(), Some(MotionModel::Translation));
+        // Streaming (no frame cache) gives exactly the same analysis.
+        let (mut a2, mut b2) = (view(0, 0, 40), view(5, 3, 40));
+        let streamed = AnalyzeParams {
+            cache_bytes: 0,
+            ..params
+        };
+        let res2 = analyze(
+            &mut [&mut a2, &mut b2],
+            &[pts(0.0), pts(5.0)],
+            &streamed,
+            &mut Quiet,
+        )
+        .unwrap();
+        for (x, y) in res.views.iter().zip(&res2.views) {
+            assert_eq!(x.background, y.background);
+            assert_eq!(x.masks, y.masks);
+            assert_eq!(x.best_loop, y.best_loop);
+        }
+        assert_eq!(res.links[0].forward, res2.links[0].forward);
         for v in &res.views {
             assert_eq!(v.best_loop.len() % 10, 0);
             assert_eq!(v.best_loop.cost, 0);

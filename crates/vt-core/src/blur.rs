@@ -122,35 +122,47 @@ pub fn gaussian_blur_into(
     }
     let r = kernel.len() / 2;
     let raw = src.as_raw();
-    // Horizontal pass into f32 rows.
-    let mut tmp = vec![0f32; w * h * 3];
-    tmp.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-        let src_row = &raw[y * w * 3..(y + 1) * w * 3];
-        for x in 0..w {
-            let mut acc = [0f32; 3];
-            for (j, &kv) in kernel.iter().enumerate() {
-                let xx = reflect101(x as isize + j as isize - r as isize, w);
+    let row_len = w * 3;
+    // Horizontal pass into f32 rows: pad the row by reflection, then one contiguous
+    // multiply-add sweep per tap (vectorised by the compiler).
+    let mut tmp = vec![0f32; row_len * h];
+    tmp.par_chunks_mut(row_len).enumerate().for_each_init(
+        || vec![0f32; (w + 2 * r) * 3],
+        |padded, (y, row)| {
+            let src_row = &raw[y * row_len..(y + 1) * row_len];
+            for (px, xx) in (0..w + 2 * r).map(|i| (i, reflect101(i as isize - r as isize, w))) {
                 for c in 0..3 {
-                    acc[c] += kv * src_row[xx * 3 + c] as f32;
+                    padded[px * 3 + c] = src_row[xx * 3 + c] as f32;
                 }
             }
-            row[x * 3..x * 3 + 3].copy_from_slice(&acc);
-        }
-    });
+            row.fill(0.0);
+            for (j, &kv) in kernel.iter().enumerate() {
+                let shifted = &padded[j * 3..j * 3 + row_len];
+                for (acc, &v) in row.iter_mut().zip(shifted) {
+                    *acc += kv * v;
+                }
+            }
+        },
+    );
     // Vertical pass, rounded to u8.
     out.as_mut()
-        .par_chunks_mut(w * 3)
+        .par_chunks_mut(row_len)
         .enumerate()
-        .for_each(|(y, row)| {
-            for (i, o) in row.iter_mut().enumerate() {
-                let mut acc = 0f32;
+        .for_each_init(
+            || vec![0f32; row_len],
+            |acc, (y, row)| {
+                acc.fill(0.0);
                 for (j, &kv) in kernel.iter().enumerate() {
                     let yy = reflect101(y as isize + j as isize - r as isize, h);
-                    acc += kv * tmp[yy * w * 3 + i];
+                    for (a, &v) in acc.iter_mut().zip(&tmp[yy * row_len..(yy + 1) * row_len]) {
+                        *a += kv * v;
+                    }
                 }
-                *o = acc.round().clamp(0.0, 255.0) as u8;
-            }
-        });
+                for (o, &a) in row.iter_mut().zip(acc.iter()) {
+                    *o = a.round().clamp(0.0, 255.0) as u8;
+                }
+            },
+        );
     Ok(())
 }
 

@@ -55,6 +55,21 @@ impl Mask {
         m
     }
 
+    /// A mask from a predicate on the row-major pixel index, packed 64 pixels at a time.
+    pub fn from_index_fn(width: u32, height: u32, f: impl Fn(usize) -> bool) -> Self {
+        let n = width as usize * height as usize;
+        let mut m = Self::new(width, height);
+        for (wi, word) in m.words.iter_mut().enumerate() {
+            let base = wi * 64;
+            let mut bits = 0u64;
+            for i in 0..64.min(n - base) {
+                bits |= (f(base + i) as u64) << i;
+            }
+            *word = bits;
+        }
+        m
+    }
+
     /// A mask from one byte per pixel (non-zero = set), row-major.
     pub fn from_bytes(width: u32, height: u32, bytes: &[u8]) -> Result<Self> {
         let n = width as usize * height as usize;

@@ -105,20 +105,72 @@ impl MedianAccumulator {
     }
 }
 
-/// Convenience: the median of frames already in memory.
+/// The median of frames already in memory, by the same rule as [`MedianAccumulator`].
+///
+/// Works one image row at a time with a row-sized histogram block (`width * 3 * 512` bytes,
+/// which stays in cache), so it reads each frame row once and never allocates the whole-image
+/// histogram; on 640x360 frames it is several times faster than streaming.
 pub fn temporal_median<'a>(frames: impl IntoIterator<Item = &'a RgbImage>) -> Result<RgbImage> {
-    let mut it = frames.into_iter().peekable();
-    let first = it.peek().ok_or(Error::TooFewFrames {
+    let frames: Vec<&RgbImage> = frames.into_iter().collect();
+    let first = frames.first().ok_or(Error::TooFewFrames {
         what: "median".into(),
         got: 0,
         need: 1,
         why: "a median needs a frame".into(),
     })?;
-    let mut acc = MedianAccumulator::new(first.width(), first.height());
-    for f in it {
-        acc.push(f)?;
+    let (w, h) = first.dimensions();
+    if let Some((i, f)) = frames
+        .iter()
+        .enumerate()
+        .find(|(_, f)| f.dimensions() != (w, h))
+    {
+        return Err(Error::SizeMismatch {
+            what: format!("median frame {i}"),
+            expected_w: w,
+            expected_h: h,
+            got_w: f.width(),
+            got_h: f.height(),
+        });
     }
-    acc.median()
+    if frames.len() > MedianAccumulator::MAX_FRAMES {
+        return Err(Error::TooManyFrames {
+            what: "median".into(),
+            got: frames.len(),
+            max: MedianAccumulator::MAX_FRAMES,
+        });
+    }
+    let row_values = w as usize * 3;
+    let rank = (frames.len() - 1) / 2;
+    let mut out = vec![0u8; row_values * h as usize];
+    out.par_chunks_mut(row_values).enumerate().for_each_init(
+        || vec![0u16; row_values * BINS],
+        |hist, (y, out_row)| {
+            let start = y * row_values;
+            for f in &frames {
+                let row = &f.as_raw()[start..start + row_values];
+                for (i, &v) in row.iter().enumerate() {
+                    hist[i * BINS + v as usize] += 1;
+                }
+            }
+            // Extract and clear in the same walk, ready for the next row.
+            for (o, bins) in out_row.iter_mut().zip(hist.chunks_exact_mut(BINS)) {
+                let mut seen = 0usize;
+                let mut found = false;
+                for (v, c) in bins.iter_mut().enumerate() {
+                    if *c == 0 {
+                        continue;
+                    }
+                    seen += *c as usize;
+                    *c = 0;
+                    if !found && seen > rank {
+                        *o = v as u8;
+                        found = true;
+                    }
+                }
+            }
+        },
+    );
+    Ok(RgbImage::from_raw(w, h, out).expect("buffer sized width*height*3"))
 }
 
 #[cfg(test)]
@@ -152,6 +204,11 @@ mod tests {
                 image::Rgb(v)
             })).collect();
             prop_assert_eq!(temporal_median(&frames).unwrap(), sort_median(&frames));
+            let mut acc = MedianAccumulator::new(w, h);
+            for f in &frames {
+                acc.push(f).unwrap();
+            }
+            prop_assert_eq!(acc.median().unwrap(), sort_median(&frames));
         }
     }
 

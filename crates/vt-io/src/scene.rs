@@ -74,6 +74,9 @@ pub struct ViewEntry {
     /// `(m_p, n_p)` and its eq. (1) cost.
     #[serde(rename = "loop")]
     pub loop_: LoopEntry,
+    /// Next-best distinct loops, best first (empty unless asked for).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub alternatives: Vec<LoopEntry>,
     /// `H_(p,p+1)` (absent for the last view).
     pub to_next: Option<LinkEntry>,
     /// `H_(p,p-1)` (absent for the first view).
@@ -91,6 +94,16 @@ pub struct LoopEntry {
     pub end: usize,
     /// Eq. (1) cost.
     pub cost: u64,
+}
+
+impl From<vt_core::loops::Loop> for LoopEntry {
+    fn from(l: vt_core::loops::Loop) -> Self {
+        Self {
+            start: l.start,
+            end: l.end,
+            cost: l.cost,
+        }
+    }
 }
 
 /// A homography to a neighbour.
@@ -177,11 +190,8 @@ impl SceneFile {
                     background: background_name(p),
                     objects: objects_name(p),
                     moving_fraction: v.moving_fraction,
-                    loop_: LoopEntry {
-                        start: v.best_loop.start,
-                        end: v.best_loop.end,
-                        cost: v.best_loop.cost,
-                    },
+                    loop_: v.best_loop.into(),
+                    alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
                     to_next: next.map(|l| LinkEntry::from_h(&l.homography, l.rms)),
                     to_prev: prev.map(|l| LinkEntry::from_h(&l.homography.inverse(), l.rms)),
                     transitions: Transitions {
