@@ -12,7 +12,7 @@ use image::RgbImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::blur::{gaussian_blur, gaussian_blur_into, GaussianParams};
+use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, GaussianParams};
 use crate::loops::{find_loops, Loop, LoopParams};
 use crate::median::{temporal_median, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
@@ -460,9 +460,18 @@ fn analyze_view(
     let mut masks = Vec::with_capacity(n1);
     let mut inside = Duration::ZERO;
     if let Some(frames) = cache {
+        // One frame per thread, buffers reused: no allocation per frame but the mask.
+        let blur = GaussianBlur::new(&params.blur)?;
+        let (w, h) = bg_blur.dimensions();
         let computed: Result<Vec<Mask>> = frames
             .par_iter()
-            .map(|f| foreground_mask(&gaussian_blur(f, &params.blur)?, &bg_blur, &params.mask))
+            .map_init(
+                || (BlurScratch::default(), RgbImage::new(w, h)),
+                |(scratch, blurred), f| {
+                    blur.apply_into(f, blurred, scratch)?;
+                    foreground_mask(blurred, &bg_blur, &params.mask)
+                },
+            )
             .collect();
         masks = computed?;
         for (i, (m, f)) in masks.iter().zip(&frames).enumerate() {
