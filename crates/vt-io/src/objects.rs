@@ -256,6 +256,55 @@ impl ObjectStore {
     }
 }
 
+impl ObjectFrame<'_> {
+    /// Decodes into a renderer patch (box-sized RGB + mask), reusing its storage.
+    pub fn decode_into(&self, patch: &mut vt_core::render::ObjectPatch) {
+        let (x0, y0, x1, y1) = self.bbox;
+        patch.reset(x0, y0, x1 - x0, y1 - y0);
+        let (bw, mut k) = ((x1 - x0) as usize, 0usize);
+        for i in 0..bw * (y1 - y0) as usize {
+            if self.bits[i / 8] >> (i % 8) & 1 == 1 {
+                patch.mask[i] = 1;
+                patch.rgb[i * 3..i * 3 + 3].copy_from_slice(&self.rgb[k..k + 3]);
+                k += 3;
+            }
+        }
+    }
+}
+
+/// The object stores of all views of a scene, as the renderer's [`vt_core::render::ObjectFrames`].
+pub struct SceneObjects {
+    /// One store per view.
+    pub stores: Vec<ObjectStore>,
+}
+
+impl vt_core::render::ObjectFrames for SceneObjects {
+    fn decode_into(
+        &self,
+        view: usize,
+        frame: usize,
+        patch: &mut vt_core::render::ObjectPatch,
+    ) -> vt_core::Result<()> {
+        let store = self
+            .stores
+            .get(view)
+            .ok_or_else(|| vt_core::Error::InvalidParameter {
+                name: "view",
+                value: view.to_string(),
+                why: format!("the scene has {} views", self.stores.len()),
+            })?;
+        if frame >= store.len() {
+            return Err(vt_core::Error::InvalidParameter {
+                name: "frame",
+                value: frame.to_string(),
+                why: format!("view {view} has {} frames", store.len()),
+            });
+        }
+        store.frame(frame).decode_into(patch);
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -313,3 +313,85 @@ impl SceneFile {
         dir.join(name)
     }
 }
+
+/// A scene loaded for rendering: its file, the renderer's view of it, and the object stores.
+pub struct LoadedScene {
+    /// scene.json.
+    pub file: SceneFile,
+    /// Backgrounds, loops, tables, points, model.
+    pub render: vt_core::render::RenderScene,
+    /// Moving-object pixels.
+    pub objects: crate::objects::SceneObjects,
+}
+
+impl LoadedScene {
+    /// Loads and cross-checks every part of a scene directory.
+    pub fn open(dir: &Path) -> Result<Self> {
+        if !dir.is_dir() {
+            return Err(Error::Scene {
+                path: dir.to_path_buf(),
+                message: "not a scene directory (run `vt analyze` first)".into(),
+            });
+        }
+        let file = SceneFile::read(dir)?;
+        let mut views = Vec::new();
+        let mut stores = Vec::new();
+        for v in &file.views {
+            let bg_path = dir.join(&v.background);
+            let background = crate::frames::read_rgb(&bg_path)?;
+            if background.dimensions() != (file.width, file.height) {
+                return Err(Error::Scene {
+                    path: bg_path,
+                    message: format!(
+                        "background is {}x{}, the scene is {}x{}",
+                        background.width(),
+                        background.height(),
+                        file.width,
+                        file.height
+                    ),
+                });
+            }
+            let obj_path = dir.join(&v.objects);
+            let store = crate::objects::ObjectStore::load(&obj_path)?;
+            if store.len() != v.frames || store.size() != (file.width, file.height) {
+                return Err(Error::Scene {
+                    path: obj_path,
+                    message: format!(
+                        "corrupted: {} frames of {}x{}, scene.json says {} of {}x{}",
+                        store.len(),
+                        store.size().0,
+                        store.size().1,
+                        v.frames,
+                        file.width,
+                        file.height
+                    ),
+                });
+            }
+            stores.push(store);
+            views.push(vt_core::render::RenderView {
+                background,
+                loop_start: v.loop_.start,
+                loop_end: v.loop_.end,
+                next: v.transitions.next.clone(),
+                prev: v.transitions.prev.clone(),
+                points: v.points.iter().map(|p| Point::new(p[0], p[1])).collect(),
+            });
+        }
+        let model = file
+            .model
+            .as_ref()
+            .map(|m| m.chosen)
+            .unwrap_or(MotionModel::Translation);
+        if views.len() > 1 && views.iter().any(|v| v.points.len() < 4) {
+            return Err(Error::Scene {
+                path: dir.join("scene.json"),
+                message: "corrupted: views without points".into(),
+            });
+        }
+        Ok(Self {
+            file,
+            render: vt_core::render::RenderScene { views, model },
+            objects: crate::objects::SceneObjects { stores },
+        })
+    }
+}

@@ -1,0 +1,767 @@
+//! The online half of System A (seed thesis Sec. 3.3, SPEC B-1..B-3, eq. 3-6): which source frame
+//! to show ([`Player`], eq. 6) and the intermediate-view image ([`Renderer`], eq. 3-5).
+//!
+//! # Exact behaviour at the special points
+//! - `f = floor(q)`, `c = ceil(q)`. At an integer q, `f = c = q` and the background is
+//!   `H_(q,q)(B_q)` alone; just off the integer the blend weights are `(1, 0)` or `(0, 1)`, so the
+//!   background is continuous in q.
+//! - `qbar = f` if `q - f < 0.5`, else `c` (eq. 5): at exactly `q - f = 0.5` the object comes from
+//!   the *right* view `c`. This is the one place where the source view changes; the transition
+//!   tables (eq. 2) make the object's phase continue, so the image changes only by what the two
+//!   views disagree on.
+//! - Eq. (6): the first frame shows `m_qbar + 1`. When `qbar` moves by more than one view between two
+//!   output frames, the transitions are chained view by view (`s <- t_{p±1}(s, p)` per hop) and the
+//!   `+ 1` of eq. (6) is applied once, after the last hop. A missing table entry (a target loop too
+//!   short for any t) restarts the target's loop at `m + 1`.
+//!
+//! # Beyond the thesis (each switchable, see [`RenderParams`])
+//! - Gain compensation: each view's exposure gain relative to its neighbours is estimated from the
+//!   overlap of the warped backgrounds (median ratio per channel) and divided out.
+//! - Crossfade: for `crossfade` frames after a loop wrap or view switch, the object is blended from
+//!   the continuation of the old sequence into the new one (Schödl et al. 2000).
+//!
+//! Per output frame the renderer allocates nothing once warm: warps write into owned buffers, and
+//! the homographies and the warped, blended background are recomputed only when q changes.
+
+use image::RgbImage;
+
+use crate::model::{fit_model, MotionModel};
+use crate::warp::{warp_rgb_into, Interpolation};
+use crate::{Error, Homography, Point, Result};
+
+/// A view as the renderer needs it.
+#[derive(Debug, Clone)]
+pub struct RenderView {
+    /// `B_p`.
+    pub background: RgbImage,
+    /// `m_p`.
+    pub loop_start: usize,
+    /// `n_p`.
+    pub loop_end: usize,
+    /// `t_{p+1}(s, p)` for every frame s.
+    pub next: Vec<Option<usize>>,
+    /// `t_{p-1}(s, p)` for every frame s.
+    pub prev: Vec<Option<usize>>,
+    /// The marked points `x_p`.
+    pub points: Vec<Point>,
+}
+
+/// Everything the online stage needs from an analysed scene.
+#[derive(Debug, Clone)]
+pub struct RenderScene {
+    /// Views in order along the line.
+    pub views: Vec<RenderView>,
+    /// The model used for `H_(p,q)` (the scene's chosen model).
+    pub model: MotionModel,
+}
+
+impl RenderScene {
+    /// Largest valid q, `M - 1`.
+    pub fn q_max(&self) -> f64 {
+        (self.views.len() - 1) as f64
+    }
+
+    /// Checks a viewpoint.
+    pub fn check_q(&self, q: f64) -> Result<()> {
+        if !q.is_finite() || q < 0.0 || q > self.q_max() {
+            return Err(Error::InvalidParameter {
+                name: "q",
+                value: q.to_string(),
+                why: format!(
+                    "the viewpoint must lie in [0, {}] (views 0 to {})",
+                    self.q_max(),
+                    self.q_max()
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The virtual points `x(q)` of B-1.
+    pub fn virtual_points(&self, q: f64) -> Vec<Point> {
+        let m1 = self.q_max();
+        if m1 == 0.0 {
+            return self.views[0].points.clone();
+        }
+        let (a, b) = (
+            &self.views[0].points,
+            &self.views[self.views.len() - 1].points,
+        );
+        a.iter()
+            .zip(b)
+            .map(|(p0, p1)| Point::from((p0.coords * (m1 - q) + p1.coords * q) / m1))
+            .collect()
+    }
+
+    /// `H_(p,q)`: view p's points to the virtual points at q, with the scene's model.
+    pub fn homography_to(&self, p: usize, q: f64) -> Result<Homography> {
+        if self.views.len() == 1 {
+            return Ok(Homography::identity());
+        }
+        Ok(fit_model(
+            self.model,
+            &self.views[p].points,
+            &self.virtual_points(q),
+            1.0,
+        )?
+        .homography)
+    }
+}
+
+/// `f`, `c` and `qbar` of eq. (3)-(5).
+pub fn split_q(q: f64) -> (usize, usize, usize) {
+    let f = q.floor();
+    let c = q.ceil();
+    let qbar = if q - f < 0.5 { f } else { c };
+    (f as usize, c as usize, qbar as usize)
+}
+
+/// What the player did to reach this frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Step {
+    /// The first frame.
+    Start,
+    /// `j = j_prev + 1` in the same view.
+    Play,
+    /// `j = m + 1` after `n`: a loop wrap.
+    Wrap,
+    /// A view switch across `hops` views.
+    Switch {
+        /// Views crossed (|qbar - qbar_prev|).
+        hops: usize,
+    },
+}
+
+/// The source frame of one output frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameChoice {
+    /// `qbar_i`.
+    pub view: usize,
+    /// `j_i`.
+    pub frame: usize,
+    /// How it was reached.
+    pub step: Step,
+    /// For a wrap or switch: the frame the old sequence would have shown next in the old view
+    /// (`(view, frame)`), if it exists; used by the crossfade and the seam score.
+    pub continuation: Option<(usize, usize)>,
+}
+
+/// Eq. (6) as a state machine, with counters for the render summary.
+#[derive(Debug, Clone, Default)]
+pub struct Player {
+    state: Option<(usize, usize)>,
+    /// Loop wraps so far.
+    pub wraps: u64,
+    /// View switches so far (a multi-view jump counts once per hop).
+    pub switches: u64,
+}
+
+impl Player {
+    /// A player before its first frame.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The last choice's `(view, frame)`.
+    pub fn current(&self) -> Option<(usize, usize)> {
+        self.state
+    }
+
+    /// Chooses the source frame for viewpoint `q` (eq. 6).
+    pub fn advance(&mut self, scene: &RenderScene, q: f64) -> Result<FrameChoice> {
+        scene.check_q(q)?;
+        let (_, _, qbar) = split_q(q);
+        let v = &scene.views[qbar];
+        let (frame, step, continuation) = match self.state {
+            None => (v.loop_start + 1, Step::Start, None),
+            Some((pv, pj)) if pv == qbar => {
+                if pj == v.loop_end {
+                    self.wraps += 1;
+                    let cont = (pj + 1 < v.next.len()).then_some((pv, pj + 1));
+                    (v.loop_start + 1, Step::Wrap, cont)
+                } else {
+                    (pj + 1, Step::Play, None)
+                }
+            }
+            Some((pv, pj)) => {
+                let mut s = pj;
+                let mut p = pv;
+                while p != qbar {
+                    let (table, np) = if qbar > p {
+                        (&scene.views[p].next, p + 1)
+                    } else {
+                        (&scene.views[p].prev, p - 1)
+                    };
+                    match table.get(s).copied().flatten() {
+                        Some(t) => s = t,
+                        None => s = scene.views[np].loop_start,
+                    }
+                    p = np;
+                    self.switches += 1;
+                }
+                let cont = (pj + 1 < scene.views[pv].next.len()).then_some((pv, pj + 1));
+                (
+                    s + 1,
+                    Step::Switch {
+                        hops: pv.abs_diff(qbar),
+                    },
+                    cont,
+                )
+            }
+        };
+        self.state = Some((qbar, frame));
+        Ok(FrameChoice {
+            view: qbar,
+            frame,
+            step,
+            continuation,
+        })
+    }
+}
+
+/// A moving object's pixels for one frame, decoded into a box: what [`ObjectFrames`] yields.
+#[derive(Debug, Clone, Default)]
+pub struct ObjectPatch {
+    /// Box origin in the view's image.
+    pub x0: u32,
+    /// Box origin in the view's image.
+    pub y0: u32,
+    /// Box width (0 for no object).
+    pub width: u32,
+    /// Box height.
+    pub height: u32,
+    /// RGB, row-major over the box (undefined where `mask` is 0).
+    pub rgb: Vec<u8>,
+    /// 1 where the object is, row-major over the box.
+    pub mask: Vec<u8>,
+}
+
+impl ObjectPatch {
+    /// Clears to an empty box, keeping the allocations.
+    pub fn clear(&mut self) {
+        self.width = 0;
+        self.height = 0;
+        self.rgb.clear();
+        self.mask.clear();
+    }
+
+    /// Sets the box and zeroes it (reusing storage).
+    pub fn reset(&mut self, x0: u32, y0: u32, width: u32, height: u32) {
+        let n = width as usize * height as usize;
+        (self.x0, self.y0, self.width, self.height) = (x0, y0, width, height);
+        self.rgb.clear();
+        self.rgb.resize(n * 3, 0);
+        self.mask.clear();
+        self.mask.resize(n, 0);
+    }
+}
+
+/// Source of moving-object pixels per (view, frame): the scene's object stores.
+pub trait ObjectFrames {
+    /// Decodes frame `frame` of view `view` into `patch` (reusing its storage).
+    fn decode_into(&self, view: usize, frame: usize, patch: &mut ObjectPatch) -> Result<()>;
+}
+
+/// Rendering options. [`Default`] is the thesis's method with bilinear warping.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderParams {
+    /// Warp interpolation (bilinear default, nearest is faster).
+    pub interpolation: Interpolation,
+    /// Frames of object crossfade after a wrap or switch (0 = off, the thesis).
+    pub crossfade: usize,
+    /// Divide out per-view exposure gains (off = the thesis).
+    pub gain_compensation: bool,
+}
+
+impl Default for RenderParams {
+    fn default() -> Self {
+        Self {
+            interpolation: Interpolation::Bilinear,
+            crossfade: 0,
+            gain_compensation: false,
+        }
+    }
+}
+
+/// Estimates each view's exposure gain (per channel) relative to the geometric mean of all views,
+/// from the overlap of neighbouring backgrounds warped into each other: median of per-pixel ratios
+/// over pixels both images see with values in 16..240 (clear of noise floor and saturation).
+pub fn estimate_gains(scene: &RenderScene) -> Result<Vec<[f32; 3]>> {
+    let m = scene.views.len();
+    let mut rel = vec![[1.0f64; 3]; m];
+    for p in 0..m.saturating_sub(1) {
+        let (a, b) = (&scene.views[p].background, &scene.views[p + 1].background);
+        let h = fit_model(
+            scene.model,
+            &scene.views[p + 1].points,
+            &scene.views[p].points,
+            1.0,
+        )?
+        .homography;
+        let warped = crate::warp::warp_rgb(b, &h, a.width(), a.height(), Interpolation::Bilinear);
+        let mut ratios: [Vec<f32>; 3] = Default::default();
+        for (pa, pb) in a.pixels().zip(warped.pixels()) {
+            if pb.0 == [0, 0, 0] {
+                continue;
+            }
+            for c in 0..3 {
+                let (x, y) = (pa.0[c], pb.0[c]);
+                if (16..=240).contains(&x) && (16..=240).contains(&y) {
+                    ratios[c].push(y as f32 / x as f32);
+                }
+            }
+        }
+        for c in 0..3 {
+            let r = &mut ratios[c];
+            let ratio = if r.len() < 100 {
+                1.0
+            } else {
+                let mid = r.len() / 2;
+                *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
+            };
+            rel[p + 1][c] = rel[p][c] * ratio;
+        }
+    }
+    let mut out = vec![[1.0f32; 3]; m];
+    for c in 0..3 {
+        let log_mean = rel.iter().map(|g| g[c].ln()).sum::<f64>() / m as f64;
+        for p in 0..m {
+            out[p][c] = (rel[p][c].ln() - log_mean).exp() as f32;
+        }
+    }
+    Ok(out)
+}
+
+/// Renders output frames; owns every buffer it needs.
+pub struct Renderer {
+    scene: RenderScene,
+    params: RenderParams,
+    gains: Vec<[f32; 3]>,
+    width: u32,
+    height: u32,
+    cached_q: Option<f64>,
+    h_to_q: Vec<Option<Homography>>,
+    background_q: RgbImage,
+    warp_a: RgbImage,
+    warp_b: RgbImage,
+    patch: ObjectPatch,
+    patch_old: ObjectPatch,
+    fade: Option<(usize, usize, usize)>,
+}
+
+impl Renderer {
+    /// Prepares a renderer (estimates gains when asked).
+    pub fn new(scene: RenderScene, params: RenderParams) -> Result<Self> {
+        let first = scene.views.first().ok_or_else(|| Error::InvalidParameter {
+            name: "views",
+            value: "0".into(),
+            why: "a scene needs a view".into(),
+        })?;
+        let (width, height) = first.background.dimensions();
+        let gains = if params.gain_compensation {
+            estimate_gains(&scene)?
+        } else {
+            vec![[1.0; 3]; scene.views.len()]
+        };
+        let m = scene.views.len();
+        Ok(Self {
+            scene,
+            params,
+            gains,
+            width,
+            height,
+            cached_q: None,
+            h_to_q: vec![None; m],
+            background_q: RgbImage::new(width, height),
+            warp_a: RgbImage::new(width, height),
+            warp_b: RgbImage::new(width, height),
+            patch: ObjectPatch::default(),
+            patch_old: ObjectPatch::default(),
+            fade: None,
+        })
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &RenderScene {
+        &self.scene
+    }
+
+    /// The per-view gains in use (all 1 without compensation).
+    pub fn gains(&self) -> &[[f32; 3]] {
+        &self.gains
+    }
+
+    /// Output size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Recomputes `H_(f,q)`, `H_(c,q)` and the blended background `B_q` (eq. 3) when q changed.
+    fn prepare_q(&mut self, q: f64) -> Result<()> {
+        if self.cached_q == Some(q) {
+            return Ok(());
+        }
+        let (f, c, qbar) = split_q(q);
+        self.h_to_q.iter_mut().for_each(|h| *h = None);
+        for p in [f, c, qbar] {
+            if self.h_to_q[p].is_none() {
+                self.h_to_q[p] = Some(self.scene.homography_to(p, q)?);
+            }
+        }
+        let interp = self.params.interpolation;
+        let hf = self.h_to_q[f].expect("computed above");
+        warp_rgb_into(
+            &self.scene.views[f].background,
+            &hf,
+            interp,
+            &mut self.warp_a,
+        );
+        let gf = self.gains[f];
+        if f == c {
+            scale_into(&self.warp_a, gf, &mut self.background_q);
+        } else {
+            let hc = self.h_to_q[c].expect("computed above");
+            warp_rgb_into(
+                &self.scene.views[c].background,
+                &hc,
+                interp,
+                &mut self.warp_b,
+            );
+            let (wf, wc) = ((c as f64 - q) as f32, (q - f as f64) as f32);
+            let gc = self.gains[c];
+            let out = self.background_q.as_mut();
+            for (i, ((o, &a), &b)) in out
+                .iter_mut()
+                .zip(self.warp_a.as_raw())
+                .zip(self.warp_b.as_raw())
+                .enumerate()
+            {
+                let ch = i % 3;
+                *o = (wf * a as f32 / gf[ch] + wc * b as f32 / gc[ch])
+                    .round()
+                    .clamp(0.0, 255.0) as u8;
+            }
+        }
+        self.cached_q = Some(q);
+        Ok(())
+    }
+
+    /// Renders viewpoint `q` showing `choice` (from [`Player::advance`]) into `out`.
+    pub fn render_into(
+        &mut self,
+        objects: &dyn ObjectFrames,
+        q: f64,
+        choice: &FrameChoice,
+        out: &mut RgbImage,
+    ) -> Result<()> {
+        self.scene.check_q(q)?;
+        if out.dimensions() != (self.width, self.height) {
+            return Err(Error::SizeMismatch {
+                what: "render output".into(),
+                expected_w: self.width,
+                expected_h: self.height,
+                got_w: out.width(),
+                got_h: out.height(),
+            });
+        }
+        self.prepare_q(q)?;
+        out.as_mut().copy_from_slice(self.background_q.as_raw());
+        let view = choice.view;
+        let h = self.h_to_q[view].expect("qbar's homography is prepared");
+        // Crossfade: after a jump, blend from the old sequence's continuation into the new one.
+        if self.params.crossfade > 0 {
+            match (choice.step, choice.continuation) {
+                (Step::Wrap | Step::Switch { .. }, Some((v, j))) => self.fade = Some((v, j, 0)),
+                (Step::Play, _) => {
+                    if let Some((v, j, k)) = self.fade {
+                        self.fade = (k + 1 < self.params.crossfade).then_some((v, j + 1, k + 1));
+                    }
+                }
+                _ => self.fade = None,
+            }
+        }
+        objects.decode_into(view, choice.frame, &mut self.patch)?;
+        let gain = self.gains[view];
+        match self.fade {
+            Some((ov, oj, k)) if oj < self.scene.views[ov].next.len() => {
+                objects.decode_into(ov, oj, &mut self.patch_old)?;
+                let alpha = (k + 1) as f32 / (self.params.crossfade + 1) as f32;
+                let ho = match self.h_to_q[ov] {
+                    Some(hh) => hh,
+                    None => self.scene.homography_to(ov, q)?,
+                };
+                let go = self.gains[ov];
+                composite(
+                    &self.patch_old,
+                    &ho,
+                    self.params.interpolation,
+                    go,
+                    1.0 - alpha,
+                    out,
+                );
+                composite(&self.patch, &h, self.params.interpolation, gain, alpha, out);
+            }
+            _ => {
+                self.fade = None;
+                composite(&self.patch, &h, self.params.interpolation, gain, 1.0, out);
+            }
+        }
+        Ok(())
+    }
+}
+
+fn scale_into(src: &RgbImage, gain: [f32; 3], out: &mut RgbImage) {
+    if gain == [1.0; 3] {
+        out.as_mut().copy_from_slice(src.as_raw());
+        return;
+    }
+    for (i, (o, &v)) in out.as_mut().iter_mut().zip(src.as_raw()).enumerate() {
+        *o = (v as f32 / gain[i % 3]).round().clamp(0.0, 255.0) as u8;
+    }
+}
+
+/// Warps the object patch by `h` (inverse mapping over the forward image of the box) and writes
+/// it over `out` with opacity `alpha`. Colours are sampled bilinearly from object pixels only
+/// (mask-weighted); a pixel belongs to the object where the bilinear mask coverage is >= 0.5
+/// (nearest: where the nearest source pixel is object).
+fn composite(
+    patch: &ObjectPatch,
+    h: &Homography,
+    interp: Interpolation,
+    gain: [f32; 3],
+    alpha: f32,
+    out: &mut RgbImage,
+) {
+    if patch.width == 0 || patch.height == 0 {
+        return;
+    }
+    let (ow, oh) = out.dimensions();
+    let (pw, ph) = (patch.width as i64, patch.height as i64);
+    let (x0, y0) = (patch.x0 as f64, patch.y0 as f64);
+    // Output region: forward image of the box corners (w > 0 at all corners, else everything).
+    let m = h.raw().0;
+    let corners = [
+        (x0 - 1.0, y0 - 1.0),
+        (x0 + pw as f64, y0 - 1.0),
+        (x0 - 1.0, y0 + ph as f64),
+        (x0 + pw as f64, y0 + ph as f64),
+    ];
+    let mut region = (0u32, 0u32, ow, oh);
+    if corners
+        .iter()
+        .all(|&(x, y)| m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)] > 0.0)
+    {
+        let (mut lx, mut ly, mut hx, mut hy) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for &(x, y) in &corners {
+            if let Some(p) = h.apply(Point::new(x, y)) {
+                lx = lx.min(p.x);
+                ly = ly.min(p.y);
+                hx = hx.max(p.x);
+                hy = hy.max(p.y);
+            }
+        }
+        let cl = |v: f64, hi: u32| v.clamp(0.0, hi as f64) as u32;
+        region = (
+            cl(lx.floor() - 1.0, ow),
+            cl(ly.floor() - 1.0, oh),
+            cl(hx.ceil() + 2.0, ow),
+            cl(hy.ceil() + 2.0, oh),
+        );
+    }
+    let inv = h.raw().1;
+    let raw = out.as_mut();
+    let sample = |x: i64, y: i64| -> Option<usize> {
+        let (lx, ly) = (x - patch.x0 as i64, y - patch.y0 as i64);
+        if lx < 0 || ly < 0 || lx >= pw || ly >= ph {
+            return None;
+        }
+        let i = (ly * pw + lx) as usize;
+        (patch.mask[i] != 0).then_some(i)
+    };
+    for y in region.1..region.3 {
+        let yf = y as f64;
+        for x in region.0..region.2 {
+            let xf = x as f64;
+            let w = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
+            if w == 0.0 {
+                continue;
+            }
+            let sx = (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / w;
+            let sy = (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / w;
+            if !(sx.is_finite() && sy.is_finite())
+                || sx < x0 - 1.0
+                || sy < y0 - 1.0
+                || sx > x0 + pw as f64
+                || sy > y0 + ph as f64
+            {
+                continue;
+            }
+            let mut colour = [0f32; 3];
+            match interp {
+                Interpolation::Nearest => {
+                    let Some(i) = sample(sx.round_ties_even() as i64, sy.round_ties_even() as i64)
+                    else {
+                        continue;
+                    };
+                    for c in 0..3 {
+                        colour[c] = patch.rgb[i * 3 + c] as f32;
+                    }
+                }
+                Interpolation::Bilinear => {
+                    let (fx0, fy0) = (sx.floor(), sy.floor());
+                    let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
+                    let (ix, iy) = (fx0 as i64, fy0 as i64);
+                    let taps = [
+                        (ix, iy, (1.0 - fx) * (1.0 - fy)),
+                        (ix + 1, iy, fx * (1.0 - fy)),
+                        (ix, iy + 1, (1.0 - fx) * fy),
+                        (ix + 1, iy + 1, fx * fy),
+                    ];
+                    let mut cover = 0f32;
+                    for &(tx, ty, wt) in &taps {
+                        if let Some(i) = sample(tx, ty) {
+                            cover += wt;
+                            for c in 0..3 {
+                                colour[c] += wt * patch.rgb[i * 3 + c] as f32;
+                            }
+                        }
+                    }
+                    if cover < 0.5 {
+                        continue;
+                    }
+                    for v in &mut colour {
+                        *v /= cover;
+                    }
+                }
+            }
+            let o = (y as usize * ow as usize + x as usize) * 3;
+            for c in 0..3 {
+                let v = colour[c] / gain[c];
+                let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
+                raw[o + c] = blended.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 3-view scene with tiny hand-made tables, for eq. (6) step by step.
+    fn tiny() -> RenderScene {
+        let pts = |dx: f64| {
+            vec![
+                Point::new(dx, 0.0),
+                Point::new(10.0 + dx, 0.0),
+                Point::new(10.0 + dx, 10.0),
+                Point::new(dx, 10.0),
+            ]
+        };
+        let view = |m, n, next: Vec<Option<usize>>, prev: Vec<Option<usize>>, dx| RenderView {
+            background: RgbImage::new(4, 4),
+            loop_start: m,
+            loop_end: n,
+            next,
+            prev,
+            points: pts(dx),
+        };
+        let none = vec![None; 8];
+        RenderScene {
+            views: vec![
+                view(
+                    1,
+                    5,
+                    vec![
+                        Some(0),
+                        Some(1),
+                        Some(2),
+                        Some(3),
+                        Some(4),
+                        Some(5),
+                        Some(5),
+                        Some(5),
+                    ],
+                    none.clone(),
+                    0.0,
+                ),
+                view(
+                    2,
+                    6,
+                    vec![
+                        Some(6),
+                        Some(5),
+                        Some(4),
+                        Some(3),
+                        Some(2),
+                        Some(1),
+                        Some(0),
+                        Some(0),
+                    ],
+                    vec![Some(3); 8],
+                    1.0,
+                ),
+                view(
+                    0,
+                    4,
+                    none.clone(),
+                    vec![
+                        Some(2),
+                        Some(2),
+                        Some(2),
+                        Some(2),
+                        Some(2),
+                        Some(2),
+                        Some(2),
+                        Some(2),
+                    ],
+                    2.0,
+                ),
+            ],
+            model: MotionModel::Translation,
+        }
+    }
+
+    #[test]
+    fn eq6_step_by_step() {
+        let s = tiny();
+        let mut p = Player::new();
+        let mut run = |q: f64| {
+            let c = p.advance(&s, q).unwrap();
+            (c.view, c.frame, c.step)
+        };
+        // Start in view 0 at m + 1 = 2, play to n = 5, wrap to 2.
+        assert_eq!(run(0.0), (0, 2, Step::Start));
+        assert_eq!(run(0.2), (0, 3, Step::Play));
+        assert_eq!(run(0.49), (0, 4, Step::Play));
+        assert_eq!(run(0.1), (0, 5, Step::Play));
+        assert_eq!(run(0.0), (0, 2, Step::Wrap));
+        // q - f = 0.5 exactly: qbar = c = 1. Switch: t_1(2, 0) = next[2] = 2, show 3.
+        assert_eq!(run(0.5), (1, 3, Step::Switch { hops: 1 }));
+        assert_eq!(run(1.0), (1, 4, Step::Play));
+        // Jump from view 1 to view 2 ... and straight back to view 0 across two hops:
+        // view 1 frame 4 -> next[4] = 2 in view 2, +1 = 3.
+        assert_eq!(run(2.0), (2, 3, Step::Switch { hops: 1 }));
+        // view 2 frame 3 -> prev[3] = 2 in view 1 -> prev[2] = 3 in view 0, +1 = 4.
+        assert_eq!(run(0.0), (0, 4, Step::Switch { hops: 2 }));
+        assert_eq!((p.wraps, p.switches), (1, 4));
+    }
+
+    #[test]
+    fn split_q_tie_and_integers() {
+        assert_eq!(split_q(1.0), (1, 1, 1));
+        assert_eq!(split_q(1.5), (1, 2, 2));
+        assert_eq!(split_q(1.4999999), (1, 2, 1));
+        assert_eq!(split_q(0.0), (0, 0, 0));
+    }
+
+    #[test]
+    fn out_of_range_q_is_an_error() {
+        let s = tiny();
+        let mut p = Player::new();
+        for q in [-0.1, 2.0001, f64::NAN, f64::INFINITY] {
+            let e = p.advance(&s, q).unwrap_err().to_string();
+            assert!(e.contains("[0, 2]"), "{e}");
+        }
+    }
+}
