@@ -205,8 +205,17 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
 
 fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
     println!(
-        "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>7}  {:>9}  {:>8}",
-        "view", "frames", "loop (m, n)", "length", "cost", "moving", "model", "rms px"
+        "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>9}  {:>11}  {:>7}  {:>9}  {:>8}",
+        "view",
+        "frames",
+        "loop (m, n)",
+        "length",
+        "cost",
+        "loop seam",
+        "switch seam",
+        "moving",
+        "model",
+        "rms px"
     );
     let model = a.model().map(|m| m.name()).unwrap_or("-");
     for (p, v) in a.views.iter().enumerate() {
@@ -215,18 +224,29 @@ fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
             .as_ref()
             .map(|l| format!("{:.3}", l.rms))
             .unwrap_or_else(|| "-".into());
+        let switch = scene.views[p]
+            .to_next
+            .as_ref()
+            .map(|l| format!("{:.3}", l.seam))
+            .unwrap_or_else(|| "-".into());
         println!(
-            "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>6.1}%  {:>9}  {:>8}",
+            "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>9.3}  {:>11}  {:>6.1}%  {:>9}  {:>8}",
             p,
             v.n_frames,
             format!("({}, {})", v.best_loop.start, v.best_loop.end),
             v.best_loop.len(),
             v.best_loop.cost,
+            v.loop_seam,
+            switch,
             100.0 * v.moving_fraction,
             if p + 1 < a.views.len() { model } else { "-" },
             rms
         );
     }
+    println!(
+        "seam score (mean over wraps and switches; 0 = invisible, 1 = one ordinary frame step): {:.3}",
+        scene.seam_score
+    );
     if let Some(sel) = &a.selection {
         let scores: Vec<String> = sel
             .scores

@@ -16,7 +16,7 @@ use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, 
 use crate::loops::{find_loops, Loop, LoopParams};
 use crate::median::{temporal_median, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
-use crate::transition::{transition_table, warp_masks};
+use crate::transition::{mean_step, seam_score, transition_table_with_costs, warp_masks};
 use crate::{Error, Homography, Mask, Point, Result};
 
 /// Where a view's frames come from. Implemented by the decoders in `vt-io` and by in-memory
@@ -222,6 +222,10 @@ pub struct ViewResult {
     pub alternatives: Vec<Loop>,
     /// Fraction of pixels set, averaged over frames (how much of the view moves).
     pub moving_fraction: f64,
+    /// Mean `XOR(I(s), I(s+1))`: an ordinary step, the unit of seam scores.
+    pub mean_step: f64,
+    /// Seam score of the loop wrap ([`crate::transition::seam_score`] of the eq. (1) cost).
+    pub loop_seam: f64,
 }
 
 /// A neighbour link `p -> p + 1`.
@@ -235,6 +239,8 @@ pub struct Link {
     pub forward: Vec<Option<usize>>,
     /// `t_p(s, p+1)` for every frame `s` of view `p + 1`.
     pub backward: Vec<Option<usize>>,
+    /// Mean seam score of the forward and backward switches over the frames on each loop.
+    pub seam: f64,
 }
 
 /// The whole analysis.
@@ -325,25 +331,42 @@ pub fn analyze(
         for p in 0..m - 1 {
             let h = sel.fits[p].homography;
             let (a, b) = (&views[p], &views[p + 1]);
-            let fwd = transition_table(
+            let w = params.loops.window;
+            let fwd = transition_table_with_costs(
                 &warp_masks(&a.masks, &h, width, height),
                 &b.masks,
                 b.best_loop.end,
-                params.loops.window,
+                w,
             )?;
             observer.tick();
-            let back = transition_table(
+            let back = transition_table_with_costs(
                 &warp_masks(&b.masks, &h.inverse(), width, height),
                 &a.masks,
                 a.best_loop.end,
-                params.loops.window,
+                w,
             )?;
             observer.tick();
+            // Seam of switching from the frames playback can show (the loop m+1..=n).
+            let on_loop = |v: &ViewResult, table: &[Option<(usize, u64)>], to: &ViewResult| {
+                table[v.best_loop.start + 1..=v.best_loop.end]
+                    .iter()
+                    .flatten()
+                    .map(|&(_, c)| seam_score(c, w, to.mean_step))
+                    .collect::<Vec<f64>>()
+            };
+            let seams: Vec<f64> = on_loop(a, &fwd, b)
+                .into_iter()
+                .chain(on_loop(b, &back, a))
+                .collect();
+            let seam = seams.iter().sum::<f64>() / seams.len().max(1) as f64;
+            let strip =
+                |t: Vec<Option<(usize, u64)>>| t.into_iter().map(|e| e.map(|(t, _)| t)).collect();
             links.push(Link {
                 homography: h,
                 rms: sel.fits[p].rms,
-                forward: fwd,
-                backward: back,
+                forward: strip(fwd),
+                backward: strip(back),
+                seam,
             });
         }
         observer.finish();
@@ -525,6 +548,8 @@ fn analyze_view(
     timings.loops += t.elapsed();
     let total_px = masks.len() as f64 * masks[0].len() as f64;
     let moving_fraction = masks.iter().map(|m| m.count_ones() as f64).sum::<f64>() / total_px;
+    let step = mean_step(&masks);
+    let loop_seam = seam_score(best_loop.cost, params.loops.window, step);
     Ok(ViewResult {
         name,
         n_frames: n1,
@@ -533,6 +558,8 @@ fn analyze_view(
         best_loop,
         alternatives,
         moving_fraction,
+        mean_step: step,
+        loop_seam,
     })
 }
 

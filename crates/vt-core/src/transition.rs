@@ -36,6 +36,21 @@ pub fn transition_table(
     target_loop_end: usize,
     window: usize,
 ) -> Result<Vec<Option<usize>>> {
+    Ok(
+        transition_table_with_costs(warped, target, target_loop_end, window)?
+            .into_iter()
+            .map(|e| e.map(|(t, _)| t))
+            .collect(),
+    )
+}
+
+/// [`transition_table`] with each entry's eq. (2) cost (the window sum at the chosen t).
+pub fn transition_table_with_costs(
+    warped: &[Mask],
+    target: &[Mask],
+    target_loop_end: usize,
+    window: usize,
+) -> Result<Vec<Option<(usize, u64)>>> {
     if window == 0 {
         return Err(Error::InvalidParameter {
             name: "window",
@@ -57,8 +72,9 @@ pub fn transition_table(
     if target_loop_end < 2 {
         return Ok(vec![None; warped.len()]);
     }
-    let t_max = target_loop_end - 2; // t + 1 < n_{p'}
-                                     // Frames of the target any window may touch: t + i <= t_max + w - 1 (< N_{p'} since n + w - 1 < N).
+    // t + 1 < n_{p'}. Frames of the target any window may touch: t + i <= t_max + w - 1,
+    // which is < N_{p'} since n + w - 1 < N.
+    let t_max = target_loop_end - 2;
     let t_frames = (t_max + window).min(target.len());
     if t_max + 1 > t_frames {
         return Err(Error::TooFewFrames {
@@ -89,9 +105,33 @@ pub fn transition_table(
                     )
                 })
                 .min()
-                .map(|(_, t)| t)
+                .map(|(cost, t)| (t, cost))
         })
         .collect())
+}
+
+/// Mean `XOR(I(s), I(s + 1))` over a sequence: the size of an ordinary frame-to-frame step,
+/// the unit of the seam scores.
+pub fn mean_step(masks: &[Mask]) -> f64 {
+    if masks.len() < 2 {
+        return 0.0;
+    }
+    let active = union_active_words(masks);
+    let total: u64 = masks
+        .par_windows(2)
+        .map(|w| xor_count_in(&w[0], &w[1], active.clone()))
+        .sum();
+    total as f64 / (masks.len() - 1) as f64
+}
+
+/// A seam score: how much a jump whose windowed XOR cost is `cost` (over `window` frames)
+/// differs from ordinary playback, in units of the mean frame-to-frame step. 0 = invisible,
+/// 1 = like one ordinary step, larger = a visible jump. A scene with no motion scores 0.
+pub fn seam_score(cost: u64, window: usize, mean_step: f64) -> f64 {
+    if mean_step <= 0.0 {
+        return 0.0;
+    }
+    cost as f64 / (window as f64 * mean_step)
 }
 
 #[cfg(test)]

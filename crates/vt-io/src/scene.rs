@@ -41,6 +41,10 @@ pub struct SceneFile {
     pub params: AnalyzeParams,
     /// The geometric model of the scene (absent for a single view).
     pub model: Option<ModelEntry>,
+    /// Mean seam score over every loop wrap and view switch of the scene (see
+    /// `vt_core::transition::seam_score`: 0 invisible, 1 = one ordinary frame step).
+    #[serde(default)]
+    pub seam_score: f64,
     /// One entry per view, in order.
     pub views: Vec<ViewEntry>,
 }
@@ -71,6 +75,12 @@ pub struct ViewEntry {
     pub objects: String,
     /// Mean fraction of pixels in the moving-object mask.
     pub moving_fraction: f64,
+    /// Mean XOR between consecutive masks (pixels): the unit of seam scores.
+    #[serde(default)]
+    pub mean_step: f64,
+    /// Seam score of the loop wrap.
+    #[serde(default)]
+    pub loop_seam: f64,
     /// `(m_p, n_p)` and its eq. (1) cost.
     #[serde(rename = "loop")]
     pub loop_: LoopEntry,
@@ -113,12 +123,16 @@ pub struct LinkEntry {
     pub homography: [[f64; 3]; 3],
     /// RMS transfer error of the points, pixels.
     pub rms: f64,
+    /// Mean seam score of switching between the two views (both directions).
+    #[serde(default)]
+    pub seam: f64,
 }
 
 impl LinkEntry {
-    fn from_h(h: &Homography, rms: f64) -> Self {
+    fn from_h(h: &Homography, rms: f64, seam: f64) -> Self {
         let m = h.matrix();
         Self {
+            seam,
             homography: [
                 [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
                 [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
@@ -190,10 +204,13 @@ impl SceneFile {
                     background: background_name(p),
                     objects: objects_name(p),
                     moving_fraction: v.moving_fraction,
+                    mean_step: v.mean_step,
+                    loop_seam: v.loop_seam,
                     loop_: v.best_loop.into(),
                     alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
-                    to_next: next.map(|l| LinkEntry::from_h(&l.homography, l.rms)),
-                    to_prev: prev.map(|l| LinkEntry::from_h(&l.homography.inverse(), l.rms)),
+                    to_next: next.map(|l| LinkEntry::from_h(&l.homography, l.rms, l.seam)),
+                    to_prev: prev
+                        .map(|l| LinkEntry::from_h(&l.homography.inverse(), l.rms, l.seam)),
                     transitions: Transitions {
                         next: next
                             .map(|l| l.forward.clone())
@@ -211,6 +228,15 @@ impl SceneFile {
             height: a.height,
             params: *params,
             model,
+            seam_score: {
+                let all: Vec<f64> = a
+                    .views
+                    .iter()
+                    .map(|v| v.loop_seam)
+                    .chain(a.links.iter().map(|l| l.seam))
+                    .collect();
+                all.iter().sum::<f64>() / all.len().max(1) as f64
+            },
             views,
         }
     }
