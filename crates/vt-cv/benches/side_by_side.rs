@@ -1,1 +1,217 @@
-fn main() {}
+//! vt-core and vt-cv (OpenCV) side by side on the same inputs, one criterion group per
+//! operation, then a table of time ratios (vt-core / OpenCV) from a short `Instant` loop
+//! (median of several runs), so the ratio can be read without digging in criterion's files.
+//!
+//! Inputs follow the thesis's scale: 640x360 frames, a 3x3 Gaussian, 100 frames for the median
+//! (at 320x180 to bound memory), 200 masks for the XOR cost matrix.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, Criterion, Throughput};
+use image::RgbImage;
+use nalgebra::Matrix3;
+use vt_core::analysis::MaskParams;
+use vt_core::blur::GaussianParams;
+use vt_core::warp::Interpolation;
+use vt_core::{Homography, Mask};
+
+fn mix(seed: u64, i: u64) -> u64 {
+    let mut z = seed.wrapping_add(i.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// A textured frame with a blob at `shift`, plus noise: real-looking enough for timing.
+fn frame(w: u32, h: u32, seed: u64, shift: f64) -> RgbImage {
+    RgbImage::from_fn(w, h, |x, y| {
+        let (xf, yf) = (x as f64, y as f64);
+        let base = 110.0 + 60.0 * (xf * 0.07).sin() * (yf * 0.05).cos();
+        let blob = if (xf - w as f64 * 0.3 - shift).powi(2) + (yf - h as f64 * 0.5).powi(2)
+            < (h as f64 * 0.15).powi(2)
+        {
+            80.0
+        } else {
+            0.0
+        };
+        let n = (mix(seed, (y * w + x) as u64) % 7) as f64;
+        let v = |o: f64| (base + blob + n + o).clamp(0.0, 255.0) as u8;
+        image::Rgb([v(0.0), v(-30.0), v(20.0)])
+    })
+}
+
+fn masks(n: usize, w: u32, h: u32) -> Vec<Mask> {
+    (0..n)
+        .map(|f| {
+            let ph = f as f64 / 23.0 * std::f64::consts::TAU;
+            let (cx, cy) = (
+                w as f64 * (0.5 + 0.2 * ph.sin()),
+                h as f64 * (0.5 + 0.1 * (2.0 * ph).cos()),
+            );
+            Mask::from_fn(w, h, |x, y| {
+                (x as f64 - cx).powi(2) / 4900.0 + (y as f64 - cy).powi(2) / 1600.0 < 1.0
+            })
+        })
+        .collect()
+}
+
+fn homography() -> Homography {
+    Homography::from_matrix(Matrix3::new(
+        0.97, -0.05, 12.0, 0.04, 1.01, -8.0, 3e-5, -2e-5, 1.0,
+    ))
+    .expect("well-conditioned")
+}
+
+/// Median of 5 runs of `f` (after one warm-up run).
+fn time(mut f: impl FnMut()) -> Duration {
+    f();
+    let mut v: Vec<Duration> = (0..5)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed()
+        })
+        .collect();
+    v.sort();
+    v[2]
+}
+
+struct Case {
+    name: &'static str,
+    elements: u64,
+    vt: Box<dyn FnMut()>,
+    cv: Box<dyn FnMut()>,
+}
+
+fn cases() -> Vec<Case> {
+    let (w, h) = (640u32, 360u32);
+    let img = frame(w, h, 1, 0.0);
+    let bg = frame(w, h, 2, 90.0);
+    let hm = homography();
+    let g = GaussianParams::default();
+    let mp = MaskParams::default();
+    let small: Vec<RgbImage> = (0..100)
+        .map(|i| frame(320, 180, 10 + i, (i % 23) as f64 * 4.0))
+        .collect();
+    let ms = masks(200, w, h);
+    let (i1, i2, i3, i4) = (img.clone(), img.clone(), img.clone(), img.clone());
+    let (b1, b2) = (bg.clone(), bg.clone());
+    let (s1, s2) = (small.clone(), small);
+    let (m1, m2) = (ms.clone(), ms);
+    let px = (w * h) as u64;
+    vec![
+        Case {
+            name: "warp bilinear 640x360",
+            elements: px,
+            vt: Box::new(move || {
+                black_box(vt_core::warp::warp_rgb(
+                    &i1,
+                    &hm,
+                    w,
+                    h,
+                    Interpolation::Bilinear,
+                ));
+            }),
+            cv: Box::new(move || {
+                black_box(
+                    vt_cv::warp::warp_rgb(&i2, &hm, w, h, Interpolation::Bilinear).expect("warp"),
+                );
+            }),
+        },
+        Case {
+            name: "blur 3x3 640x360",
+            elements: px,
+            vt: Box::new(move || {
+                black_box(vt_core::blur::gaussian_blur(&i3, &g).expect("blur"));
+            }),
+            cv: Box::new(move || {
+                black_box(vt_cv::blur::gaussian_blur(&i4, &g).expect("blur"));
+            }),
+        },
+        Case {
+            name: "median 100 frames 320x180",
+            elements: 100 * 320 * 180,
+            vt: Box::new(move || {
+                black_box(vt_core::median::temporal_median(&s1).expect("median"));
+            }),
+            cv: Box::new(move || {
+                black_box(vt_cv::median::temporal_median(&s2).expect("median"));
+            }),
+        },
+        Case {
+            name: "XOR cost matrix 200 masks 640x360",
+            elements: 200 * 199 / 2,
+            vt: Box::new(move || {
+                // All pairs (k = 1) as vt-core's loop search computes them: rows in parallel,
+                // popcounts restricted to the words where any mask is set.
+                use rayon::prelude::*;
+                let n = m1.len();
+                let active = vt_core::mask::union_active_words(&m1);
+                let mut d = vec![0u64; n * n];
+                d.par_chunks_mut(n).enumerate().for_each(|(a, row)| {
+                    for b in a + 1..n {
+                        row[b] = vt_core::mask::xor_count_in(&m1[a], &m1[b], active.clone());
+                    }
+                });
+                black_box(d);
+            }),
+            cv: Box::new(move || {
+                // Conversion to Mats is part of the cost of using OpenCV from vt's types.
+                let mats: Vec<_> = m2
+                    .iter()
+                    .map(|m| vt_cv::convert::mask_to_mat(m).expect("mat"))
+                    .collect();
+                black_box(vt_cv::loops::pair_costs(&mats, 1).expect("costs"));
+            }),
+        },
+        Case {
+            name: "mask extraction 640x360",
+            elements: px,
+            vt: Box::new(move || {
+                black_box(vt_core::analysis::foreground_mask(&img, &b1, &mp).expect("mask"));
+            }),
+            cv: Box::new(move || {
+                black_box(vt_cv::mask::foreground_mask(&bg, &b2, &mp).expect("mask"));
+            }),
+        },
+    ]
+}
+
+fn side_by_side(c: &mut Criterion) {
+    for mut case in cases() {
+        let mut group = c.benchmark_group(case.name);
+        group.throughput(Throughput::Elements(case.elements));
+        group.sample_size(10);
+        group.bench_function("vt-core", |b| b.iter(&mut case.vt));
+        group.bench_function("opencv", |b| b.iter(&mut case.cv));
+        group.finish();
+    }
+}
+
+fn ratios() {
+    println!("\nvt-core / OpenCV time ratio (median of 5 runs each; > 1 means vt-core is slower)");
+    println!("| operation | vt-core | OpenCV | ratio |");
+    println!("| --- | --- | --- | --- |");
+    for mut case in cases() {
+        let (a, b) = (time(&mut case.vt), time(&mut case.cv));
+        println!(
+            "| {} | {:.2?} | {:.2?} | {:.2} |",
+            case.name,
+            a,
+            b,
+            a.as_secs_f64() / b.as_secs_f64()
+        );
+    }
+}
+
+criterion_group!(benches, side_by_side);
+
+fn main() {
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+    // `cargo test --benches` passes --bench too; only print ratios on a real bench run.
+    if std::env::args().any(|a| a == "--bench") {
+        ratios();
+    }
+}
