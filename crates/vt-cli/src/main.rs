@@ -2,7 +2,9 @@
 //! and free-viewpoint images).
 
 mod analyze;
+mod fv;
 mod progress;
+mod render;
 mod synth;
 
 use std::path::PathBuf;
@@ -26,6 +28,13 @@ enum Command {
     },
     /// Analyse videos of a scene into a scene directory (System A, offline: A-1..A-3).
     Analyze(analyze::AnalyzeArgs),
+    /// Render a scene along a viewpoint path to mp4, GIF or PNG frames (System A, online: eq. 3-6).
+    Render(render::RenderArgs),
+    /// Free-viewpoint images from calibrated photos (System B).
+    Fv {
+        #[command(subcommand)]
+        what: fv::FvCommand,
+    },
     /// Run the whole pipeline on a built-in synthetic scene and check it against its truth.
     Demo {
         /// Where to put the demo's files.
@@ -42,6 +51,8 @@ fn main() {
     let result = match cli.command {
         Command::Synth { what } => synth::run(what),
         Command::Analyze(args) => analyze::run(args).map(|_| ()),
+        Command::Render(args) => render::run(args).map(|_| ()),
+        Command::Fv { what } => fv::run(what),
         Command::Demo { out, frames } => demo(out, frames),
     };
     if let Err(e) = result {
@@ -71,7 +82,7 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     );
     synth::write_textures(&data, &params)?;
     let scene = out.join("scene");
-    eprintln!("2/2 analysing it into {}", scene.display());
+    eprintln!("2/3 analysing it into {}", scene.display());
     let views: Vec<PathBuf> = (0..params.views)
         .map(|p| data.join(synth::view_dir(p)))
         .collect();
@@ -80,6 +91,24 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     let result = analyze::run(args)?;
     let report = analyze::check_against_truth(&scene, &data.join("truth.json"), &result)?;
     println!("{report}");
-    println!("scene written to {}", scene.display());
+    // A sweep across all views; mp4 when ffmpeg is there, PNG frames otherwise.
+    let has_ffmpeg = std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    let video = out.join(if has_ffmpeg {
+        "sweep.mp4"
+    } else {
+        "sweep_frames"
+    });
+    eprintln!(
+        "3/3 rendering a sweep across all views to {}",
+        video.display()
+    );
+    render::run(render::RenderArgs::demo_sweep(scene.clone(), video.clone()))?;
+    println!("scene: {}", scene.display());
+    println!("video: {}", video.display());
     Ok(())
 }

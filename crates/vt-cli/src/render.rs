@@ -1,0 +1,412 @@
+//! `vt render`: play a scene along a viewpoint path into a video, GIF or PNG folder.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use image::RgbImage;
+use vt_core::render::{FrameChoice, Player, RenderParams, Renderer, Step};
+use vt_core::warp::{warp_mask, Interpolation};
+use vt_core::Homography;
+use vt_io::atomic::AtomicDir;
+use vt_io::frames::write_png;
+use vt_io::scene::LoadedScene;
+
+use crate::progress::bar;
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Scene directory written by `vt analyze`.
+    scene: PathBuf,
+    /// Viewpoint path: keyframes `0s:0,4s:14,8s:0` (time:q, linear between), `sweep[:SPEED]`
+    /// (0 to M-1 and back at SPEED views per second, default 1), or `@FILE` with one q per line
+    /// (one per output frame).
+    #[arg(long)]
+    path: String,
+    /// Output: `.mp4` (H.264), `.gif`, or a folder of PNG frames (no extension).
+    #[arg(long)]
+    out: PathBuf,
+    /// Output frame rate.
+    #[arg(long, default_value_t = 30.0)]
+    fps: f64,
+    /// Total length in seconds (default: the path's own length; keyframe paths then hold their
+    /// last q, sweeps go on back and forth).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Nearest-neighbour warping (faster) instead of bilinear.
+    #[arg(long)]
+    nearest: bool,
+    /// Crossfade the object over this many frames after a loop wrap or view switch (0 = off).
+    #[arg(long, default_value_t = 0)]
+    crossfade: usize,
+    /// Compensate per-view exposure differences (estimated from the backgrounds).
+    #[arg(long)]
+    gain_compensation: bool,
+}
+
+impl RenderArgs {
+    /// The demo's sweep across all views.
+    pub fn demo_sweep(scene: PathBuf, out: PathBuf) -> Self {
+        Self {
+            scene,
+            path: "sweep:0.5".into(),
+            out,
+            fps: 30.0,
+            duration: None,
+            nearest: false,
+            crossfade: 0,
+            gain_compensation: true,
+        }
+    }
+
+    pub fn params(&self) -> RenderParams {
+        RenderParams {
+            interpolation: if self.nearest {
+                Interpolation::Nearest
+            } else {
+                Interpolation::Bilinear
+            },
+            crossfade: self.crossfade,
+            gain_compensation: self.gain_compensation,
+        }
+    }
+}
+
+/// A viewpoint path, sampled per output frame.
+pub fn path_qs(spec: &str, n_views: usize, fps: f64, duration: Option<f64>) -> Result<Vec<f64>> {
+    if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+        bail!("--fps {fps} must be in (0, 1000]");
+    }
+    if let Some(d) = duration {
+        if !(d.is_finite() && d > 0.0 && d <= 86_400.0) {
+            bail!("--duration {d} must be a positive number of seconds (at most a day)");
+        }
+    }
+    let q_max = (n_views - 1) as f64;
+    let frames = |secs: f64| (secs * fps).round().max(1.0) as usize;
+    let check_q = |q: f64, what: &str| -> Result<f64> {
+        if !q.is_finite() || q < 0.0 || q > q_max {
+            bail!("--path: {what}: viewpoint {q} is outside [0, {q_max}] (the scene has {n_views} views)");
+        }
+        Ok(q)
+    };
+    if let Some(file) = spec.strip_prefix('@') {
+        let text = std::fs::read_to_string(file).with_context(|| file.to_string())?;
+        let mut qs = Vec::new();
+        for (i, line) in text.lines().enumerate() {
+            let t = line.split('#').next().unwrap_or("").trim();
+            if t.is_empty() {
+                continue;
+            }
+            let q: f64 = t
+                .parse()
+                .map_err(|_| anyhow::anyhow!("{file}:{}: '{t}' is not a number", i + 1))?;
+            qs.push(check_q(q, &format!("{file}:{}", i + 1))?);
+        }
+        if qs.is_empty() {
+            bail!("{file}: no viewpoints (one q per line)");
+        }
+        if let Some(d) = duration {
+            let n = frames(d);
+            let last = *qs.last().expect("non-empty");
+            qs.resize(n, last);
+        }
+        return Ok(qs);
+    }
+    if let Some(rest) = spec.strip_prefix("sweep") {
+        let speed = match rest.strip_prefix(':') {
+            Some(s) => s
+                .parse::<f64>()
+                .map_err(|_| anyhow::anyhow!("--path sweep:{s}: speed is not a number"))?,
+            None if rest.is_empty() => 1.0,
+            None => bail!("--path '{spec}': expected sweep or sweep:SPEED"),
+        };
+        if !(speed.is_finite() && speed > 0.0) {
+            bail!("--path sweep:{speed}: speed must be positive (views per second)");
+        }
+        let one_way = if q_max > 0.0 { q_max / speed } else { 1.0 };
+        let n = frames(duration.unwrap_or(2.0 * one_way));
+        return Ok((0..n)
+            .map(|i| {
+                let t = (i as f64 / fps) % (2.0 * one_way);
+                let q = if t <= one_way {
+                    t * speed
+                } else {
+                    (2.0 * one_way - t) * speed
+                };
+                q.clamp(0.0, q_max)
+            })
+            .collect());
+    }
+    let mut keys: Vec<(f64, f64)> = Vec::new();
+    for part in spec.split(',') {
+        let (t, q) = part.split_once(':').ok_or_else(|| {
+            anyhow::anyhow!("--path: '{part}' is not TIME:Q (e.g. 0s:0,4s:14,8s:0)")
+        })?;
+        let t = t.trim().trim_end_matches('s');
+        let t: f64 = t
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--path: time '{t}' is not a number of seconds"))?;
+        let q: f64 = q
+            .trim()
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--path: viewpoint '{q}' is not a number"))?;
+        if !t.is_finite() || t < 0.0 || keys.last().is_some_and(|&(pt, _)| t <= pt) {
+            bail!("--path: keyframe times must be finite, >= 0 and increasing ('{part}')");
+        }
+        keys.push((t, check_q(q, part)?));
+    }
+    let end = keys.last().map(|k| k.0).unwrap_or(0.0);
+    let n = frames(duration.unwrap_or(end.max(1.0 / fps)));
+    Ok((0..n)
+        .map(|i| {
+            let t = i as f64 / fps;
+            match keys.iter().position(|k| k.0 > t) {
+                None => keys[keys.len() - 1].1,
+                Some(0) => keys[0].1,
+                Some(k) => {
+                    let ((t0, q0), (t1, q1)) = (keys[k - 1], keys[k]);
+                    q0 + (q1 - q0) * (t - t0) / (t1 - t0)
+                }
+            }
+        })
+        .collect())
+}
+
+/// Where frames go.
+enum Sink {
+    Folder { dir: AtomicDir, n: usize },
+    Ffmpeg(FfmpegOut),
+}
+
+/// An ffmpeg process encoding into a temporary file; killed and cleaned up if dropped unfinished.
+struct FfmpegOut {
+    child: Option<Child>,
+    tmp: PathBuf,
+    out: PathBuf,
+}
+
+impl FfmpegOut {
+    fn finish(&mut self) -> Result<()> {
+        let mut child = self.child.take().context("ffmpeg already finished")?;
+        drop(child.stdin.take());
+        let output = child.wait_with_output().context("waiting for ffmpeg")?;
+        if !output.status.success() {
+            let _ = std::fs::remove_file(&self.tmp);
+            let err = String::from_utf8_lossy(&output.stderr);
+            bail!(
+                "{}: ffmpeg failed: {}",
+                self.out.display(),
+                err.lines().last().unwrap_or("unknown error")
+            );
+        }
+        std::fs::rename(&self.tmp, &self.out).with_context(|| self.out.display().to_string())
+    }
+}
+
+impl Drop for FfmpegOut {
+    fn drop(&mut self) {
+        if let Some(mut child) = self.child.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+fn ffmpeg_sink(out: &Path, w: u32, h: u32, fps: f64, gif: bool) -> Result<Sink> {
+    let name = out
+        .file_name()
+        .context("output has no file name")?
+        .to_string_lossy()
+        .to_string();
+    let tmp = out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let mut cmd = Command::new("ffmpeg");
+    cmd.args(["-v", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24"])
+        .args(["-s", &format!("{w}x{h}"), "-r", &fps.to_string(), "-i", "-"]);
+    if gif {
+        cmd.args([
+            "-filter_complex",
+            "[0:v]split[a][b];[a]palettegen[p];[b][p]paletteuse",
+            "-f",
+            "gif",
+        ]);
+    } else {
+        cmd.args([
+            "-vf",
+            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+            "-c:v",
+            "libx264",
+            "-pix_fmt",
+            "yuv420p",
+            "-crf",
+            "18",
+        ])
+        .args(["-movflags", "+faststart", "-f", "mp4"]);
+    }
+    let child = cmd
+        .arg(&tmp)
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| {
+            if e.kind() == std::io::ErrorKind::NotFound {
+                anyhow::anyhow!("{}: writing video needs `ffmpeg` (Debian: apt-get install ffmpeg); or write PNG frames to a folder", out.display())
+            } else {
+                anyhow::anyhow!("cannot run ffmpeg: {e}")
+            }
+        })?;
+    Ok(Sink::Ffmpeg(FfmpegOut {
+        child: Some(child),
+        tmp,
+        out: out.to_path_buf(),
+    }))
+}
+
+impl Sink {
+    fn open(out: &Path, w: u32, h: u32, fps: f64) -> Result<Sink> {
+        match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            None => Ok(Sink::Folder { dir: AtomicDir::create(out)?, n: 0 }),
+            Some("mp4") => ffmpeg_sink(out, w, h, fps, false),
+            Some("gif") => ffmpeg_sink(out, w, h, fps, true),
+            Some(other) => bail!(
+                "{}: unknown output extension '.{other}': use .mp4, .gif, or a folder name (no extension) for PNG frames",
+                out.display()
+            ),
+        }
+    }
+
+    fn write(&mut self, img: &RgbImage) -> Result<()> {
+        match self {
+            Sink::Folder { dir, n } => {
+                write_png(&dir.path().join(format!("frame_{n:05}.png")), img)?;
+                *n += 1;
+                Ok(())
+            }
+            Sink::Ffmpeg(f) => {
+                let stdin = f
+                    .child
+                    .as_mut()
+                    .and_then(|c| c.stdin.as_mut())
+                    .context("ffmpeg stdin")?;
+                stdin
+                    .write_all(img.as_raw())
+                    .context("ffmpeg stopped accepting frames")
+            }
+        }
+    }
+
+    fn finish(self) -> Result<()> {
+        match self {
+            Sink::Folder { dir, .. } => {
+                dir.commit()?;
+                Ok(())
+            }
+            Sink::Ffmpeg(mut f) => f.finish(),
+        }
+    }
+}
+
+/// Seam score of one jump, from the masks in the object stores: how far the new frame's mask is
+/// from the one ordinary playback would have shown, in units of the target view's mean step.
+fn jump_seam(scene: &LoadedScene, choice: &FrameChoice) -> Option<f64> {
+    let (cv, cj) = choice.continuation?;
+    let (v, j) = (choice.view, choice.frame);
+    let stores = &scene.objects.stores;
+    let mut cont = stores[cv].mask(cj);
+    // Carry the continuation's mask view by view into the new view.
+    let mut p = cv;
+    while p != v {
+        let (link, np) = if v > p {
+            (&scene.file.views[p].to_next, p + 1)
+        } else {
+            (&scene.file.views[p].to_prev, p - 1)
+        };
+        let h: Homography = link.as_ref()?.homography().ok()?;
+        cont = warp_mask(&cont, &h, cont.width(), cont.height());
+        p = np;
+    }
+    let step = scene.file.views[v].mean_step;
+    Some(vt_core::transition::seam_score(
+        vt_core::mask::xor_count(&cont, &stores[v].mask(j)),
+        1,
+        step,
+    ))
+}
+
+/// Counts and seams of a render.
+pub struct RenderSummary {
+    pub frames: usize,
+    pub wraps: u64,
+    pub switches: u64,
+    pub mean_seam: f64,
+}
+
+pub fn run(args: RenderArgs) -> Result<RenderSummary> {
+    let scene = LoadedScene::open(&args.scene)?;
+    let qs = path_qs(
+        &args.path,
+        scene.render.views.len(),
+        args.fps,
+        args.duration,
+    )?;
+    let mut renderer = Renderer::new(scene.render.clone(), args.params())?;
+    let (w, h) = renderer.size();
+    let mut sink = Sink::open(&args.out, w, h, args.fps)?;
+    let mut player = Player::new();
+    let mut frame = RgbImage::new(w, h);
+    let mut seams = Vec::new();
+    let pb = bar(qs.len() as u64, "render");
+    for &q in &qs {
+        let choice = player.advance(&scene.render, q)?;
+        if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
+            seams.extend(jump_seam(&scene, &choice));
+        }
+        renderer.render_into(&scene.objects, q, &choice, &mut frame)?;
+        sink.write(&frame)?;
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    sink.finish()?;
+    let summary = RenderSummary {
+        frames: qs.len(),
+        wraps: player.wraps,
+        switches: player.switches,
+        mean_seam: seams.iter().sum::<f64>() / seams.len().max(1) as f64,
+    };
+    println!(
+        "rendered {} frames to {} ({} loop wraps, {} view switches, mean seam score {:.3})",
+        summary.frames,
+        args.out.display(),
+        summary.wraps,
+        summary.switches,
+        summary.mean_seam
+    );
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paths() {
+        let qs = path_qs("0s:0,1s:2,2s:2", 3, 4.0, None).unwrap();
+        assert_eq!(qs, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.0, 2.0, 2.0]);
+        let sweep = path_qs("sweep:2", 3, 2.0, None).unwrap();
+        assert_eq!(sweep, vec![0.0, 1.0, 2.0, 1.0]);
+        assert_eq!(path_qs("sweep", 1, 10.0, Some(0.5)).unwrap(), vec![0.0; 5]);
+        for (bad, want) in [
+            ("0s:0,1s:5", "outside [0, 2]"),
+            ("0s:0,0s:1", "increasing"),
+            ("zero", "TIME:Q"),
+            ("sweep:-1", "positive"),
+            ("sweep:x", "not a number"),
+        ] {
+            let e = path_qs(bad, 3, 30.0, None).unwrap_err().to_string();
+            assert!(e.contains(want), "{bad}: {e}");
+        }
+    }
+}
