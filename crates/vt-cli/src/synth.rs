@@ -16,6 +16,25 @@ use crate::progress::bar;
 pub enum SynthCommand {
     /// System A test scene: M cameras on a line filming a swaying planar object, asynchronously.
     Textures(TexturesArgs),
+    /// System B test object: a textured sphere and box photographed from a ring of calibrated
+    /// cameras, with masks and ground truth for extra viewpoints.
+    Object(ObjectArgs),
+}
+
+#[derive(Args)]
+pub struct ObjectArgs {
+    /// Output directory (replaced atomically).
+    #[arg(long)]
+    out: PathBuf,
+    /// Cameras on the ring (paper: 8).
+    #[arg(long, default_value_t = 8)]
+    views: usize,
+    /// Square image side in pixels (paper: 400).
+    #[arg(long, default_value_t = 400)]
+    size: u32,
+    /// Seed: turns the whole ring by a seed-determined angle (0: first camera at angle 0).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
 }
 
 #[derive(Args)]
@@ -79,6 +98,17 @@ fn parse_rig(s: &str) -> Result<Rig, String> {
 
 pub fn run(cmd: SynthCommand) -> Result<()> {
     match cmd {
+        SynthCommand::Object(a) => {
+            write_object(&a)?;
+            println!(
+                "wrote {} views of {}x{} (+ truth) to {}",
+                a.views,
+                a.size,
+                a.size,
+                a.out.display()
+            );
+            Ok(())
+        }
         SynthCommand::Textures(a) => {
             let params = TextureParams {
                 views: a.views,
@@ -214,6 +244,108 @@ pub fn write_textures(out: &Path, params: &TextureParams) -> Result<()> {
         serde_json::to_string_pretty(&truth)?,
     )
     .context("truth.json")?;
+    dir.commit()?;
+    Ok(())
+}
+
+/// Writes the System B synthetic object into `a.out`, atomically: `object_par.txt` and
+/// `view_NN.png` (reference photos), `masks/view_NN.png` (exact silhouettes), and `truth/` with
+/// `truth_par.txt`, `truth_NN.png` and `masks/` for viewpoints between the cameras (each
+/// midpoint, and 10 degrees past the first camera), plus `scene.json` with the angles.
+fn write_object(a: &ObjectArgs) -> Result<()> {
+    if a.views < 3 || a.views > 360 {
+        bail!("--views {} must be in 3..=360", a.views);
+    }
+    if a.size < 16 || a.size > 4096 {
+        bail!("--size {} must be in 16..=4096", a.size);
+    }
+    let spacing = 360.0 / a.views as f64;
+    // splitmix64 of the seed, as a fraction of the spacing; seed 0 keeps angle 0.
+    let start = if a.seed == 0 {
+        0.0
+    } else {
+        let mut z = a.seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64 * spacing
+    };
+    let mut extra = vec![10.0f64.min(spacing / 2.0)];
+    extra.extend((0..a.views).map(|i| (i as f64 + 0.5) * spacing));
+    extra.dedup_by(|x, y| (*x - *y).abs() < 1e-9);
+    let params = vt_fv::synth::SceneParams {
+        n_views: a.views,
+        width: a.size,
+        height: a.size,
+        extra_angles_deg: extra.clone(),
+        start_angle_deg: start,
+        ..Default::default()
+    };
+    let pb = bar(1, "ray casting");
+    let data = vt_fv::synth::generate(&params).map_err(|e| anyhow::anyhow!(e))?;
+    pb.finish_and_clear();
+    let dir = AtomicDir::create(&a.out)?;
+    let root = dir.path().to_path_buf();
+    let write_set = |folder: &Path,
+                     par: &str,
+                     prefix: &str,
+                     cams: &[vt_fv::Camera],
+                     photos: &[image::RgbImage],
+                     masks: &[vt_fv::Mask]|
+     -> Result<()> {
+        let mdir = folder.join("masks");
+        std::fs::create_dir_all(&mdir).with_context(|| mdir.display().to_string())?;
+        let named: Vec<vt_fv::Camera> = cams
+            .iter()
+            .enumerate()
+            .map(|(i, c)| vt_fv::Camera {
+                name: format!("{prefix}_{i:02}.png"),
+                ..c.clone()
+            })
+            .collect();
+        for (i, c) in named.iter().enumerate() {
+            write_png(&folder.join(&c.name), &photos[i])?;
+            let m = masks[i].to_image();
+            let p = mdir.join(&c.name);
+            m.save(&p).with_context(|| p.display().to_string())?;
+        }
+        std::fs::write(folder.join(par), vt_fv::camera::format_par(&named))
+            .with_context(|| par.to_string())
+    };
+    write_set(
+        &root,
+        "object_par.txt",
+        "view",
+        &data.cameras,
+        &data.photos,
+        &data.masks,
+    )?;
+    let tdir = root.join("truth");
+    std::fs::create_dir(&tdir).context("truth/")?;
+    write_set(
+        &tdir,
+        "truth_par.txt",
+        "truth",
+        &data.extra_cameras,
+        &data.extra_truth,
+        &data.extra_masks,
+    )?;
+    let scene = serde_json::json!({
+        "format": "vt-synth-object",
+        "version": 1,
+        "views": a.views,
+        "size": a.size,
+        "seed": a.seed,
+        "view_angles_deg": (0..a.views).map(|i| start + i as f64 * spacing).collect::<Vec<_>>(),
+        "truth_angles_deg": extra.iter().map(|e| start + e).collect::<Vec<_>>(),
+        "distance": params.distance,
+        "elevation_deg": params.elevation_deg,
+    });
+    std::fs::write(
+        root.join("scene.json"),
+        serde_json::to_string_pretty(&scene)?,
+    )
+    .context("scene.json")?;
     dir.commit()?;
     Ok(())
 }

@@ -259,10 +259,13 @@ pub struct SceneParams {
     pub elevation_deg: f64,
     /// Focal length as a multiple of the image width (1.3: the object fills about 70 %).
     pub focal_factor: f64,
-    /// Ring angles (degrees) of extra viewpoints with ground truth ([10, 22.5]).
+    /// Ring angles (degrees, from the first camera) of extra viewpoints with ground truth
+    /// ([10, 22.5]).
     pub extra_angles_deg: Vec<f64>,
     /// Samples per pixel along each axis, for anti-aliasing (2).
     pub supersample: u32,
+    /// Ring angle of the first camera, degrees (0); the extra viewpoints turn with it.
+    pub start_angle_deg: f64,
 }
 
 impl Default for SceneParams {
@@ -276,6 +279,7 @@ impl Default for SceneParams {
             focal_factor: 1.3,
             extra_angles_deg: vec![10.0, 22.5],
             supersample: 2,
+            start_angle_deg: 0.0,
         }
     }
 }
@@ -354,10 +358,15 @@ pub fn generate(p: &SceneParams) -> Result<SynthData> {
         Ok(out)
     };
     let angles: Vec<f64> = (0..p.n_views)
-        .map(|i| 360.0 * i as f64 / p.n_views as f64)
+        .map(|i| p.start_angle_deg + 360.0 * i as f64 / p.n_views as f64)
+        .collect();
+    let extra: Vec<f64> = p
+        .extra_angles_deg
+        .iter()
+        .map(|a| p.start_angle_deg + a)
         .collect();
     let (cameras, photos, masks) = shoot(&angles)?;
-    let (extra_cameras, extra_truth, extra_masks) = shoot(&p.extra_angles_deg)?;
+    let (extra_cameras, extra_truth, extra_masks) = shoot(&extra)?;
     Ok(SynthData {
         object,
         cameras,

@@ -80,6 +80,24 @@ impl SynthParams {
             ..Self::default()
         }
     }
+
+    /// The recommended speed options for a patch side: small patches (up to 9) run at full
+    /// resolution over every pixel with parallel strips; larger ones add [`Self::fast`]'s
+    /// pyramid and patch subsampling.
+    pub fn fast_for(patch: usize) -> Self {
+        if patch <= 9 {
+            Self {
+                patch,
+                strips: 0,
+                ..Self::default()
+            }
+        } else {
+            Self {
+                patch,
+                ..Self::fast()
+            }
+        }
+    }
 }
 
 /// What a synthesis run did, per pyramid level (coarsest first).

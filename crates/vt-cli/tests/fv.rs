@@ -1,0 +1,466 @@
+//! End-to-end tests of `vt synth object` and `vt fv ...`, running the real binary on the
+//! synthetic object (truth ray cast by vt-fv's synth module, independent of the voxel code) and
+//! on the real templeSparseRing views in testdata/.
+//!
+//! `VT_SLOW_TESTS=1` runs the temple at full size and a 128^3 grid.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+use serde_json::Value;
+use vt_fv::eval::psnr;
+use vt_fv::silhouette::mask_from_image;
+
+fn vt(args: &[&str]) -> Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_vt"))
+        .args(args)
+        .output()
+        .expect("run vt");
+    if std::env::var_os("VT_TEST_VERBOSE").is_some() {
+        eprintln!(
+            "$ vt {}\n{}{}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    out
+}
+
+/// Runs vt and fails with its command line and output unless it succeeds.
+fn vt_ok(args: &[&str]) -> String {
+    let out = vt(args);
+    assert!(
+        out.status.success(),
+        "vt {} failed:\nstdout:\n{}\nstderr:\n{}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).to_string()
+}
+
+/// Runs vt expecting a clean failure: non-zero exit, a one-line error containing every `want`,
+/// no panic. Returns the error line.
+fn vt_err(args: &[&str], want: &[&str]) -> String {
+    let out = vt(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(
+        !out.status.success(),
+        "vt {} succeeded but should fail",
+        args.join(" ")
+    );
+    assert!(
+        !stderr.contains("panicked"),
+        "vt {} panicked:\n{stderr}",
+        args.join(" ")
+    );
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(
+        lines.len(),
+        1,
+        "vt {}: expected one error line, got:\n{stderr}",
+        args.join(" ")
+    );
+    for w in want {
+        assert!(
+            lines[0].contains(w),
+            "vt {}: error {:?} does not mention {w:?}",
+            args.join(" "),
+            lines[0]
+        );
+    }
+    lines[0].to_string()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("fv-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The small synthetic object (6 views of 96x96), written once per test run.
+fn object() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let root = scratch("object");
+        let dir = root.join("obj");
+        let out = vt_ok(&[
+            "synth",
+            "object",
+            "--out",
+            s(&dir),
+            "--views",
+            "6",
+            "--size",
+            "96",
+        ]);
+        assert!(out.contains("6 views"), "{out}");
+        dir
+    })
+}
+
+/// A copy of the synthetic object's folder to break.
+fn object_copy(name: &str) -> PathBuf {
+    let dst = scratch(name).join("obj");
+    copy_dir(object(), &dst);
+    dst
+}
+
+fn copy_dir(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let e = e.unwrap();
+        let to = dst.join(e.file_name());
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &to);
+        } else {
+            std::fs::copy(e.path(), &to).unwrap();
+        }
+    }
+}
+
+fn read_json(p: &Path) -> Value {
+    serde_json::from_str(
+        &std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())),
+    )
+    .unwrap()
+}
+
+/// Line `i` (0-based camera) of a par file.
+fn par_line(par: &Path, i: usize) -> String {
+    std::fs::read_to_string(par)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .nth(i + 1)
+        .unwrap()
+        .to_string()
+}
+
+/// PSNR of an output image against a truth image inside the truth's mask.
+fn psnr_in_mask(img: &Path, truth: &Path, mask: &Path) -> f64 {
+    let a = image::open(img).unwrap().to_rgb8();
+    let t = image::open(truth).unwrap().to_rgb8();
+    let m = mask_from_image(&image::open(mask).unwrap().to_luma8());
+    psnr(&a, &t, Some(&m)).unwrap()
+}
+
+#[test]
+fn synth_object_hull_render_eval() {
+    let obj = object();
+    for f in ["object_par.txt", "view_05.png", "masks/view_05.png"] {
+        assert!(obj.join(f).is_file(), "synth object did not write {f}");
+    }
+    let truth = obj.join("truth");
+    assert!(truth.join("truth_par.txt").is_file() && truth.join("truth_00.png").is_file());
+    let root = obj.parent().unwrap();
+
+    // Hull: table on stdout, coloured point cloud and summary on disk.
+    let hull = root.join("hull");
+    let out = vt_ok(&["fv", "hull", s(obj), "--out", s(&hull), "--grid", "64"]);
+    assert!(
+        out.contains("visual hull") && out.contains("photo hull"),
+        "{out}"
+    );
+    let ply = std::fs::read_to_string(hull.join("hull.ply")).unwrap();
+    assert!(ply.starts_with("ply\n") && ply.contains("property uchar red"));
+    let sum = read_json(&hull.join("summary.json"));
+    let (vh, ph) = (
+        sum["visual_hull_voxels"].as_u64().unwrap(),
+        sum["photo_hull_voxels"].as_u64().unwrap(),
+    );
+    assert!(vh >= ph && ph > 0, "{sum}");
+    let verts: usize = ply
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(verts as u64, sum["surface_voxels"].as_u64().unwrap());
+
+    // Render the first truth viewpoint (10 degrees past camera 0), rough and guided.
+    let cam = par_line(&truth.join("truth_par.txt"), 0);
+    let (rough, guided) = (root.join("rough.png"), root.join("guided.png"));
+    let grid = ["--grid", "96"];
+    vt_ok(
+        &[
+            &["fv", "render", s(obj), "--camera", &cam, "--out", s(&rough)],
+            &grid[..],
+        ]
+        .concat(),
+    );
+    vt_ok(
+        &[
+            &[
+                "fv",
+                "render",
+                s(obj),
+                "--camera",
+                &cam,
+                "--out",
+                s(&guided),
+                "--guided",
+            ],
+            &grid[..],
+        ]
+        .concat(),
+    );
+    let (t, m) = (truth.join("truth_00.png"), truth.join("masks/truth_00.png"));
+    let (pr, pg) = (psnr_in_mask(&rough, &t, &m), psnr_in_mask(&guided, &t, &m));
+    eprintln!("truth view 0: rough PSNR {pr:.2} dB, guided {pg:.2} dB");
+    assert!(pr > 12.0, "rough render PSNR {pr} dB: the model is wrong");
+    assert!(pg > pr, "guided PSNR {pg} dB <= rough {pr} dB");
+
+    // The other camera forms.
+    for spec in ["angle:30", "between:1,2,0.5"] {
+        let p = root.join("spec.png");
+        vt_ok(&[
+            "fv",
+            "render",
+            s(obj),
+            "--camera",
+            spec,
+            "--out",
+            s(&p),
+            "--grid",
+            "48",
+        ]);
+        assert_eq!(image::open(&p).unwrap().to_rgb8().dimensions(), (96, 96));
+    }
+
+    // Leave-one-out, JSON: exactly one object with both scores.
+    let out = vt_ok(&[
+        "fv",
+        "eval",
+        s(obj),
+        "--leave-out",
+        "1",
+        "--grid",
+        "64",
+        "--json",
+    ]);
+    let lines: Vec<&str> = out.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "--json printed more than one line:\n{out}");
+    let j: Value = serde_json::from_str(lines[0]).unwrap();
+    for k in ["rough", "guided"] {
+        let (p, q) = (
+            j[k]["psnr"].as_f64().unwrap(),
+            j[k]["ssim"].as_f64().unwrap(),
+        );
+        assert!(p > 8.0 && p < 60.0 && q > 0.0 && q <= 1.0, "{k}: {j}");
+    }
+    assert_eq!(j.as_object().unwrap().len(), 2, "{j}");
+}
+
+#[test]
+fn orbit_encodes_a_gif_and_an_mp4() {
+    if Command::new("ffmpeg").arg("-version").output().is_err() {
+        eprintln!("ffmpeg not installed: skipping the orbit test");
+        return;
+    }
+    let root = scratch("orbit");
+    for name in ["orbit.gif", "orbit.mp4"] {
+        let out = root.join(name);
+        vt_ok(&[
+            "fv",
+            "orbit",
+            s(object()),
+            "--out",
+            s(&out),
+            "--frames",
+            "6",
+            "--grid",
+            "32",
+        ]);
+        let bytes = std::fs::read(&out).unwrap();
+        if name.ends_with(".gif") {
+            assert!(bytes.starts_with(b"GIF8"), "{name} is not a GIF");
+        } else {
+            assert!(&bytes[4..8] == b"ftyp", "{name} is not an MP4");
+        }
+    }
+    let left: Vec<_> = std::fs::read_dir(&root)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| n.contains(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporaries left behind: {left:?}");
+}
+
+#[test]
+fn bad_input_gives_one_clear_line() {
+    // A malformed par line names the file and the line.
+    let obj = object_copy("bad-par");
+    let par = obj.join("object_par.txt");
+    let text = std::fs::read_to_string(&par).unwrap();
+    let broken: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 2 {
+                l.replacen(" 1.24800000000000011e2", " abc", 1)
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    std::fs::write(&par, broken.join("\n")).unwrap();
+    let out = obj.parent().unwrap().join("out");
+    vt_err(
+        &["fv", "hull", s(&obj), "--out", s(&out), "--grid", "32"],
+        &["object_par.txt", "line 3", "k11", "not a number"],
+    );
+    assert!(!out.exists(), "a failed run left its output");
+
+    // A missing image.
+    let obj = object_copy("missing");
+    std::fs::remove_file(obj.join("view_02.png")).unwrap();
+    vt_err(
+        &["fv", "hull", s(&obj), "--out", s(&out), "--grid", "32"],
+        &["view_02.png", "missing"],
+    );
+
+    // An empty silhouette.
+    let obj = object_copy("empty-mask");
+    image::GrayImage::new(96, 96)
+        .save(obj.join("masks/view_03.png"))
+        .unwrap();
+    vt_err(
+        &["fv", "hull", s(&obj), "--out", s(&out), "--grid", "32"],
+        &["view 3", "view_03.png", "empty"],
+    );
+
+    // Cameras that see none of the volume: a volume far away, and a new camera looking away.
+    let obj = object();
+    vt_err(
+        &[
+            "fv",
+            "hull",
+            s(obj),
+            "--out",
+            s(&out),
+            "--grid",
+            "32",
+            "--bounds",
+            "100,100,100,101,101,101",
+        ],
+        &["sees none of the volume"],
+    );
+    let away = "away.png 124.8 0 47.5 0 124.8 47.5 0 0 1 1 0 0 0 1 0 0 0 1 0 0 -10";
+    vt_err(
+        &[
+            "fv",
+            "render",
+            s(obj),
+            "--camera",
+            away,
+            "--out",
+            s(&obj.parent().unwrap().join("away.png")),
+            "--grid",
+            "32",
+        ],
+        &["away.png", "sees none of the volume"],
+    );
+    // A malformed camera spec names the field.
+    vt_err(
+        &[
+            "fv",
+            "render",
+            s(obj),
+            "--camera",
+            "x.png 1 2 3",
+            "--out",
+            s(&out.with_extension("png")),
+        ],
+        &["--camera", "22 fields"],
+    );
+
+    // A grid too large for memory is refused before allocating (and before loading).
+    let t = std::time::Instant::now();
+    vt_err(
+        &["fv", "hull", s(obj), "--out", s(&out), "--grid", "100000"],
+        &["--grid 100000", "refused before allocating"],
+    );
+    assert!(
+        t.elapsed().as_secs_f64() < 5.0,
+        "grid refusal took {:?}",
+        t.elapsed()
+    );
+}
+
+/// A data folder with the templeSparseRing views present in testdata/ (9 of the 16 cameras
+/// in its par file) and their cameras.
+fn temple(root: &Path) -> PathBuf {
+    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../testdata/templeSparseRing");
+    let dir = root.join("temple");
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(src.join("templeSR_par.txt")).unwrap();
+    let lines: Vec<&str> = text
+        .lines()
+        .skip(1)
+        .filter(|l| {
+            l.split_whitespace()
+                .next()
+                .is_some_and(|n| src.join(n).is_file())
+        })
+        .collect();
+    for l in &lines {
+        let name = l.split_whitespace().next().unwrap();
+        std::fs::copy(src.join(name), dir.join(name)).unwrap();
+    }
+    std::fs::write(
+        dir.join("templeSR_par.txt"),
+        format!("{}\n{}\n", lines.len(), lines.join("\n")),
+    )
+    .unwrap();
+    dir
+}
+
+#[test]
+fn temple_leave_one_out_guided_beats_rough() {
+    let slow = std::env::var("VT_SLOW_TESTS").is_ok_and(|v| v == "1");
+    let root = scratch("temple");
+    let data = temple(&root);
+    // templeSR0004.png is the third camera present.
+    let (scale, grid) = if slow { ("1", "128") } else { ("0.5", "64") };
+    let out = vt_ok(&[
+        "fv",
+        "eval",
+        s(&data),
+        "--leave-out",
+        "2",
+        "--scale",
+        scale,
+        "--grid",
+        grid,
+        "--json",
+    ]);
+    let j: Value = serde_json::from_str(out.trim()).unwrap();
+    eprintln!("temple leave-one-out: {j}");
+    let (r, g) = (
+        j["rough"]["ssim"].as_f64().unwrap(),
+        j["guided"]["ssim"].as_f64().unwrap(),
+    );
+    assert!(g > r, "guided SSIM {g} <= rough {r}");
+
+    // The full par file names 7 images that are not in testdata: a clear error.
+    let full = root.join("full");
+    copy_dir(&data, &full);
+    std::fs::copy(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../../testdata/templeSparseRing/templeSR_par.txt"),
+        full.join("templeSR_par.txt"),
+    )
+    .unwrap();
+    vt_err(
+        &["fv", "hull", s(&full), "--out", s(&root.join("h"))],
+        &["templeSR0002.png", "missing"],
+    );
+}
