@@ -3,116 +3,13 @@
 //! Truth comes from the synthetic scenes' truth.json (ray cast by vt-synth, independent of
 //! vt-core); the checks here read scene.json as plain JSON, not through vt-io's types.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use std::path::Path;
+use std::process::Command;
+
+use common::*;
 use serde_json::Value;
-
-fn vt(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_vt"))
-        .args(args)
-        .output()
-        .expect("run vt");
-    if std::env::var_os("VT_TEST_VERBOSE").is_some() {
-        eprintln!(
-            "$ vt {}\n{}{}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    out
-}
-
-/// Runs vt and fails with its command line and output unless it succeeds.
-fn vt_ok(args: &[&str]) -> String {
-    let out = vt(args);
-    assert!(
-        out.status.success(),
-        "vt {} failed:\nstdout:\n{}\nstderr:\n{}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).to_string()
-}
-
-/// Runs vt expecting a clean failure: non-zero exit, a one-line error containing every `want`,
-/// no panic. Returns the error line.
-fn vt_err(args: &[&str], want: &[&str]) -> String {
-    let out = vt(args);
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(
-        !out.status.success(),
-        "vt {} succeeded but should fail",
-        args.join(" ")
-    );
-    assert!(
-        !stderr.contains("panicked"),
-        "vt {} panicked:\n{stderr}",
-        args.join(" ")
-    );
-    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(
-        lines.len(),
-        1,
-        "vt {}: expected one error line, got:\n{stderr}",
-        args.join(" ")
-    );
-    for w in want {
-        assert!(
-            lines[0].contains(w),
-            "vt {}: error {:?} does not mention {w:?}",
-            args.join(" "),
-            lines[0]
-        );
-    }
-    lines[0].to_string()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
-
-fn read_json(p: &Path) -> Value {
-    serde_json::from_str(
-        &std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())),
-    )
-    .unwrap()
-}
-
-struct Synth {
-    dir: PathBuf,
-    views: Vec<String>,
-}
-
-fn synth(root: &Path, name: &str, extra: &[&str]) -> Synth {
-    let dir = root.join(name);
-    let mut args = vec!["synth", "textures", "--out", s(&dir)];
-    args.extend_from_slice(extra);
-    vt_ok(&args);
-    let truth = read_json(&dir.join("truth.json"));
-    let m = truth["phase"].as_array().unwrap().len();
-    let views = (0..m)
-        .map(|p| {
-            dir.join(format!("view_{p:02}"))
-                .to_str()
-                .unwrap()
-                .to_string()
-        })
-        .collect();
-    Synth { dir, views }
-}
-
-fn analyze(syn: &Synth, out: &Path, extra: &[&str]) -> Value {
-    let points = syn.dir.join("points.txt");
-    let mut args = vec!["analyze"];
-    args.extend(syn.views.iter().map(String::as_str));
-    args.extend_from_slice(&["--points", s(&points), "--out", s(out)]);
-    args.extend_from_slice(extra);
-    vt_ok(&args);
-    read_json(&out.join("scene.json"))
-}
 
 fn circ(a: i64, b: i64, period: i64) -> i64 {
     let d = (a - b).rem_euclid(period);

@@ -26,7 +26,7 @@
 use image::RgbImage;
 
 use crate::model::{fit_model, MotionModel};
-use crate::warp::{warp_rgb_into, Interpolation};
+use crate::warp::{warp_rgb_with, Border, Interpolation};
 use crate::{Error, Homography, Point, Result};
 
 /// A view as the renderer needs it.
@@ -344,6 +344,8 @@ pub struct Renderer {
     background_q: RgbImage,
     warp_a: RgbImage,
     warp_b: RgbImage,
+    cover_a: Vec<u8>,
+    cover_b: Vec<u8>,
     patch: ObjectPatch,
     patch_old: ObjectPatch,
     fade: Option<(usize, usize, usize)>,
@@ -375,6 +377,8 @@ impl Renderer {
             background_q: RgbImage::new(width, height),
             warp_a: RgbImage::new(width, height),
             warp_b: RgbImage::new(width, height),
+            cover_a: vec![0; width as usize * height as usize],
+            cover_b: vec![0; width as usize * height as usize],
             patch: ObjectPatch::default(),
             patch_old: ObjectPatch::default(),
             fade: None,
@@ -410,34 +414,41 @@ impl Renderer {
         }
         let interp = self.params.interpolation;
         let hf = self.h_to_q[f].expect("computed above");
-        warp_rgb_into(
+        // Edges: sample by replication, and blend by what each view really sees, so a strip
+        // that only one view covers takes that view alone instead of fading to black.
+        warp_rgb_with(
             &self.scene.views[f].background,
             &hf,
             interp,
+            Border::Replicate,
             &mut self.warp_a,
+            Some(&mut self.cover_a),
         );
         let gf = self.gains[f];
         if f == c {
             scale_into(&self.warp_a, gf, &mut self.background_q);
         } else {
             let hc = self.h_to_q[c].expect("computed above");
-            warp_rgb_into(
+            warp_rgb_with(
                 &self.scene.views[c].background,
                 &hc,
                 interp,
+                Border::Replicate,
                 &mut self.warp_b,
+                Some(&mut self.cover_b),
             );
             let (wf, wc) = ((c as f64 - q) as f32, (q - f as f64) as f32);
             let gc = self.gains[c];
             let out = self.background_q.as_mut();
-            for (i, ((o, &a), &b)) in out
-                .iter_mut()
-                .zip(self.warp_a.as_raw())
-                .zip(self.warp_b.as_raw())
-                .enumerate()
-            {
-                let ch = i % 3;
-                *o = (wf * a as f32 / gf[ch] + wc * b as f32 / gc[ch])
+            let (a, b) = (self.warp_a.as_raw(), self.warp_b.as_raw());
+            for (i, o) in out.iter_mut().enumerate() {
+                let (px, ch) = (i / 3, i % 3);
+                let (wa, wb) = match (self.cover_a[px], self.cover_b[px]) {
+                    (1, 0) => (1.0, 0.0),
+                    (0, 1) => (0.0, 1.0),
+                    _ => (wf, wc),
+                };
+                *o = (wa * a[i] as f32 / gf[ch] + wb * b[i] as f32 / gc[ch])
                     .round()
                     .clamp(0.0, 255.0) as u8;
             }

@@ -170,6 +170,12 @@ impl TextureScene {
                 params.views, params.frames, params.period, params.width, params.height
             ));
         }
+        if !(params.exposure.is_finite() && (0.0..=0.5).contains(&params.exposure)) {
+            return Err(format!(
+                "exposure must be in [0, 0.5] (got {})",
+                params.exposure
+            ));
+        }
         if !(params.baseline.is_finite() && params.baseline > 0.0)
             || !(params.noise.is_finite() && params.noise >= 0.0)
         {
