@@ -66,6 +66,9 @@ pub struct TexturesArgs {
     /// Sensor noise, grey levels.
     #[arg(long, default_value_t = 2.0)]
     noise: f64,
+    /// Largest per-view exposure gain difference (0.04 = up to +-4%).
+    #[arg(long, default_value_t = 0.04)]
+    exposure: f64,
 }
 
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -120,6 +123,7 @@ pub fn run(cmd: SynthCommand) -> Result<()> {
                 rig: a.rig,
                 planar: a.planar,
                 noise: a.noise,
+                exposure: a.exposure,
                 ..Default::default()
             };
             write_textures(&a.out, &params)?;
