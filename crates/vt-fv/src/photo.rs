@@ -1,11 +1,17 @@
 //! Photo hull by voxel colouring (SPEC B.2), colours for unseen surface voxels (B.3), and the
 //! coloured [`VoxelModel`].
 //!
-//! Visibility: each pass renders the current surface voxels into an ID buffer per camera
-//! (square splats of [`PhotoParams::splat_scale`] times the voxel's projected size, z-buffered
-//! on camera depth, IDs are `u32` so any grid size works); a voxel is visible in a camera when its
-//! own ID is at the pixel of its projected centre. Its colour sample in that camera is the mean of
-//! the pixels of its footprint that hold its ID.
+//! Visibility: the current surface voxels are rendered into an ID buffer per camera (square
+//! splats of [`PhotoParams::splat_scale`] times the voxel's projected size, z-buffered on camera
+//! depth, IDs are `u32` so any grid size works); a voxel is visible in a camera when its own ID
+//! is at the pixel of its projected centre. Its colour sample in that camera is the mean of the
+//! pixels of its footprint that hold its ID.
+//!
+//! Passes are incremental, with the same result as re-rendering and re-testing everything each
+//! pass: the ID buffers are updated only in the small pixel tiles under removed and newly exposed
+//! voxels, and only voxels whose ID pixels changed in some camera (a voxel's samples depend on
+//! nothing else) or that are newly exposed are tested again. Unseen voxels beyond the offset
+//! table's radius find their nearest seen voxel through a cell grid, exactly.
 //!
 //! Consistency: a voxel seen by at least two cameras is kept when, on every channel, the standard
 //! deviation of its per-camera samples is at most [`PhotoParams::threshold`] (0..255 scale);
@@ -29,7 +35,8 @@ pub struct PhotoParams {
     /// cameras that see it for the voxel to count as photo-consistent (20). Lower carves more
     /// (and risks holes under lighting changes); higher keeps the visual hull.
     pub threshold: f64,
-    /// Most carving passes (64); 0 skips carving and only colours the visual hull's surface.
+    /// Most carving passes (1000, a safety cap: the synthetic object converges in about 80 at
+    /// 256^3); 0 skips carving and only colours the visual hull's surface.
     pub max_passes: usize,
     /// Splat side as a multiple of a voxel's projected size, for ID buffers and rough renders
     /// (1.5: overlapping a little so no background shows between voxels).
@@ -43,7 +50,7 @@ impl Default for PhotoParams {
     fn default() -> Self {
         Self {
             threshold: 20.0,
-            max_passes: 64,
+            max_passes: 1000,
             splat_scale: 1.5,
             fill_radius: 8,
         }
@@ -148,37 +155,147 @@ pub(crate) fn focal(cam: &Camera) -> f64 {
     0.5 * (cam.k[(0, 0)].abs() + cam.k[(1, 1)].abs())
 }
 
-/// Renders IDs (`list position + 1`, 0 = none) of the voxels at `centres` into a z-buffer.
-fn id_buffer(
-    cam: &Camera,
+/// Side of the square pixel tiles that index which voxels touch which pixels.
+const TILE: usize = 8;
+
+/// One camera's ID buffer, kept up to date as voxels come and go.
+///
+/// IDs are `slot + 1` (0 = no voxel), slots being positions in the carver's voxel list, which
+/// only grows (removed voxels leave dead slots), so IDs are stable across passes. Each tile of
+/// `TILE x TILE` pixels lists the slots whose footprint touches it, in slot order; a change
+/// marks the tiles under the voxel's footprint dirty, and only dirty tiles are re-rendered (by
+/// z-buffering their listed live slots in slot order, the same result as rendering every voxel
+/// in list order).
+struct IdBuffer {
     w: u32,
     h: u32,
-    centres: &[Vector3<f64>],
-    size: f64,
-    scale: f64,
-) -> Vec<u32> {
-    let f = focal(cam);
-    let mut depth = vec![f32::INFINITY; (w * h) as usize];
-    let mut ids = vec![0u32; (w * h) as usize];
-    for (i, c) in centres.iter().enumerate() {
-        let Some(s) = splat(cam, f, size, scale, c) else {
-            continue;
-        };
-        let Some((x0, y0, x1, y1)) = footprint(&s, w, h) else {
-            continue;
-        };
-        for y in y0..=y1 {
-            let row = (y as usize) * w as usize;
-            for x in x0..=x1 {
-                let p = row + x as usize;
-                if s.z < depth[p] {
-                    depth[p] = s.z;
-                    ids[p] = i as u32 + 1;
+    f: f64,
+    tiles_x: usize,
+    depth: Vec<f32>,
+    ids: Vec<u32>,
+    buckets: Vec<Vec<u32>>,
+    dirty: Vec<bool>,
+}
+
+impl IdBuffer {
+    fn new(cam: &Camera, w: u32, h: u32) -> Self {
+        let tiles_x = (w as usize).div_ceil(TILE);
+        let tiles = tiles_x * (h as usize).div_ceil(TILE);
+        Self {
+            w,
+            h,
+            f: focal(cam),
+            tiles_x,
+            depth: vec![f32::INFINITY; (w * h) as usize],
+            ids: vec![0; (w * h) as usize],
+            buckets: vec![Vec::new(); tiles],
+            dirty: vec![false; tiles],
+        }
+    }
+
+    /// Tiles `(tx0, ty0, tx1, ty1)` (inclusive) under a voxel's footprint.
+    fn tiles_of(
+        &self,
+        cam: &Camera,
+        c: &Vector3<f64>,
+        size: f64,
+        scale: f64,
+    ) -> Option<[usize; 4]> {
+        let s = splat(cam, self.f, size, scale, c)?;
+        let (x0, y0, x1, y1) = footprint(&s, self.w, self.h)?;
+        Some([
+            x0 as usize / TILE,
+            y0 as usize / TILE,
+            x1 as usize / TILE,
+            y1 as usize / TILE,
+        ])
+    }
+
+    fn mark(&mut self, t: [usize; 4]) {
+        for ty in t[1]..=t[3] {
+            for tx in t[0]..=t[2] {
+                self.dirty[ty * self.tiles_x + tx] = true;
+            }
+        }
+    }
+
+    /// Adds a voxel (slots must arrive in increasing order).
+    fn add(&mut self, cam: &Camera, slot: u32, c: &Vector3<f64>, size: f64, scale: f64) {
+        if let Some(t) = self.tiles_of(cam, c, size, scale) {
+            for ty in t[1]..=t[3] {
+                for tx in t[0]..=t[2] {
+                    self.buckets[ty * self.tiles_x + tx].push(slot);
+                }
+            }
+            self.mark(t);
+        }
+    }
+
+    /// Marks the tiles under a removed voxel for re-rendering.
+    fn remove(&mut self, cam: &Camera, c: &Vector3<f64>, size: f64, scale: f64) {
+        if let Some(t) = self.tiles_of(cam, c, size, scale) {
+            self.mark(t);
+        }
+    }
+
+    /// Re-renders the dirty tiles; pushes `(old id, new id)` of every pixel that changed.
+    fn refresh(
+        &mut self,
+        cam: &Camera,
+        centres: &[Vector3<f64>],
+        alive: &[bool],
+        size: f64,
+        scale: f64,
+        changed: &mut Vec<(u32, u32)>,
+    ) {
+        let (w, h) = (self.w as usize, self.h as usize);
+        let mut old = Vec::with_capacity(TILE * TILE);
+        for t in 0..self.dirty.len() {
+            if !std::mem::take(&mut self.dirty[t]) {
+                continue;
+            }
+            let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+            let (px0, py0) = (tx * TILE, ty * TILE);
+            let (px1, py1) = ((px0 + TILE).min(w), (py0 + TILE).min(h));
+            old.clear();
+            for y in py0..py1 {
+                let row = y * w;
+                old.extend_from_slice(&self.ids[row + px0..row + px1]);
+                self.ids[row + px0..row + px1].fill(0);
+                self.depth[row + px0..row + px1].fill(f32::INFINITY);
+            }
+            let mut bucket = std::mem::take(&mut self.buckets[t]);
+            bucket.retain(|&slot| alive[slot as usize]);
+            for &slot in &bucket {
+                let Some(s) = splat(cam, self.f, size, scale, &centres[slot as usize]) else {
+                    continue;
+                };
+                let Some((x0, y0, x1, y1)) = footprint(&s, self.w, self.h) else {
+                    continue;
+                };
+                let (x0, x1) = ((x0 as usize).max(px0), (x1 as usize).min(px1 - 1));
+                let (y0, y1) = ((y0 as usize).max(py0), (y1 as usize).min(py1 - 1));
+                for y in y0..=y1 {
+                    let row = y * w;
+                    for x in x0..=x1 {
+                        let p = row + x;
+                        if s.z < self.depth[p] {
+                            self.depth[p] = s.z;
+                            self.ids[p] = slot + 1;
+                        }
+                    }
+                }
+            }
+            self.buckets[t] = bucket;
+            let tw = px1 - px0;
+            for (k, &o) in old.iter().enumerate() {
+                let n = self.ids[(py0 + k / tw) * w + px0 + k % tw];
+                if n != o {
+                    changed.push((o, n));
                 }
             }
         }
     }
-    ids
 }
 
 /// Per-voxel colour statistics over the cameras that see it.
@@ -207,23 +324,26 @@ impl Stats {
     }
 }
 
+/// Colour statistics of the voxels in `slots` over the cameras whose ID buffers show them.
 fn gather(
     cams: &[Camera],
     images: &[RgbImage],
-    ids: &[Vec<u32>],
+    bufs: &[IdBuffer],
     centres: &[Vector3<f64>],
+    slots: &[u32],
     size: f64,
     scale: f64,
 ) -> Vec<Stats> {
-    centres
+    slots
         .par_iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let id = i as u32 + 1;
+        .map(|&slot| {
+            let c = &centres[slot as usize];
+            let id = slot + 1;
             let mut st = Stats::default();
-            for ((cam, img), buf) in cams.iter().zip(images).zip(ids) {
+            for ((cam, img), b) in cams.iter().zip(images).zip(bufs) {
+                let buf = &b.ids;
                 let (w, h) = img.dimensions();
-                let Some(s) = splat(cam, focal(cam), size, scale, c) else {
+                let Some(s) = splat(cam, b.f, size, scale, c) else {
                     continue;
                 };
                 let (cx, cy) = ((s.u + 0.5).floor() as i64, (s.v + 0.5).floor() as i64);
@@ -304,56 +424,77 @@ pub fn photo_hull(
     }
     let vs = grid.voxel_size();
     let size = (vs.x * vs.y * vs.z).cbrt();
-    let mut surface = surface_of(&grid);
+    let scale = params.splat_scale;
+    // The carver's voxel list: slots only grow; `alive` marks the current surface.
+    let mut index: Vec<usize> = surface_of(&grid);
+    let mut centres: Vec<Vector3<f64>> =
+        index.iter().map(|&i| grid.centre(grid.coords(i))).collect();
+    let mut alive = vec![true; index.len()];
+    let mut stats = vec![Stats::default(); index.len()];
+    // Grid voxels that have ever been in the list (so a voxel is added once; a listed voxel
+    // that is still occupied is alive).
+    let mut listed = VoxelGrid::new(grid.dims(), grid.bounds(), u64::MAX)?;
+    for &i in &index {
+        listed.set_index(i, true);
+    }
+    let mut bufs: Vec<IdBuffer> = cams
+        .par_iter()
+        .zip(images)
+        .map(|(cam, img)| {
+            let mut b = IdBuffer::new(cam, img.width(), img.height());
+            for (slot, c) in centres.iter().enumerate() {
+                b.add(cam, slot as u32, c, size, scale);
+            }
+            b
+        })
+        .collect();
+    let mut changed: Vec<Vec<(u32, u32)>> = vec![Vec::new(); cams.len()];
+    let refresh = |bufs: &mut Vec<IdBuffer>,
+                   changed: &mut Vec<Vec<(u32, u32)>>,
+                   centres: &[Vector3<f64>],
+                   alive: &[bool]| {
+        bufs.par_iter_mut()
+            .zip(cams)
+            .zip(changed.par_iter_mut())
+            .for_each(|((b, cam), ch)| {
+                ch.clear();
+                b.refresh(cam, centres, alive, size, scale, ch)
+            });
+    };
+    refresh(&mut bufs, &mut changed, &centres, &alive);
+    // Voxels to (re)test: at first all; later those whose pixels changed in some camera (a
+    // voxel's samples depend only on the pixels holding its ID) and newly exposed ones.
+    let mut test: Vec<u32> = (0..index.len() as u32).collect();
     let mut removed_total = 0;
     let mut passes = 0;
-    let mut in_surface: std::collections::HashSet<usize> = surface.iter().copied().collect();
-    let stats = loop {
-        let centres: Vec<Vector3<f64>> = surface
-            .iter()
-            .map(|&i| grid.centre(grid.coords(i)))
-            .collect();
-        let ids: Vec<Vec<u32>> = cams
-            .par_iter()
-            .zip(images)
-            .map(|(c, img)| {
-                id_buffer(
-                    c,
-                    img.width(),
-                    img.height(),
-                    &centres,
-                    size,
-                    params.splat_scale,
-                )
-            })
-            .collect();
-        let stats = gather(cams, images, &ids, &centres, size, params.splat_scale);
-        if passes >= params.max_passes {
-            break stats;
+    loop {
+        let st = gather(cams, images, &bufs, &centres, &test, size, scale);
+        for (&slot, s) in test.iter().zip(&st) {
+            stats[slot as usize] = *s;
         }
-        let bad: Vec<usize> = surface
+        if passes >= params.max_passes {
+            break;
+        }
+        let bad: Vec<u32> = test
             .iter()
-            .zip(&stats)
+            .zip(&st)
             .filter(|(_, s)| !s.consistent(params.threshold))
-            .map(|(&i, _)| i)
+            .map(|(&slot, _)| slot)
             .collect();
         if bad.is_empty() {
-            break stats;
+            break;
         }
         passes += 1;
         progress("photo hull", passes as u64, params.max_passes as u64);
-        for &i in &bad {
-            grid.set_index(i, false);
-            in_surface.remove(&i);
+        for &slot in &bad {
+            alive[slot as usize] = false;
+            grid.set_index(index[slot as usize], false);
         }
         removed_total += bad.len();
-        let mut kept: Vec<usize> = surface
-            .iter()
-            .copied()
-            .filter(|i| grid.get_index(*i))
-            .collect();
-        for &i in &bad {
-            let [x, y, z] = grid.coords(i).map(|c| c as i64);
+        // Newly exposed neighbours join the surface.
+        let first_new = index.len();
+        for &slot in &bad {
+            let [x, y, z] = grid.coords(index[slot as usize]).map(|c| c as i64);
             for (dx, dy, dz) in [
                 (-1, 0, 0),
                 (1, 0, 0),
@@ -365,25 +506,50 @@ pub fn photo_hull(
                 let (nx, ny, nz) = (x + dx, y + dy, z + dz);
                 if grid.get(nx, ny, nz) {
                     let j = grid.index(nx as usize, ny as usize, nz as usize);
-                    if in_surface.insert(j) {
-                        kept.push(j);
+                    if !listed.get_index(j) {
+                        listed.set_index(j, true);
+                        index.push(j);
+                        centres.push(grid.centre(grid.coords(j)));
+                        alive.push(true);
+                        stats.push(Stats::default());
                     }
                 }
             }
         }
-        surface = kept;
-        if surface.is_empty() {
+        if !alive.iter().any(|&a| a) {
             return Err(Error::EmptyModel {
                 stage: "photo hull".into(),
             });
         }
-    };
-    let mut order: Vec<usize> = (0..surface.len()).collect();
-    order.sort_unstable_by_key(|&k| surface[k]);
+        bufs.par_iter_mut().zip(cams).for_each(|(b, cam)| {
+            for &slot in &bad {
+                b.remove(cam, &centres[slot as usize], size, scale);
+            }
+            for slot in first_new..index.len() {
+                b.add(cam, slot as u32, &centres[slot], size, scale);
+            }
+        });
+        refresh(&mut bufs, &mut changed, &centres, &alive);
+        let mut next: Vec<u32> = (first_new as u32..index.len() as u32).collect();
+        for ch in &changed {
+            for &(o, n) in ch {
+                for id in [o, n] {
+                    if id > 0 && alive[(id - 1) as usize] {
+                        next.push(id - 1);
+                    }
+                }
+            }
+        }
+        next.sort_unstable();
+        next.dedup();
+        test = next;
+    }
+    let mut order: Vec<usize> = (0..index.len()).filter(|&k| alive[k]).collect();
+    order.sort_unstable_by_key(|&k| index[k]);
     let mut voxels: Vec<SurfaceVoxel> = order
         .iter()
         .map(|&k| SurfaceVoxel {
-            index: surface[k],
+            index: index[k],
             colour: stats[k].mean(),
             seen_by: stats[k].n,
         })
@@ -420,7 +586,7 @@ fn fill_unseen(grid: &VoxelGrid, voxels: &mut [SurfaceVoxel], radius: usize) {
         }
     }
     offsets.sort_by_key(|&(x, y, z)| (x * x + y * y + z * z, z, y, x));
-    let seen_list: Vec<(usize, [u8; 3])> = seen.iter().map(|(&i, &c)| (i, c)).collect();
+    let cells = SeenCells::new(grid, voxels, 2 * radius.max(1));
     let fills: Vec<(usize, [u8; 3])> = voxels
         .par_iter()
         .enumerate()
@@ -435,19 +601,75 @@ fn fill_unseen(grid: &VoxelGrid, voxels: &mut [SurfaceVoxel], radius: usize) {
                     }
                 }
             }
-            let d2 = |i: usize| {
-                let [a, b, c] = grid.coords(i).map(|c| c as i64);
-                (a - x).pow(2) + (b - y).pow(2) + (c - z).pow(2)
-            };
-            let best = seen_list
-                .iter()
-                .min_by_key(|(i, _)| d2(*i))
-                .expect("seen is not empty: checked above");
-            (k, best.1)
+            (k, cells.nearest([x, y, z]))
         })
         .collect();
     for (k, c) in fills {
         voxels[k].colour = c;
+    }
+}
+
+/// Seen surface voxels bucketed in cubic cells, for exact nearest-neighbour queries beyond the
+/// offset table's radius (searching shells of cells outwards until no closer cell can exist).
+struct SeenCells {
+    side: i64,
+    n: [i64; 3],
+    cells: Vec<Vec<([i64; 3], [u8; 3])>>,
+}
+
+impl SeenCells {
+    fn new(grid: &VoxelGrid, voxels: &[SurfaceVoxel], side: usize) -> Self {
+        let side = side as i64;
+        let n = grid.dims().map(|d| (d as i64 + side - 1) / side);
+        let mut cells = vec![Vec::new(); (n[0] * n[1] * n[2]) as usize];
+        for v in voxels.iter().filter(|v| v.seen_by > 0) {
+            let c = grid.coords(v.index).map(|c| c as i64);
+            let k = ((c[2] / side * n[1] + c[1] / side) * n[0] + c[0] / side) as usize;
+            cells[k].push((c, v.colour));
+        }
+        Self { side, n, cells }
+    }
+
+    /// Colour of the seen voxel nearest to `p` (ties: first found); callers ensure one exists.
+    fn nearest(&self, p: [i64; 3]) -> [u8; 3] {
+        let home = p.map(|c| c / self.side);
+        let mut best = (i64::MAX, [0u8; 3]);
+        let reach = self.n.iter().copied().max().unwrap_or(1);
+        for r in 0..=reach {
+            // Every voxel in shell r is at least (r - 1) * side away.
+            let lower = ((r - 1).max(0) * self.side).pow(2);
+            if lower > best.0 {
+                break;
+            }
+            for cz in home[2] - r..=home[2] + r {
+                for cy in home[1] - r..=home[1] + r {
+                    for cx in home[0] - r..=home[0] + r {
+                        let on_shell = (cx - home[0]).abs() == r
+                            || (cy - home[1]).abs() == r
+                            || (cz - home[2]).abs() == r;
+                        if !on_shell
+                            || cx < 0
+                            || cy < 0
+                            || cz < 0
+                            || cx >= self.n[0]
+                            || cy >= self.n[1]
+                            || cz >= self.n[2]
+                        {
+                            continue;
+                        }
+                        let k = ((cz * self.n[1] + cy) * self.n[0] + cx) as usize;
+                        for &(c, col) in &self.cells[k] {
+                            let d =
+                                (c[0] - p[0]).pow(2) + (c[1] - p[1]).pow(2) + (c[2] - p[2]).pow(2);
+                            if d < best.0 {
+                                best = (d, col);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best.1
     }
 }
 
