@@ -6,6 +6,7 @@ mod fv;
 mod progress;
 mod render;
 mod synth;
+mod view;
 
 use std::path::PathBuf;
 
@@ -30,6 +31,8 @@ enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Render a scene along a viewpoint path to mp4, GIF or PNG frames (System A, online: eq. 3-6).
     Render(render::RenderArgs),
+    /// Live viewer in the browser: move the viewpoint while the video texture plays.
+    View(view::ViewArgs),
     /// Free-viewpoint images from calibrated photos (System B).
     Fv {
         #[command(subcommand)]
@@ -52,6 +55,7 @@ fn main() {
         Command::Synth { what } => synth::run(what),
         Command::Analyze(args) => analyze::run(args).map(|_| ()),
         Command::Render(args) => render::run(args).map(|_| ()),
+        Command::View(args) => view::run(args),
         Command::Fv { what } => fv::run(what),
         Command::Demo { out, frames } => demo(out, frames),
     };

@@ -35,6 +35,13 @@ pub struct RenderArgs {
     /// last q, sweeps go on back and forth).
     #[arg(long)]
     duration: Option<f64>,
+    #[command(flatten)]
+    options: RenderOptions,
+}
+
+/// Rendering options shared by `vt render` and `vt view`.
+#[derive(Args, Clone)]
+pub struct RenderOptions {
     /// Nearest-neighbour warping (faster) instead of bilinear.
     #[arg(long)]
     nearest: bool,
@@ -46,21 +53,7 @@ pub struct RenderArgs {
     gain_compensation: bool,
 }
 
-impl RenderArgs {
-    /// The demo's sweep across all views.
-    pub fn demo_sweep(scene: PathBuf, out: PathBuf) -> Self {
-        Self {
-            scene,
-            path: "sweep:0.5".into(),
-            out,
-            fps: 30.0,
-            duration: None,
-            nearest: false,
-            crossfade: 0,
-            gain_compensation: true,
-        }
-    }
-
+impl RenderOptions {
     pub fn params(&self) -> RenderParams {
         RenderParams {
             interpolation: if self.nearest {
@@ -70,6 +63,24 @@ impl RenderArgs {
             },
             crossfade: self.crossfade,
             gain_compensation: self.gain_compensation,
+        }
+    }
+}
+
+impl RenderArgs {
+    /// The demo's sweep across all views.
+    pub fn demo_sweep(scene: PathBuf, out: PathBuf) -> Self {
+        Self {
+            scene,
+            path: "sweep:0.5".into(),
+            out,
+            fps: 30.0,
+            duration: None,
+            options: RenderOptions {
+                nearest: false,
+                crossfade: 0,
+                gain_compensation: true,
+            },
         }
     }
 }
@@ -352,7 +363,7 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
         args.fps,
         args.duration,
     )?;
-    let mut renderer = Renderer::new(scene.render.clone(), args.params())?;
+    let mut renderer = Renderer::new(scene.render.clone(), args.options.params())?;
     let (w, h) = renderer.size();
     let mut sink = Sink::open(&args.out, w, h, args.fps)?;
     let mut player = Player::new();
