@@ -118,6 +118,7 @@ impl Table {
 // Measures.
 
 /// Per-pixel differences between two RGB images (a pixel's difference is its largest channel's).
+#[derive(Clone)]
 struct ImageDiff {
     max: u8,
     differ: usize,
@@ -584,22 +585,65 @@ fn testdata() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata")
 }
 
-/// The per-view checks shared by synthetic scenes and tree.avi: median, blur, masks, XOR, loop.
-/// Returns vt-core's masks (from its own blur) and loop.
-fn view_checks(
-    t: &mut Table,
-    input: &str,
-    frames: &[RgbImage],
-    loops: &LoopParams,
-) -> Result<(Vec<Mask>, Loop)> {
+/// Sums of per-view image differences (max of maxima, sums of counts).
+fn merge_diffs(diffs: impl IntoIterator<Item = ImageDiff>) -> ImageDiff {
+    diffs.into_iter().fold(
+        ImageDiff {
+            max: 0,
+            differ: 0,
+            over_one: 0,
+            pixels: 0,
+        },
+        |a, d| ImageDiff {
+            max: a.max.max(d.max),
+            differ: a.differ + d.differ,
+            over_one: a.over_one + d.over_one,
+            pixels: a.pixels + d.pixels,
+        },
+    )
+}
+
+/// Differing pixels, total pixels and set pixels of two mask sequences.
+fn mask_counts(vt: &[Mask], cv: &[Mask]) -> (u64, u64, u64) {
+    let differ = vt
+        .iter()
+        .zip(cv)
+        .map(|(a, b)| vt_core::mask::xor_count(a, b))
+        .sum();
+    (
+        differ,
+        vt.iter().map(|m| m.len() as u64).sum(),
+        vt.iter().map(|m| m.count_ones()).sum(),
+    )
+}
+
+/// One view's figures for [`view_checks`].
+struct ViewFigures {
+    median_memory: ImageDiff,
+    median_stream: ImageDiff,
+    blur_background: ImageDiff,
+    blur_frames: ImageDiff,
+    blur_5x5: ImageDiff,
+    mask_same: (u64, u64, u64),
+    threshold_same: (u64, u64, u64),
+    mask_own: (u64, u64, u64),
+    xor_wrong: usize,
+    xor_pairs: usize,
+    loop_vt: Loop,
+    loop_cv: Loop,
+    loops3_equal: bool,
+    loop_own_cv: Loop,
+    masks: Vec<Mask>,
+}
+
+fn view_figures(frames: &[RgbImage], loops: &LoopParams, what: &str) -> Result<ViewFigures> {
     let blur = GaussianParams::default();
     let mask_params = MaskParams {
         threshold: 25,
         open_radius: 1,
         close_radius: 2,
     };
-
-    // Median: the in-memory route and the streaming accumulator, against cv::sort.
+    // Median: vt-core's in-memory route and its streaming accumulator, against cv::sort.
     let vt_bg = vt_core::median::temporal_median(frames)?;
     let mut acc = vt_core::median::MedianAccumulator::new(frames[0].width(), frames[0].height());
     for f in frames {
@@ -608,19 +652,9 @@ fn view_checks(
     let vt_bg_stream = acc.median()?;
     drop(acc);
     let cv_bg = vt_cv::median::temporal_median(frames)?;
-    check_identical_rgb(t, "median (in memory)", input, &vt_bg, &cv_bg);
-    check_identical_rgb(t, "median (streaming)", input, &vt_bg_stream, &cv_bg);
-
-    // Blur: 3x3 default (fixed table) and 5x5 sigma 1.2 (formula), on the background and frames.
+    // Blur: 3x3 default (fixed table) on background and frames, 5x5 sigma 1.2 (formula).
     let vt_bg_blur = vt_core::blur::gaussian_blur(&vt_bg, &blur)?;
     let cv_bg_blur = vt_cv::blur::gaussian_blur(&vt_bg, &blur)?;
-    check_blur(
-        t,
-        "Gaussian 3x3 (background)",
-        input,
-        &vt_bg_blur,
-        &cv_bg_blur,
-    );
     let vt_blurred: Vec<RgbImage> = frames
         .iter()
         .map(|f| vt_core::blur::gaussian_blur(f, &blur))
@@ -629,85 +663,31 @@ fn view_checks(
         .iter()
         .map(|f| vt_cv::blur::gaussian_blur(f, &blur))
         .collect::<Result<_, _>>()?;
-    let worst = vt_blurred
-        .iter()
-        .zip(&cv_blurred)
-        .map(|(a, b)| image_diff(a, b))
-        .max_by_key(|d| (d.max, d.differ))
-        .expect("frames");
-    t.add(
-        "Gaussian 3x3 (all frames)",
-        input,
-        format!(
-            "max |diff| {}, worst frame {:.3}% differ",
-            worst.max,
-            pct(worst.differ, worst.pixels)
-        ),
-        "max |diff| <= 1",
-        worst.max <= 1,
-    );
     let g5 = GaussianParams {
         ksize: 5,
         sigma: 1.2,
     };
-    check_blur(
-        t,
-        "Gaussian 5x5 s1.2",
-        &format!("{input} frame 0"),
-        &vt_core::blur::gaussian_blur(&frames[0], &g5)?,
-        &vt_cv::blur::gaussian_blur(&frames[0], &g5)?,
-    );
-
-    // Masks from the same blurred frames: identical. Each with its own blur: <= 0.1%.
+    // Masks: from the same blurred frames (vt-core's), and each side from its own blur.
     let vt_masks: Vec<Mask> = vt_blurred
         .iter()
         .map(|f| foreground_mask(f, &vt_bg_blur, &mask_params))
         .collect::<Result<_, _>>()?;
-    let cv_masks_shared: Vec<Mask> = vt_blurred
+    let cv_same: Vec<Mask> = vt_blurred
         .iter()
         .map(|f| vt_cv::mask::foreground_mask(f, &vt_bg_blur, &mask_params))
         .collect::<Result<_, _>>()?;
-    check_identical_masks(
-        t,
-        "mask (same blur, open 1 close 2)",
-        input,
-        &vt_masks,
-        &cv_masks_shared,
-    );
-    let raw_vt: Vec<Mask> = vt_blurred
+    let vt_raw: Vec<Mask> = vt_blurred
         .iter()
         .map(|f| vt_core::analysis::threshold_mask(f, &vt_bg_blur, 25))
         .collect::<Result<_, _>>()?;
-    let raw_cv: Vec<Mask> = vt_blurred
+    let cv_raw: Vec<Mask> = vt_blurred
         .iter()
         .map(|f| vt_cv::mask::threshold_mask(f, &vt_bg_blur, 25))
         .collect::<Result<_, _>>()?;
-    check_identical_masks(
-        t,
-        "mask (same blur, threshold only)",
-        input,
-        &raw_vt,
-        &raw_cv,
-    );
     let cv_masks: Vec<Mask> = cv_blurred
         .iter()
         .map(|f| vt_cv::mask::foreground_mask(f, &cv_bg_blur, &mask_params))
         .collect::<Result<_, _>>()?;
-    let differ: u64 = vt_masks
-        .iter()
-        .zip(&cv_masks)
-        .map(|(a, b)| vt_core::mask::xor_count(a, b))
-        .sum();
-    let total: u64 = vt_masks.iter().map(|m| m.len() as u64).sum();
-    let share = 100.0 * differ as f64 / total as f64;
-    t.add(
-        "mask (own blur each)",
-        input,
-        format!("{differ} of {total} pixels differ ({share:.4}%)"),
-        "<= 0.1%",
-        share <= 0.1,
-    );
-
     // XOR costs of every pair of vt-core's masks.
     let mats: Vec<_> = vt_masks
         .iter()
@@ -715,54 +695,196 @@ fn view_checks(
         .collect::<Result<_, _>>()?;
     let cv_costs = vt_cv::loops::pair_costs(&mats, 0)?;
     let n = vt_masks.len();
-    let mut wrong = 0usize;
+    let mut xor_wrong = 0usize;
     for a in 0..n {
         for b in a..n {
-            wrong += (vt_core::mask::xor_count(&vt_masks[a], &vt_masks[b]) != cv_costs[a * n + b])
-                as usize;
+            xor_wrong += (vt_core::mask::xor_count(&vt_masks[a], &vt_masks[b])
+                != cv_costs[a * n + b]) as usize;
         }
     }
+    Ok(ViewFigures {
+        median_memory: image_diff(&vt_bg, &cv_bg),
+        median_stream: image_diff(&vt_bg_stream, &cv_bg),
+        blur_background: image_diff(&vt_bg_blur, &cv_bg_blur),
+        blur_frames: merge_diffs(
+            vt_blurred
+                .iter()
+                .zip(&cv_blurred)
+                .map(|(a, b)| image_diff(a, b)),
+        ),
+        blur_5x5: image_diff(
+            &vt_core::blur::gaussian_blur(&frames[0], &g5)?,
+            &vt_cv::blur::gaussian_blur(&frames[0], &g5)?,
+        ),
+        mask_same: mask_counts(&vt_masks, &cv_same),
+        threshold_same: mask_counts(&vt_raw, &cv_raw),
+        mask_own: mask_counts(&vt_masks, &cv_masks),
+        xor_wrong,
+        xor_pairs: n * (n + 1) / 2,
+        loop_vt: vt_core::loops::find_loop(&vt_masks, loops, what)?,
+        loop_cv: vt_cv::loops::find_loop(&vt_masks, loops, what)?,
+        loops3_equal: vt_core::loops::find_loops(&vt_masks, loops, 3, 2, what)?
+            == vt_cv::loops::find_loops(&vt_masks, loops, 3, 2, what)?,
+        loop_own_cv: vt_cv::loops::find_loop(&cv_masks, loops, what)?,
+        masks: vt_masks,
+    })
+}
+
+/// The per-view checks shared by synthetic scenes and tree.avi (median, blur, masks, XOR,
+/// loops), one row per operation over all the views given. Returns vt-core's masks (from its
+/// own blur) and loop per view.
+fn view_checks(
+    t: &mut Table,
+    input: &str,
+    views: &[Vec<RgbImage>],
+    loops: &LoopParams,
+) -> Result<Vec<(Vec<Mask>, Loop)>> {
+    let figs: Vec<ViewFigures> = views
+        .iter()
+        .enumerate()
+        .map(|(v, frames)| view_figures(frames, loops, &format!("{input} view {v}")))
+        .collect::<Result<_>>()?;
+    let n_frames: usize = views.iter().map(Vec::len).sum();
+    let all = if views.len() > 1 {
+        format!("{input}, {} views", views.len())
+    } else {
+        input.to_string()
+    };
+    let identical = |t: &mut Table, op: &str, d: ImageDiff| {
+        t.add(
+            op,
+            &all,
+            format!("{} of {} pixels differ (max {})", d.differ, d.pixels, d.max),
+            "identical",
+            d.differ == 0,
+        )
+    };
+    identical(
+        t,
+        "median (in memory)",
+        merge_diffs(figs.iter().map(|f| f.median_memory.clone())),
+    );
+    identical(
+        t,
+        "median (streaming)",
+        merge_diffs(figs.iter().map(|f| f.median_stream.clone())),
+    );
+    let blur_row = |t: &mut Table, op: &str, input: &str, d: ImageDiff| {
+        t.add(
+            op,
+            input,
+            format!(
+                "max |diff| {}, {:.3}% of pixels differ",
+                d.max,
+                pct(d.differ, d.pixels)
+            ),
+            "max |diff| <= 1",
+            d.max <= 1,
+        )
+    };
+    blur_row(
+        t,
+        "Gaussian 3x3 (background)",
+        &all,
+        merge_diffs(figs.iter().map(|f| f.blur_background.clone())),
+    );
+    blur_row(
+        t,
+        "Gaussian 3x3 (every frame)",
+        &format!("{all}, {n_frames} frames"),
+        merge_diffs(figs.iter().map(|f| f.blur_frames.clone())),
+    );
+    blur_row(
+        t,
+        "Gaussian 5x5 s1.2",
+        &format!("{all}, frame 0"),
+        merge_diffs(figs.iter().map(|f| f.blur_5x5.clone())),
+    );
+    let masks_row = |t: &mut Table, op: &str, c: Vec<(u64, u64, u64)>| {
+        let (differ, total, set) = c
+            .iter()
+            .fold((0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+        t.add(
+            op,
+            &all,
+            format!(
+                "{differ} of {total} pixels differ ({:.2}% set)",
+                100.0 * set as f64 / total.max(1) as f64
+            ),
+            "identical",
+            differ == 0,
+        )
+    };
+    masks_row(
+        t,
+        "mask (same blur, open 1 close 2)",
+        figs.iter().map(|f| f.mask_same).collect(),
+    );
+    masks_row(
+        t,
+        "mask (same blur, threshold only)",
+        figs.iter().map(|f| f.threshold_same).collect(),
+    );
+    let (differ, total) = figs
+        .iter()
+        .fold((0, 0), |a, f| (a.0 + f.mask_own.0, a.1 + f.mask_own.1));
+    let share = 100.0 * differ as f64 / total.max(1) as f64;
+    t.add(
+        "mask (own blur each)",
+        &all,
+        format!("{differ} of {total} pixels differ ({share:.4}%)"),
+        "<= 0.1%",
+        share <= 0.1,
+    );
+    let (wrong, pairs) = figs
+        .iter()
+        .fold((0, 0), |a, f| (a.0 + f.xor_wrong, a.1 + f.xor_pairs));
     t.add(
         "XOR cost",
-        &format!("{input}, {} pairs", n * (n + 1) / 2),
+        &format!("{all}, {pairs} pairs"),
         format!("{wrong} costs differ"),
         "identical",
         wrong == 0,
     );
-
-    // Loops on the same masks: identical (m, n, cost), also the 3 best distinct ones.
-    let vt_loop = vt_core::loops::find_loop(&vt_masks, loops, input)?;
-    let cv_loop = vt_cv::loops::find_loop(&vt_masks, loops, input)?;
-    let lp = |l: &Loop| format!("({}, {}) cost {}", l.start, l.end, l.cost);
+    let lp = |l: &Loop| format!("({}, {}) {}", l.start, l.end, l.cost);
+    let per_view =
+        |f: &dyn Fn(&ViewFigures) -> String| figs.iter().map(f).collect::<Vec<_>>().join("; ");
     t.add(
         "loop eq. (1), same masks",
-        &format!("{input}, w {} k {}", loops.window, loops.min_length),
-        format!("vt {} / cv {}", lp(&vt_loop), lp(&cv_loop)),
-        "identical",
-        vt_loop == cv_loop,
-    );
-    let vt3 = vt_core::loops::find_loops(&vt_masks, loops, 3, 2, input)?;
-    let cv3 = vt_cv::loops::find_loops(&vt_masks, loops, 3, 2, input)?;
-    t.add(
-        "3 distinct loops, same masks",
-        input,
+        &format!("{all}, w {} k {}", loops.window, loops.min_length),
         format!(
-            "{} of 3 equal",
-            vt3.iter().zip(&cv3).filter(|(a, b)| a == b).count()
+            "(m, n) cost vt/cv: {}",
+            per_view(&|f| format!("{} / {}", lp(&f.loop_vt), lp(&f.loop_cv)))
         ),
         "identical",
-        vt3 == cv3,
+        figs.iter().all(|f| f.loop_vt == f.loop_cv),
     );
-    // End to end (each side its own blur and masks): the same loop expected, reported.
-    let cv_loop_own = vt_cv::loops::find_loop(&cv_masks, loops, input)?;
+    t.add(
+        "3 distinct loops, same masks",
+        &all,
+        format!(
+            "{} of {} views equal",
+            figs.iter().filter(|f| f.loops3_equal).count(),
+            figs.len()
+        ),
+        "identical",
+        figs.iter().all(|f| f.loops3_equal),
+    );
     t.add(
         "loop eq. (1), own pipelines",
-        input,
-        format!("vt {} / cv {}", lp(&vt_loop), lp(&cv_loop_own)),
+        &all,
+        format!(
+            "(m, n) vt/cv: {}",
+            per_view(&|f| format!(
+                "({}, {}) / ({}, {})",
+                f.loop_vt.start, f.loop_vt.end, f.loop_own_cv.start, f.loop_own_cv.end
+            ))
+        ),
         "same (m, n)",
-        (vt_loop.start, vt_loop.end) == (cv_loop_own.start, cv_loop_own.end),
+        figs.iter()
+            .all(|f| (f.loop_vt.start, f.loop_vt.end) == (f.loop_own_cv.start, f.loop_own_cv.end)),
     );
-    Ok((vt_masks, vt_loop))
+    Ok(figs.into_iter().map(|f| (f.masks, f.loop_vt)).collect())
 }
 
 /// Eq. (2) between two views with vt-core's masks and loop: warps and tables.
@@ -836,15 +958,7 @@ fn synthetic(
         window: 3,
         min_length: period,
     };
-    let mut results = Vec::new();
-    for (v, frames) in views.iter().enumerate() {
-        results.push(view_checks(
-            t,
-            &format!("{input} view {v}"),
-            frames,
-            &loops,
-        )?);
-    }
+    let results = view_checks(t, &input, &views, &loops)?;
 
     // Homographies from the marked points (exact projections), 6 and 4 of them.
     let pts = |v: usize| {
@@ -921,7 +1035,7 @@ fn tree(t: &mut Table) -> Result<()> {
     view_checks(
         t,
         &input,
-        &frames,
+        &[frames],
         &LoopParams {
             window: 3,
             min_length: 20,
