@@ -77,50 +77,93 @@ fn bench(c: &mut Criterion) {
     g.finish();
 
     let t = Instant::now();
+    let vh = visual_hull(
+        &d.cameras,
+        &d.masks,
+        &HullParams {
+            dims: [256; 3],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let t_vh = t.elapsed().as_secs_f64();
+    let capped = photo_hull(
+        vh,
+        &d.cameras,
+        &d.photos,
+        &PhotoParams {
+            max_passes: 64,
+            ..Default::default()
+        },
+        &mut |_, _, _| {},
+    )
+    .unwrap();
+    println!(
+        "photo hull 256^3 capped at 64 passes (the old default): {:.2} s after the visual hull ({t_vh:.3} s), {} surface voxels",
+        t.elapsed().as_secs_f64() - t_vh,
+        capped.surface.len()
+    );
+    let t = Instant::now();
     let m = model(&d, 256);
-    println!("photo hull 256^3 (visual hull included): {:.2} s, {} passes, {} voxels removed, {} surface voxels", t.elapsed().as_secs_f64(), m.passes, m.removed, m.surface.len());
+    println!("photo hull 256^3 to convergence (visual hull included): {:.2} s, {} passes, {} voxels removed, {} surface voxels", t.elapsed().as_secs_f64(), m.passes, m.removed, m.surface.len());
 
     let full = std::env::var("VT_BENCH_FULL").is_ok_and(|v| v == "1");
     let mut configs: Vec<(&str, SynthParams)> = vec![
         (
-            "patch 7 exact",
+            "patch 7 exact (sequential, every pixel)",
             SynthParams {
                 patch: 7,
                 ..Default::default()
             },
         ),
         (
-            "patch 7 strips",
+            "patch 7 fast_for (strips, skip black)",
+            SynthParams::fast_for(7),
+        ),
+        (
+            "patch 7 stage (i) only",
             SynthParams {
-                patch: 7,
-                strips: 0,
-                ..Default::default()
+                max_synth_iters: 0,
+                ..SynthParams::fast_for(7)
             },
         ),
         (
-            "patch 7 fast",
+            "patch 7 + 3 levels, step 2",
             SynthParams {
                 patch: 7,
                 ..SynthParams::fast()
             },
         ),
         (
-            "patch 41 fast (3 levels, step 2, strips)",
+            "patch 21 fast (3 levels, step 2, strips, skip black)",
+            SynthParams {
+                patch: 21,
+                ..SynthParams::fast()
+            },
+        ),
+        (
+            "patch 41 fast (3 levels, step 2, strips, skip black)",
             SynthParams::fast(),
         ),
         (
-            "patch 41 step 4 + 3 levels + strips",
+            "patch 41 fast, step 4",
             SynthParams {
                 step: 4,
                 ..SynthParams::fast()
             },
         ),
         (
-            "patch 41 step 2, 1 level, strips",
+            "patch 41 fast, 1 level",
             SynthParams {
-                step: 2,
-                strips: 0,
-                ..Default::default()
+                levels: 1,
+                ..SynthParams::fast()
+            },
+        ),
+        (
+            "patch 41 stage (i) only",
+            SynthParams {
+                max_synth_iters: 0,
+                ..SynthParams::fast()
             },
         ),
     ];

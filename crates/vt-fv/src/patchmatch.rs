@@ -154,8 +154,8 @@ pub(crate) enum Mode<'a> {
     /// Plain PatchMatch: query from image A, propagation from the previous pixel in scan order
     /// horizontally and vertically.
     Plain { a: &'a [[u8; 3]] },
-    /// Guided synthesis stage (ii): query from the output above and left of `a` (the upper-left
-    /// L) and from the target elsewhere, centre included; propagation from every processed pixel
+    /// Guided synthesis stage (ii): query from the output above and left of `a` within distance
+    /// `l` (the upper-left L) and from the target elsewhere, centre included; propagation from every processed pixel
     /// within `l` (a causal `(2l + 1) x (l + 1)` window); writes each chosen colour at once.
     Mixed { target: &'a [[u8; 3]], l: usize },
 }
@@ -169,6 +169,9 @@ pub(crate) struct Iter<'a> {
     pub reverse: bool,
     pub strips: usize,
     pub seed: u64,
+    /// Pixels to process (row-major over A); `None` = all. Skipped pixels keep their match and
+    /// output.
+    pub active: Option<&'a [bool]>,
 }
 
 /// One iteration over the field (and, in mixed mode, the output). Returns how many matches
@@ -254,6 +257,7 @@ impl Strip<'_> {
     ) -> usize {
         let mut rng = Rng::new(seed);
         let mut q = Query::default();
+        let mut tried: Vec<(u32, u32)> = Vec::with_capacity(64);
         let mut changed = 0;
         let (w, h) = (self.w as i64, self.h as i64);
         let src = &it.src;
@@ -261,6 +265,9 @@ impl Strip<'_> {
         for k in 0..n {
             let k = if it.reverse { n - 1 - k } else { k };
             let (ax, ay) = (k % self.w, self.y0 + k / self.w);
+            if it.active.is_some_and(|a| !a[ay * self.w + ax]) {
+                continue;
+            }
             // Build the query patch.
             q.off.clear();
             q.col.clear();
@@ -271,8 +278,11 @@ impl Strip<'_> {
                 }
                 let c = match mode {
                     Mode::Plain { a } => a[y as usize * self.w + x as usize],
-                    Mode::Mixed { target, .. } => {
-                        if dy < 0 || (dy == 0 && dx < 0) {
+                    Mode::Mixed { target, l } => {
+                        // The output's upper-left L: processed pixels within distance L of a
+                        // (the pixels propagation looks at); the target fills the rest.
+                        let causal = dy < 0 || (dy == 0 && dx < 0);
+                        if causal && dx.abs().max(dy.abs()) <= *l as i64 {
                             self.out(out, x as usize, y as usize)
                         } else {
                             target[y as usize * self.w + x as usize]
@@ -288,15 +298,23 @@ impl Strip<'_> {
                 Mode::Plain { .. } => dist[k],
                 Mode::Mixed { .. } => q.dist(src, best, u64::MAX),
             };
-            let try_cand = |c: (u32, u32), best: &mut (u32, u32), best_d: &mut u64| {
-                if c != *best {
-                    let d = q.dist(src, c, *best_d);
-                    if d < *best_d {
-                        *best_d = d;
-                        *best = c;
+            // Candidates already measured for this pixel are skipped: in coherent regions
+            // most propagation neighbours propose the same patch.
+            tried.clear();
+            tried.push(start);
+            let mut try_cand =
+                |c: (u32, u32), best: &mut (u32, u32), best_d: &mut u64, dedupe: bool| {
+                    if c != *best && !(dedupe && tried.contains(&c)) {
+                        if dedupe {
+                            tried.push(c);
+                        }
+                        let d = q.dist(src, c, *best_d);
+                        if d < *best_d {
+                            *best_d = d;
+                            *best = c;
+                        }
                     }
-                }
-            };
+                };
             // Propagation.
             match mode {
                 Mode::Plain { .. } => {
@@ -308,7 +326,7 @@ impl Strip<'_> {
                         }
                         let p = self.pos(pos, qx as usize, qy as usize);
                         let c = src.clamp(p.0 as i64 - dx, p.1 as i64 - dy);
-                        try_cand(c, &mut best, &mut best_d);
+                        try_cand(c, &mut best, &mut best_d, true);
                     }
                 }
                 Mode::Mixed { l, .. } => {
@@ -324,7 +342,7 @@ impl Strip<'_> {
                             }
                             let p = self.pos(pos, qx as usize, qy as usize);
                             let c = src.clamp(p.0 as i64 - dx, p.1 as i64 - dy);
-                            try_cand(c, &mut best, &mut best_d);
+                            try_cand(c, &mut best, &mut best_d, true);
                         }
                     }
                 }
@@ -337,7 +355,7 @@ impl Strip<'_> {
                     best.0 as i64 + rng.range(-rr, rr),
                     best.1 as i64 + rng.range(-rr, rr),
                 );
-                try_cand(c, &mut best, &mut best_d);
+                try_cand(c, &mut best, &mut best_d, false);
                 radius *= it.alpha;
             }
             pos[k] = best;
@@ -482,6 +500,7 @@ pub fn patchmatch(a: &RgbImage, b: &RgbImage, p: &PatchMatchParams) -> Result<(N
             reverse: iters % 2 == 1,
             strips: p.strips,
             seed: p.seed.wrapping_add(iters as u64 + 1),
+            active: None,
         };
         let changed = iterate(&it, &Mode::Plain { a: &ap }, &mut nnf, &mut dummy);
         iters += 1;
