@@ -1402,6 +1402,56 @@ fn extreme_images(t: &mut Table) -> Result<()> {
     Ok(())
 }
 
+/// A homography whose line at infinity passes exactly through output column 8 (`w = 0` there in
+/// both implementations, as `H` is an involution with power-of-two entries). vt-core leaves those
+/// pixels black / clear (they have no preimage); OpenCV's `W ? 1/W : 0` sends them to source pixel
+/// (0, 0). The row asserts that this column is the only difference and that vt-core's answer there
+/// is the empty one.
+fn line_at_infinity(t: &mut Table) -> Result<()> {
+    let h = Homography::from_matrix(Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.125, 0.0, -1.0))?;
+    let img = RgbImage::from_fn(16, 8, |x, y| image::Rgb([100 + x as u8, 50 + y as u8, 7]));
+    let full = Mask::from_fn(16, 8, |_, _| true);
+    let (mut other_cols, mut col8_vt_clear, mut col8_differ) = (0, true, 0);
+    for interp in [Interpolation::Nearest, Interpolation::Bilinear] {
+        let vt = vt_core::warp::warp_rgb(&img, &h, 16, 8, interp);
+        let cv = vt_cv::warp::warp_rgb(&img, &h, 16, 8, interp)?;
+        for (x, y, p) in vt.enumerate_pixels() {
+            if *p != *cv.get_pixel(x, y) {
+                if x == 8 {
+                    col8_differ += 1;
+                    col8_vt_clear &= p.0 == [0, 0, 0];
+                } else {
+                    other_cols += 1;
+                }
+            }
+        }
+    }
+    let (vm, cm) = (
+        vt_core::warp::warp_mask(&full, &h, 16, 8),
+        vt_cv::warp::warp_mask(&full, &h, 16, 8)?,
+    );
+    for y in 0..8 {
+        for x in 0..16 {
+            if vm.get(x, y) != cm.get(x, y) {
+                if x == 8 {
+                    col8_differ += 1;
+                    col8_vt_clear &= !vm.get(x, y);
+                } else {
+                    other_cols += 1;
+                }
+            }
+        }
+    }
+    t.add(
+        "warp on the line at infinity",
+        "16x8, w = 0 on column 8",
+        format!("{col8_differ} px differ on col 8 (vt empty, cv src(0,0)), {other_cols} elsewhere"),
+        "only col 8; vt empty there",
+        other_cols == 0 && col8_vt_clear,
+    );
+    Ok(())
+}
+
 fn extreme_masks(t: &mut Table) -> Result<()> {
     let (w, h) = (64u32, 48u32);
     let empty = Mask::new(w, h);
@@ -1513,6 +1563,7 @@ fn main() {
         ("extreme points", Box::new(extreme_points)),
         ("extreme images", Box::new(extreme_images)),
         ("extreme masks", Box::new(extreme_masks)),
+        ("line at infinity", Box::new(line_at_infinity)),
     ];
     for (name, section) in sections {
         let t0 = Instant::now();
