@@ -7,6 +7,9 @@
 
 use nalgebra::{DMatrix, Matrix3, SMatrix, SVector, Vector3};
 
+type Vec9 = SVector<f64, 9>;
+type Matrix9 = SMatrix<f64, 9, 9>;
+
 use crate::{Error, Result};
 
 /// A 2-D point in pixels, origin top-left, pixel centres at integers.
@@ -257,27 +260,63 @@ fn apply_raw(m: &Matrix3<f64>, p: &Point) -> Point {
 fn estimate(src: &[Point], dst: &[Point]) -> Result<HomographyFit> {
     check_points(src, dst, 4, "a homography")?;
     let (ts, td) = (normalizer(src), normalizer(dst));
-    let ns: Vec<Point> = src.iter().map(|p| apply_raw(&ts, p)).collect();
-    let nd: Vec<Point> = dst.iter().map(|p| apply_raw(&td, p)).collect();
-
-    // DLT: two rows per pair, padded with zero rows to at least 9 so the SVD yields a full V.
-    let rows = (2 * ns.len()).max(9);
-    let mut a = DMatrix::<f64>::zeros(rows, 9);
-    for (i, (s, d)) in ns.iter().zip(&nd).enumerate() {
-        let (x, y, u, v) = (s.x, s.y, d.x, d.y);
-        let r0 = [-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, u];
-        let r1 = [0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v];
-        for j in 0..9 {
-            a[(2 * i, j)] = r0[j];
-            a[(2 * i + 1, j)] = r1[j];
+    // Normalised points: on the stack for up to 8 pairs (the usual K), else on the heap.
+    let (mut small_s, mut small_d) = ([Point::origin(); 8], [Point::origin(); 8]);
+    let (big_s, big_d): (Vec<Point>, Vec<Point>);
+    let (ns, nd): (&[Point], &[Point]) = if src.len() <= 8 {
+        for (i, (s, d)) in src.iter().zip(dst).enumerate() {
+            small_s[i] = apply_raw(&ts, s);
+            small_d[i] = apply_raw(&td, d);
         }
-    }
-    let svd = a.svd(false, true);
-    let v_t = svd.v_t.as_ref().expect("SVD asked for V^T");
-    let mut order: Vec<usize> = (0..9).collect();
-    order.sort_by(|&i, &j| svd.singular_values[i].total_cmp(&svd.singular_values[j]));
-    let (smallest, second) = (svd.singular_values[order[0]], svd.singular_values[order[1]]);
-    let largest = svd.singular_values[order[8]];
+        (&small_s[..src.len()], &small_d[..src.len()])
+    } else {
+        big_s = src.iter().map(|p| apply_raw(&ts, p)).collect();
+        big_d = dst.iter().map(|p| apply_raw(&td, p)).collect();
+        (&big_s, &big_d)
+    };
+
+    // DLT: two rows per pair. Up to 8 pairs the matrix is a fixed 16x9 (zero rows for missing
+    // pairs change nothing) so the renderer's per-viewpoint refits allocate nothing; beyond, a
+    // heap matrix padded to at least 9 rows so the SVD yields a full V.
+    let rows_of = |i: usize| {
+        let (s, d) = (ns[i], nd[i]);
+        let (x, y, u, v) = (s.x, s.y, d.x, d.y);
+        (
+            [-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, u],
+            [0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v],
+        )
+    };
+    let (singular, v_t): (Vec9, Matrix9) = if ns.len() <= 8 {
+        let mut a = SMatrix::<f64, 16, 9>::zeros();
+        for i in 0..ns.len() {
+            let (r0, r1) = rows_of(i);
+            for j in 0..9 {
+                a[(2 * i, j)] = r0[j];
+                a[(2 * i + 1, j)] = r1[j];
+            }
+        }
+        let svd = a.svd(false, true);
+        (svd.singular_values, svd.v_t.expect("SVD asked for V^T"))
+    } else {
+        let mut a = DMatrix::<f64>::zeros(2 * ns.len(), 9);
+        for i in 0..ns.len() {
+            let (r0, r1) = rows_of(i);
+            for j in 0..9 {
+                a[(2 * i, j)] = r0[j];
+                a[(2 * i + 1, j)] = r1[j];
+            }
+        }
+        let svd = a.svd(false, true);
+        let v_t = svd.v_t.expect("SVD asked for V^T");
+        (
+            Vec9::from_column_slice(svd.singular_values.as_slice()),
+            Matrix9::from_column_slice(v_t.as_slice()),
+        )
+    };
+    let mut order = [0usize, 1, 2, 3, 4, 5, 6, 7, 8];
+    order.sort_by(|&i, &j| singular[i].total_cmp(&singular[j]));
+    let (smallest, second) = (singular[order[0]], singular[order[1]]);
+    let largest = singular[order[8]];
     // A second (near-)null vector means the points do not pin H down (e.g. 3 of 4 collinear).
     if second <= 1e-10 * largest {
         return Err(Error::DegeneratePoints(format!(
@@ -288,7 +327,7 @@ fn estimate(src: &[Point], dst: &[Point]) -> Result<HomographyFit> {
     }
     let h = v_t.row(order[0]);
     let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
-    let hn = refine_lm(hn, &ns, &nd);
+    let hn = refine_lm(hn, ns, nd);
     let ti = td
         .try_inverse()
         .expect("normaliser is a similarity, always invertible");

@@ -24,9 +24,10 @@
 //! the homographies and the warped, blended background are recomputed only when q changes.
 
 use image::RgbImage;
+use rayon::prelude::*;
 
 use crate::model::{fit_model, MotionModel};
-use crate::warp::{warp_rgb_with, Border, Interpolation};
+use crate::warp::Interpolation;
 use crate::{Error, Homography, Point, Result};
 
 /// A view as the renderer needs it.
@@ -79,32 +80,42 @@ impl RenderScene {
 
     /// The virtual points `x(q)` of B-1.
     pub fn virtual_points(&self, q: f64) -> Vec<Point> {
+        let mut v = Vec::new();
+        self.virtual_points_into(q, &mut v);
+        v
+    }
+
+    /// [`RenderScene::virtual_points`] into a reused buffer.
+    pub fn virtual_points_into(&self, q: f64, out: &mut Vec<Point>) {
+        out.clear();
         let m1 = self.q_max();
         if m1 == 0.0 {
-            return self.views[0].points.clone();
+            out.extend_from_slice(&self.views[0].points);
+            return;
         }
         let (a, b) = (
             &self.views[0].points,
             &self.views[self.views.len() - 1].points,
         );
-        a.iter()
-            .zip(b)
-            .map(|(p0, p1)| Point::from((p0.coords * (m1 - q) + p1.coords * q) / m1))
-            .collect()
+        out.extend(
+            a.iter()
+                .zip(b)
+                .map(|(p0, p1)| Point::from((p0.coords * (m1 - q) + p1.coords * q) / m1)),
+        );
     }
 
     /// `H_(p,q)`: view p's points to the virtual points at q, with the scene's model.
     pub fn homography_to(&self, p: usize, q: f64) -> Result<Homography> {
+        self.homography_to_with(p, q, &mut Vec::new())
+    }
+
+    /// [`RenderScene::homography_to`] with a reused buffer for the virtual points.
+    pub fn homography_to_with(&self, p: usize, q: f64, buf: &mut Vec<Point>) -> Result<Homography> {
         if self.views.len() == 1 {
             return Ok(Homography::identity());
         }
-        Ok(fit_model(
-            self.model,
-            &self.views[p].points,
-            &self.virtual_points(q),
-            1.0,
-        )?
-        .homography)
+        self.virtual_points_into(q, buf);
+        Ok(fit_model(self.model, &self.views[p].points, buf, 1.0)?.homography)
     }
 }
 
@@ -342,10 +353,7 @@ pub struct Renderer {
     cached_q: Option<f64>,
     h_to_q: Vec<Option<Homography>>,
     background_q: RgbImage,
-    warp_a: RgbImage,
-    warp_b: RgbImage,
-    cover_a: Vec<u8>,
-    cover_b: Vec<u8>,
+    vpoints: Vec<Point>,
     patch: ObjectPatch,
     patch_old: ObjectPatch,
     fade: Option<(usize, usize, usize)>,
@@ -360,6 +368,7 @@ impl Renderer {
             why: "a scene needs a view".into(),
         })?;
         let (width, height) = first.background.dimensions();
+        let k_points = first.points.len();
         let gains = if params.gain_compensation {
             estimate_gains(&scene)?
         } else {
@@ -375,10 +384,7 @@ impl Renderer {
             cached_q: None,
             h_to_q: vec![None; m],
             background_q: RgbImage::new(width, height),
-            warp_a: RgbImage::new(width, height),
-            warp_b: RgbImage::new(width, height),
-            cover_a: vec![0; width as usize * height as usize],
-            cover_b: vec![0; width as usize * height as usize],
+            vpoints: Vec::with_capacity(k_points),
             patch: ObjectPatch::default(),
             patch_old: ObjectPatch::default(),
             fade: None,
@@ -409,50 +415,35 @@ impl Renderer {
         self.h_to_q.iter_mut().for_each(|h| *h = None);
         for p in [f, c, qbar] {
             if self.h_to_q[p].is_none() {
-                self.h_to_q[p] = Some(self.scene.homography_to(p, q)?);
+                self.h_to_q[p] = Some(self.scene.homography_to_with(p, q, &mut self.vpoints)?);
             }
         }
-        let interp = self.params.interpolation;
         let hf = self.h_to_q[f].expect("computed above");
-        // Edges: sample by replication, and blend by what each view really sees, so a strip
-        // that only one view covers takes that view alone instead of fading to black.
-        warp_rgb_with(
-            &self.scene.views[f].background,
-            &hf,
-            interp,
-            Border::Replicate,
-            &mut self.warp_a,
-            Some(&mut self.cover_a),
-        );
-        let gf = self.gains[f];
-        if f == c {
-            scale_into(&self.warp_a, gf, &mut self.background_q);
+        let hc = self.h_to_q[c].expect("computed above");
+        let (wf, wc) = if f == c {
+            (1.0, 0.0)
         } else {
-            let hc = self.h_to_q[c].expect("computed above");
-            warp_rgb_with(
-                &self.scene.views[c].background,
-                &hc,
-                interp,
-                Border::Replicate,
-                &mut self.warp_b,
-                Some(&mut self.cover_b),
-            );
-            let (wf, wc) = ((c as f64 - q) as f32, (q - f as f64) as f32);
-            let gc = self.gains[c];
-            let out = self.background_q.as_mut();
-            let (a, b) = (self.warp_a.as_raw(), self.warp_b.as_raw());
-            for (i, o) in out.iter_mut().enumerate() {
-                let (px, ch) = (i / 3, i % 3);
-                let (wa, wb) = match (self.cover_a[px], self.cover_b[px]) {
-                    (1, 0) => (1.0, 0.0),
-                    (0, 1) => (0.0, 1.0),
-                    _ => (wf, wc),
-                };
-                *o = (wa * a[i] as f32 / gf[ch] + wb * b[i] as f32 / gc[ch])
-                    .round()
-                    .clamp(0.0, 255.0) as u8;
-            }
-        }
+            ((c as f64 - q) as f32, (q - f as f64) as f32)
+        };
+        let sources = [
+            Source {
+                image: &self.scene.views[f].background,
+                h: &hf,
+                gain_inv: self.gains[f].map(|g| 1.0 / g),
+                weight: wf,
+            },
+            Source {
+                image: &self.scene.views[c].background,
+                h: &hc,
+                gain_inv: self.gains[c].map(|g| 1.0 / g),
+                weight: wc,
+            },
+        ];
+        blend_warps(
+            &sources[..if f == c { 1 } else { 2 }],
+            self.params.interpolation,
+            &mut self.background_q,
+        );
         self.cached_q = Some(q);
         Ok(())
     }
@@ -499,7 +490,7 @@ impl Renderer {
                 let alpha = (k + 1) as f32 / (self.params.crossfade + 1) as f32;
                 let ho = match self.h_to_q[ov] {
                     Some(hh) => hh,
-                    None => self.scene.homography_to(ov, q)?,
+                    None => self.scene.homography_to_with(ov, q, &mut self.vpoints)?,
                 };
                 let go = self.gains[ov];
                 composite(
@@ -521,13 +512,108 @@ impl Renderer {
     }
 }
 
-fn scale_into(src: &RgbImage, gain: [f32; 3], out: &mut RgbImage) {
-    if gain == [1.0; 3] {
-        out.as_mut().copy_from_slice(src.as_raw());
-        return;
-    }
-    for (i, (o, &v)) in out.as_mut().iter_mut().zip(src.as_raw()).enumerate() {
-        *o = (v as f32 / gain[i % 3]).round().clamp(0.0, 255.0) as u8;
+/// One background of eq. (3): the image, its `H_(p,q)`, its inverse gain and blend weight.
+struct Source<'a> {
+    image: &'a RgbImage,
+    h: &'a Homography,
+    gain_inv: [f32; 3],
+    weight: f32,
+}
+
+/// Eq. (3) in one pass: each output pixel samples every source through its homography
+/// (edges replicated), and blends with the sources' weights renormalised over the sources whose
+/// sample really falls inside their image (`-0.5 <= x < w - 0.5`), so a strip only one view sees
+/// takes that view alone instead of fading to black. Where no source sees the pixel, all are
+/// blended from their replicated edges.
+fn blend_warps(sources: &[Source], interp: Interpolation, out: &mut RgbImage) {
+    let w = out.width() as usize;
+    out.as_mut()
+        .par_chunks_mut(w * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let yf = y as f64;
+            for (x, o) in row.chunks_exact_mut(3).enumerate() {
+                let xf = x as f64;
+                let mut acc = [0f32; 3];
+                let mut acc_all = [0f32; 3];
+                let (mut wsum, mut wsum_all) = (0f32, 0f32);
+                for s in sources {
+                    let inv = s.h.raw().1;
+                    let ww = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
+                    let (sx, sy) = (
+                        (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / ww,
+                        (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / ww,
+                    );
+                    if !(sx.is_finite() && sy.is_finite()) {
+                        continue;
+                    }
+                    let (iw, ih) = (s.image.width() as f64, s.image.height() as f64);
+                    let inside = sx >= -0.5 && sy >= -0.5 && sx < iw - 0.5 && sy < ih - 0.5;
+                    let c = sample_replicate(s.image, sx, sy, interp);
+                    for k in 0..3 {
+                        let v = s.weight * s.gain_inv[k] * c[k];
+                        acc_all[k] += v;
+                        if inside {
+                            acc[k] += v;
+                        }
+                    }
+                    wsum_all += s.weight;
+                    if inside {
+                        wsum += s.weight;
+                    }
+                }
+                let (acc, wsum) = if wsum > 0.0 {
+                    (acc, wsum)
+                } else {
+                    (acc_all, wsum_all)
+                };
+                for k in 0..3 {
+                    o[k] = if wsum > 0.0 {
+                        (acc[k] / wsum).round().clamp(0.0, 255.0) as u8
+                    } else {
+                        0
+                    };
+                }
+            }
+        });
+}
+
+/// One RGB sample with replicated edges.
+#[inline]
+fn sample_replicate(img: &RgbImage, sx: f64, sy: f64, interp: Interpolation) -> [f32; 3] {
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    let raw = img.as_raw();
+    let at =
+        |x: i64, y: i64| (y.clamp(0, h - 1) as usize * w as usize + x.clamp(0, w - 1) as usize) * 3;
+    match interp {
+        Interpolation::Nearest => {
+            let i = at(sx.round_ties_even() as i64, sy.round_ties_even() as i64);
+            [raw[i] as f32, raw[i + 1] as f32, raw[i + 2] as f32]
+        }
+        Interpolation::Bilinear => {
+            let (x0, y0) = (sx.floor(), sy.floor());
+            let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let (i00, i10, i01, i11) = if x0 >= 0 && y0 >= 0 && x0 + 1 < w && y0 + 1 < h {
+                let i = (y0 as usize * w as usize + x0 as usize) * 3;
+                let j = i + w as usize * 3;
+                (i, i + 3, j, j + 3)
+            } else {
+                (
+                    at(x0, y0),
+                    at(x0 + 1, y0),
+                    at(x0, y0 + 1),
+                    at(x0 + 1, y0 + 1),
+                )
+            };
+            let mut c = [0f32; 3];
+            for k in 0..3 {
+                let top = raw[i00 + k] as f32 + (raw[i10 + k] as f32 - raw[i00 + k] as f32) * fx;
+                let bottom = raw[i01 + k] as f32 + (raw[i11 + k] as f32 - raw[i01 + k] as f32) * fx;
+                c[k] = top + (bottom - top) * fy;
+            }
+            c
+        }
     }
 }
 

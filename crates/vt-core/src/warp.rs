@@ -207,6 +207,19 @@ pub fn warp_rgb_with(
                     let (x0, y0) = (sx.floor(), sy.floor());
                     let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
                     let (x0, y0) = (x0 as i64, y0 as i64);
+                    if x0 >= 0 && y0 >= 0 && x0 + 1 < sw && y0 + 1 < sh {
+                        // Interior: the four taps directly, no border logic.
+                        let i = (y0 as usize * sw as usize + x0 as usize) * 3;
+                        let j = i + sw as usize * 3;
+                        for k in 0..3 {
+                            let (a, b) = (sraw[i + k] as f32, sraw[i + 3 + k] as f32);
+                            let (c, d) = (sraw[j + k] as f32, sraw[j + 3 + k] as f32);
+                            let top = a + (b - a) * fx;
+                            let bottom = c + (d - c) * fx;
+                            o[k] = (top + (bottom - top) * fy).round().clamp(0.0, 255.0) as u8;
+                        }
+                        continue;
+                    }
                     let (a, b, c, d) = (
                         px(x0, y0),
                         px(x0 + 1, y0),
