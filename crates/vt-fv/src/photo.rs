@@ -701,4 +701,131 @@ mod tests {
         };
         assert_eq!(footprint(&s, 20, 20), None);
     }
+    /// The reference algorithm: every pass re-renders every ID buffer from scratch and
+    /// re-tests every surface voxel.
+    fn photo_hull_naive(
+        mut grid: VoxelGrid,
+        cams: &[Camera],
+        images: &[RgbImage],
+        p: &PhotoParams,
+    ) -> (VoxelGrid, Vec<(usize, [u8; 3], u32)>, usize) {
+        let vs = grid.voxel_size();
+        let size = (vs.x * vs.y * vs.z).cbrt();
+        let mut surface = surface_of(&grid);
+        let mut listed: std::collections::HashSet<usize> = surface.iter().copied().collect();
+        let mut passes = 0;
+        loop {
+            let centres: Vec<Vector3<f64>> = surface
+                .iter()
+                .map(|&i| grid.centre(grid.coords(i)))
+                .collect();
+            let bufs: Vec<IdBuffer> = cams
+                .iter()
+                .zip(images)
+                .map(|(cam, img)| {
+                    let mut b = IdBuffer::new(cam, img.width(), img.height());
+                    for (slot, c) in centres.iter().enumerate() {
+                        b.add(cam, slot as u32, c, size, p.splat_scale);
+                    }
+                    b.refresh(
+                        cam,
+                        &centres,
+                        &vec![true; centres.len()],
+                        size,
+                        p.splat_scale,
+                        &mut Vec::new(),
+                    );
+                    b
+                })
+                .collect();
+            let slots: Vec<u32> = (0..surface.len() as u32).collect();
+            let st = gather(cams, images, &bufs, &centres, &slots, size, p.splat_scale);
+            let bad: Vec<usize> = (0..surface.len())
+                .filter(|&k| !st[k].consistent(p.threshold))
+                .collect();
+            if bad.is_empty() || passes >= p.max_passes {
+                let mut out: Vec<(usize, [u8; 3], u32)> = surface
+                    .iter()
+                    .zip(&st)
+                    .map(|(&i, s)| (i, s.mean(), s.n))
+                    .collect();
+                out.sort_unstable_by_key(|v| v.0);
+                return (grid, out, passes);
+            }
+            passes += 1;
+            for &k in &bad {
+                grid.set_index(surface[k], false);
+            }
+            let mut next: Vec<usize> = surface
+                .iter()
+                .copied()
+                .filter(|&i| grid.get_index(i))
+                .collect();
+            for &k in &bad {
+                let [x, y, z] = grid.coords(surface[k]).map(|c| c as i64);
+                for (dx, dy, dz) in [
+                    (-1, 0, 0),
+                    (1, 0, 0),
+                    (0, -1, 0),
+                    (0, 1, 0),
+                    (0, 0, -1),
+                    (0, 0, 1),
+                ] {
+                    if grid.get(x + dx, y + dy, z + dz) {
+                        let j = grid.index((x + dx) as usize, (y + dy) as usize, (z + dz) as usize);
+                        if listed.insert(j) {
+                            next.push(j);
+                        }
+                    }
+                }
+            }
+            surface = next;
+        }
+    }
+
+    #[test]
+    fn incremental_passes_match_full_re_renders() {
+        let d = crate::synth::generate(&crate::synth::SceneParams {
+            n_views: 6,
+            width: 120,
+            height: 120,
+            extra_angles_deg: vec![],
+            ..Default::default()
+        })
+        .unwrap();
+        let vh = crate::hull::visual_hull(
+            &d.cameras,
+            &d.masks,
+            &crate::hull::HullParams {
+                dims: [48; 3],
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        for p in [
+            PhotoParams::default(),
+            PhotoParams {
+                threshold: 8.0,
+                max_passes: 5,
+                ..Default::default()
+            },
+        ] {
+            let (g, naive, passes) = photo_hull_naive(vh.clone(), &d.cameras, &d.photos, &p);
+            let m = photo_hull(vh.clone(), &d.cameras, &d.photos, &p, &mut |_, _, _| {}).unwrap();
+            assert!(
+                passes > 1,
+                "{p:?}: carving too easy to test ({passes} passes)"
+            );
+            assert_eq!(m.passes, passes, "{p:?}");
+            assert!(m.grid == g, "{p:?}: occupancy differs");
+            let inc: Vec<(usize, [u8; 3], u32)> = m
+                .surface
+                .iter()
+                .filter(|v| v.seen_by > 0)
+                .map(|v| (v.index, v.colour, v.seen_by))
+                .collect();
+            let naive_seen: Vec<_> = naive.into_iter().filter(|v| v.2 > 0).collect();
+            assert_eq!(inc, naive_seen, "{p:?}: seen surface voxels differ");
+        }
+    }
 }
