@@ -701,6 +701,9 @@ mod tests {
         };
         assert_eq!(footprint(&s, 20, 20), None);
     }
+    /// A surface voxel's index, colour and number of cameras seeing it.
+    type Coloured = (usize, [u8; 3], u32);
+
     /// The reference algorithm: every pass re-renders every ID buffer from scratch and
     /// re-tests every surface voxel.
     fn photo_hull_naive(
@@ -708,7 +711,7 @@ mod tests {
         cams: &[Camera],
         images: &[RgbImage],
         p: &PhotoParams,
-    ) -> (VoxelGrid, Vec<(usize, [u8; 3], u32)>, usize) {
+    ) -> (VoxelGrid, Vec<Coloured>, usize) {
         let vs = grid.voxel_size();
         let size = (vs.x * vs.y * vs.z).cbrt();
         let mut surface = surface_of(&grid);
@@ -744,7 +747,7 @@ mod tests {
                 .filter(|&k| !st[k].consistent(p.threshold))
                 .collect();
             if bad.is_empty() || passes >= p.max_passes {
-                let mut out: Vec<(usize, [u8; 3], u32)> = surface
+                let mut out: Vec<Coloured> = surface
                     .iter()
                     .zip(&st)
                     .map(|(&i, s)| (i, s.mean(), s.n))
@@ -818,7 +821,7 @@ mod tests {
             );
             assert_eq!(m.passes, passes, "{p:?}");
             assert!(m.grid == g, "{p:?}: occupancy differs");
-            let inc: Vec<(usize, [u8; 3], u32)> = m
+            let inc: Vec<Coloured> = m
                 .surface
                 .iter()
                 .filter(|v| v.seen_by > 0)
