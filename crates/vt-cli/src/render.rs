@@ -370,15 +370,19 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
     let mut frame = RgbImage::new(w, h);
     let mut seams = Vec::new();
     let pb = bar(qs.len() as u64, "render");
-    for &q in &qs {
-        let choice = player.advance(&scene.render, q)?;
-        if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
-            seams.extend(jump_seam(&scene, &choice));
+    // On a rayon worker, the renderer's parallel passes queue locally: no allocation per frame.
+    rayon::scope(|_| -> Result<()> {
+        for &q in &qs {
+            let choice = player.advance(&scene.render, q)?;
+            if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
+                seams.extend(jump_seam(&scene, &choice));
+            }
+            renderer.render_into(&scene.objects, q, &choice, &mut frame)?;
+            sink.write(&frame)?;
+            pb.inc(1);
         }
-        renderer.render_into(&scene.objects, q, &choice, &mut frame)?;
-        sink.write(&frame)?;
-        pb.inc(1);
-    }
+        Ok(())
+    })?;
     pb.finish_and_clear();
     sink.finish()?;
     let summary = RenderSummary {

@@ -104,7 +104,9 @@ pub fn run(args: ViewArgs) -> Result<()> {
     {
         let shared = shared.clone();
         let (fps, quality) = (args.fps, args.quality);
-        std::thread::spawn(move || render_loop(scene, renderer, shared, fps, quality));
+        std::thread::spawn(move || {
+            rayon::scope(|_| render_loop(scene, renderer, shared, fps, quality))
+        });
     }
     let name = serde_json::to_string(&args.scene.display().to_string())?.replace('<', "\\u003c");
     let page = PAGE
