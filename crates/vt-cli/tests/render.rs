@@ -317,3 +317,66 @@ fn render_outputs_and_bad_input() {
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }
+
+/// Mean absolute difference between two frames, grey levels.
+fn mad(a: &RgbImage, b: &RgbImage) -> f64 {
+    a.as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(&x, &y)| x.abs_diff(y) as f64)
+        .sum::<f64>()
+        / a.as_raw().len() as f64
+}
+
+#[test]
+fn crossfade_softens_real_loop_wraps() {
+    // tree.avi's loops are real, imperfect seams: the wrap is a visible jump without crossfade.
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
+    let dir = tmp.path().join("tree");
+    vt_ok(&["analyze", s(&tree), "--out", s(&dir), "--min-length", "20"]);
+    let loaded = LoadedScene::open(&dir).unwrap();
+    // Largest frame-to-frame change within 2 frames of each wrap, and the median ordinary step.
+    let measure = |crossfade: usize| {
+        let params = RenderParams {
+            crossfade,
+            ..Default::default()
+        };
+        let mut r = Renderer::new(loaded.render.clone(), params).unwrap();
+        let (w, h) = r.size();
+        let mut player = Player::new();
+        let (mut prev, mut cur) = (RgbImage::new(w, h), RgbImage::new(w, h));
+        let (mut steps, mut wrap_steps) = (Vec::new(), Vec::new());
+        let mut since_wrap = usize::MAX;
+        for i in 0..70 {
+            let c = player.advance(&loaded.render, 0.0).unwrap();
+            if c.step == vt_core::render::Step::Wrap {
+                since_wrap = 0;
+            }
+            r.render_into(&loaded.objects, 0.0, &c, &mut cur).unwrap();
+            if i > 0 {
+                let d = mad(&prev, &cur);
+                if since_wrap <= 2 {
+                    wrap_steps.push(d);
+                } else {
+                    steps.push(d);
+                }
+            }
+            since_wrap = since_wrap.saturating_add(1);
+            std::mem::swap(&mut prev, &mut cur);
+        }
+        steps.sort_by(f64::total_cmp);
+        let worst_wrap = wrap_steps.iter().copied().fold(0.0, f64::max);
+        (worst_wrap, steps[steps.len() / 2], player.wraps)
+    };
+    let (plain, ordinary, wraps) = measure(0);
+    let (faded, _, _) = measure(3);
+    eprintln!(
+        "tree.avi, {wraps} wraps: largest step near a wrap {plain:.3} plain, {faded:.3} with a 3-frame crossfade; median ordinary step {ordinary:.3} (grey levels)"
+    );
+    assert!(wraps >= 2);
+    assert!(
+        faded < plain,
+        "crossfade should soften the wrap: {plain:.3} -> {faded:.3}"
+    );
+}
