@@ -571,26 +571,6 @@ fn parse_camera(spec: &str, cams: &[Camera], scale: f64, target: &Vector3<f64>) 
     Ok(if scale == 1.0 { cam } else { cam.scaled(scale) })
 }
 
-/// Whether any corner-spanned part of the box projects into the image.
-fn sees_box(cam: &Camera, b: &Aabb, w: u32, h: u32) -> bool {
-    let pts: Vec<(f64, f64)> = b
-        .corners()
-        .iter()
-        .filter_map(|c| cam.project(c).map(|(u, v, _)| (u, v)))
-        .collect();
-    if pts.is_empty() {
-        return false;
-    }
-    if pts.len() < 8 {
-        return true;
-    }
-    let u0 = pts.iter().map(|p| p.0).fold(f64::MAX, f64::min);
-    let u1 = pts.iter().map(|p| p.0).fold(f64::MIN, f64::max);
-    let v0 = pts.iter().map(|p| p.1).fold(f64::MAX, f64::min);
-    let v1 = pts.iter().map(|p| p.1).fold(f64::MIN, f64::max);
-    u1 >= -0.5 && v1 >= -0.5 && u0 < w as f64 - 0.5 && v0 < h as f64 - 0.5
-}
-
 fn synth_params(s: &SynthArgs, w: u32, h: u32) -> Result<SynthParams> {
     if s.patch.is_multiple_of(2) || s.patch < 3 {
         bail!("--patch {} must be odd and at least 3", s.patch);
@@ -670,7 +650,7 @@ fn render(a: RenderArgs) -> Result<()> {
     // Check the camera against the volume before the expensive model build.
     let bounds = volume(&d, &a.model)?;
     let cam = parse_camera(&a.camera, &d.cams, a.data.scale, &bounds.centre())?;
-    if !sees_box(&cam, &bounds, w, h) {
+    if !vt_fv::hull::sees_box(&cam, &bounds, w, h) {
         bail!(
             "--camera {}: camera sees none of the volume {:?}..{:?}",
             cam.name,

@@ -4,79 +4,16 @@
 //!
 //! `VT_SLOW_TESTS=1` runs the temple at full size and a 128^3 grid.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 use std::sync::OnceLock;
 
+use common::*;
 use serde_json::Value;
 use vt_fv::eval::psnr;
 use vt_fv::silhouette::mask_from_image;
-
-fn vt(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_vt"))
-        .args(args)
-        .output()
-        .expect("run vt");
-    if std::env::var_os("VT_TEST_VERBOSE").is_some() {
-        eprintln!(
-            "$ vt {}\n{}{}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    out
-}
-
-/// Runs vt and fails with its command line and output unless it succeeds.
-fn vt_ok(args: &[&str]) -> String {
-    let out = vt(args);
-    assert!(
-        out.status.success(),
-        "vt {} failed:\nstdout:\n{}\nstderr:\n{}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).to_string()
-}
-
-/// Runs vt expecting a clean failure: non-zero exit, a one-line error containing every `want`,
-/// no panic. Returns the error line.
-fn vt_err(args: &[&str], want: &[&str]) -> String {
-    let out = vt(args);
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(
-        !out.status.success(),
-        "vt {} succeeded but should fail",
-        args.join(" ")
-    );
-    assert!(
-        !stderr.contains("panicked"),
-        "vt {} panicked:\n{stderr}",
-        args.join(" ")
-    );
-    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(
-        lines.len(),
-        1,
-        "vt {}: expected one error line, got:\n{stderr}",
-        args.join(" ")
-    );
-    for w in want {
-        assert!(
-            lines[0].contains(w),
-            "vt {}: error {:?} does not mention {w:?}",
-            args.join(" "),
-            lines[0]
-        );
-    }
-    lines[0].to_string()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
 
 fn scratch(name: &str) -> PathBuf {
     let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("fv-{name}"));
@@ -124,13 +61,6 @@ fn copy_dir(src: &Path, dst: &Path) {
             std::fs::copy(e.path(), &to).unwrap();
         }
     }
-}
-
-fn read_json(p: &Path) -> Value {
-    serde_json::from_str(
-        &std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())),
-    )
-    .unwrap()
 }
 
 /// Line `i` (0-based camera) of a par file.

@@ -597,7 +597,7 @@ fn check_inputs(cams: &[Camera], masks: &[Mask]) -> Result<()> {
 }
 
 /// Whether any part of the box projects into a camera's `w x h` image.
-fn sees_box(cam: &Camera, b: &Aabb, w: u32, h: u32) -> bool {
+pub fn sees_box(cam: &Camera, b: &Aabb, w: u32, h: u32) -> bool {
     let pts: Vec<(f64, f64)> = b
         .corners()
         .iter()
