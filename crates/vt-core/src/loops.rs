@@ -56,7 +56,9 @@ impl Loop {
 }
 
 /// Checks `w`, `k` and the frame count; returns the largest valid `n` (`N - w`).
-fn check(masks: &[Mask], params: &LoopParams, what: &str) -> Result<usize> {
+/// Checks `w`, `k` and the frame count of a view named `what`; returns the largest valid `n`
+/// (`N - w`). Shared with vt-cv so both refuse the same inputs with the same words.
+pub fn check_loop_input(n_frames: usize, params: &LoopParams, what: &str) -> Result<usize> {
     if params.window == 0 {
         return Err(Error::InvalidParameter {
             name: "window",
@@ -72,10 +74,10 @@ fn check(masks: &[Mask], params: &LoopParams, what: &str) -> Result<usize> {
         });
     }
     let need = params.window + params.min_length;
-    if masks.len() < need {
+    if n_frames < need {
         return Err(Error::TooFewFrames {
             what: what.to_string(),
-            got: masks.len(),
+            got: n_frames,
             need,
             why: format!(
                 "a loop needs w + k = {} + {} frames",
@@ -83,7 +85,7 @@ fn check(masks: &[Mask], params: &LoopParams, what: &str) -> Result<usize> {
             ),
         });
     }
-    Ok(masks.len() - params.window)
+    Ok(n_frames - params.window)
 }
 
 /// Row-major matrix of `XOR(I(a), I(b))` for `b - a >= k`, `b < N` (0 elsewhere).
@@ -114,7 +116,7 @@ pub fn find_loops(
     min_separation: usize,
     what: &str,
 ) -> Result<Vec<Loop>> {
-    let n_max = check(masks, params, what)?;
+    check_loop_input(masks.len(), params, what)?;
     for (i, m) in masks.iter().enumerate() {
         if (m.width(), m.height()) != (masks[0].width(), masks[0].height()) {
             return Err(Error::SizeMismatch {
@@ -126,9 +128,29 @@ pub fn find_loops(
             });
         }
     }
-    let n = masks.len();
+    let d = pair_costs(masks, params.min_length);
+    Ok(loops_from_pair_costs(
+        &d,
+        masks.len(),
+        params,
+        count,
+        min_separation,
+    ))
+}
+
+/// Eq. (1) from a pair-cost matrix: `d[a * n + b] = XOR(I(a), I(b))` for `b - a >= k` (row-major,
+/// `n x n`, other entries unused). Window sums, then the `count` best distinct loops with the
+/// tie-breaking of [`find_loops`]. Inputs must have passed [`check_loop_input`]. vt-cv feeds it
+/// OpenCV's costs, so both implementations share the search and differ only in the costs.
+pub fn loops_from_pair_costs(
+    d: &[u64],
+    n: usize,
+    params: &LoopParams,
+    count: usize,
+    min_separation: usize,
+) -> Vec<Loop> {
     let (w, k) = (params.window, params.min_length);
-    let d = pair_costs(masks, k);
+    let n_max = n - w;
     let cost = |m: usize, nn: usize| (0..w).map(|i| d[(m + i) * n + nn + i]).sum::<u64>();
     let mut all: Vec<Loop> = (0..=n_max - k)
         .flat_map(|m| (m + k..=n_max).map(move |e| (m, e)))
@@ -151,7 +173,7 @@ pub fn find_loops(
             out.push(l);
         }
     }
-    Ok(out)
+    out
 }
 
 #[cfg(test)]

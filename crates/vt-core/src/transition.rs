@@ -51,6 +51,30 @@ pub fn transition_table_with_costs(
     target_loop_end: usize,
     window: usize,
 ) -> Result<Vec<Option<(usize, u64)>>> {
+    let Some((t_max, t_frames)) = transition_range(warped, target, target_loop_end, window)? else {
+        return Ok(vec![None; warped.len()]);
+    };
+    let active = union_active_words(warped.iter().chain(&target[..t_frames]));
+    let ns = warped.len();
+    // D(s, t) for all s, t < t_frames.
+    let mut d = vec![0u64; ns * t_frames];
+    d.par_chunks_mut(t_frames).enumerate().for_each(|(s, row)| {
+        for (t, v) in row.iter_mut().enumerate() {
+            *v = xor_count_in(&warped[s], &target[t], active.clone());
+        }
+    });
+    Ok(transitions_from_pair_costs(&d, ns, t_frames, t_max, window))
+}
+
+/// Checks eq. (2)'s inputs. `None` when the target loop is too short for any t (every entry is
+/// then `None`); else `(t_max, t_frames)`: t runs over `0..=t_max` (`t + 1 < n_{p'}`) and windows
+/// touch target frames below `t_frames`. Shared with vt-cv.
+pub fn transition_range(
+    warped: &[Mask],
+    target: &[Mask],
+    target_loop_end: usize,
+    window: usize,
+) -> Result<Option<(usize, usize)>> {
     if window == 0 {
         return Err(Error::InvalidParameter {
             name: "window",
@@ -70,7 +94,7 @@ pub fn transition_table_with_costs(
         }
     }
     if target_loop_end < 2 {
-        return Ok(vec![None; warped.len()]);
+        return Ok(None);
     }
     // t + 1 < n_{p'}. Frames of the target any window may touch: t + i <= t_max + w - 1,
     // which is < N_{p'} since n + w - 1 < N.
@@ -84,16 +108,20 @@ pub fn transition_table_with_costs(
             why: "the target loop end lies beyond the target video".into(),
         });
     }
-    let active = union_active_words(warped.iter().chain(&target[..t_frames]));
-    let ns = warped.len();
-    // D(s, t) for all s, t < t_frames.
-    let mut d = vec![0u64; ns * t_frames];
-    d.par_chunks_mut(t_frames).enumerate().for_each(|(s, row)| {
-        for (t, v) in row.iter_mut().enumerate() {
-            *v = xor_count_in(&warped[s], &target[t], active.clone());
-        }
-    });
-    Ok((0..ns)
+    Ok(Some((t_max, t_frames)))
+}
+
+/// Eq. (2) from the cost matrix `d[s * t_frames + t] = XOR(H(I_p(s)), I_{p'}(t))`: for every s
+/// the t of least window sum (shortened windows at the tail, ties to the smallest t) and its cost.
+/// vt-cv feeds it OpenCV's costs, so both implementations share the search.
+pub fn transitions_from_pair_costs(
+    d: &[u64],
+    ns: usize,
+    t_frames: usize,
+    t_max: usize,
+    window: usize,
+) -> Vec<Option<(usize, u64)>> {
+    (0..ns)
         .map(|s| {
             let ws = window.min(ns - s);
             (0..=t_max)
@@ -107,7 +135,7 @@ pub fn transition_table_with_costs(
                 .min()
                 .map(|(cost, t)| (t, cost))
         })
-        .collect())
+        .collect()
 }
 
 /// Mean `XOR(I(s), I(s + 1))` over a sequence: the size of an ordinary frame-to-frame step,

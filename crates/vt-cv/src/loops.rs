@@ -62,61 +62,14 @@ pub fn find_loops(
     min_separation: usize,
     what: &str,
 ) -> Result<Vec<Loop>> {
-    if params.window == 0 {
-        return Err(CoreError::InvalidParameter {
-            name: "window",
-            value: "0".into(),
-            why: "w must be at least 1".into(),
-        }
-        .into());
-    }
-    if params.min_length == 0 {
-        return Err(CoreError::InvalidParameter {
-            name: "min_length",
-            value: "0".into(),
-            why: "k must be at least 1".into(),
-        }
-        .into());
-    }
-    let need = params.window + params.min_length;
-    if masks.len() < need {
-        return Err(CoreError::TooFewFrames {
-            what: what.to_string(),
-            got: masks.len(),
-            need,
-            why: format!(
-                "a loop needs w + k = {} + {} frames",
-                params.window, params.min_length
-            ),
-        }
-        .into());
-    }
+    vt_core::loops::check_loop_input(masks.len(), params, what)?;
     let mats = masks_to_mats(masks, what)?;
-    let n = masks.len();
-    let (w, k) = (params.window, params.min_length);
-    let n_max = n - w;
-    let d = pair_costs(&mats, k)?;
-    let cost = |m: usize, e: usize| (0..w).map(|i| d[(m + i) * n + e + i]).sum::<u64>();
-    let mut all: Vec<Loop> = (0..=n_max - k)
-        .flat_map(|m| (m + k..=n_max).map(move |e| (m, e)))
-        .map(|(m, e)| Loop {
-            start: m,
-            end: e,
-            cost: cost(m, e),
-        })
-        .collect();
-    all.sort_unstable_by_key(|l| (l.cost, l.start, l.end));
-    let mut out: Vec<Loop> = Vec::with_capacity(count);
-    for l in all {
-        if out.len() >= count {
-            break;
-        }
-        if out
-            .iter()
-            .all(|o| o.start.abs_diff(l.start).max(o.end.abs_diff(l.end)) > min_separation)
-        {
-            out.push(l);
-        }
-    }
-    Ok(out)
+    let d = pair_costs(&mats, params.min_length)?;
+    Ok(vt_core::loops::loops_from_pair_costs(
+        &d,
+        masks.len(),
+        params,
+        count,
+        min_separation,
+    ))
 }

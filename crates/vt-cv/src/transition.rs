@@ -5,7 +5,7 @@
 
 use opencv::core::Mat;
 use rayon::prelude::*;
-use vt_core::{Error as CoreError, Homography, Mask};
+use vt_core::{Homography, Mask};
 
 use crate::error::Result;
 use crate::loops::masks_to_mats;
@@ -27,40 +27,11 @@ pub fn transition_table(
     target_loop_end: usize,
     window: usize,
 ) -> Result<Vec<Option<usize>>> {
-    if window == 0 {
-        return Err(CoreError::InvalidParameter {
-            name: "window",
-            value: "0".into(),
-            why: "w must be at least 1".into(),
-        }
-        .into());
-    }
-    if let (Some(a), Some(b)) = (warped.first(), target.first()) {
-        if (a.width(), a.height()) != (b.width(), b.height()) {
-            return Err(CoreError::SizeMismatch {
-                what: "transition masks".into(),
-                expected_w: b.width(),
-                expected_h: b.height(),
-                got_w: a.width(),
-                got_h: a.height(),
-            }
-            .into());
-        }
-    }
-    if target_loop_end < 2 {
+    let Some((t_max, t_frames)) =
+        vt_core::transition::transition_range(warped, target, target_loop_end, window)?
+    else {
         return Ok(vec![None; warped.len()]);
-    }
-    let t_max = target_loop_end - 2;
-    let t_frames = (t_max + window).min(target.len());
-    if t_max + 1 > t_frames {
-        return Err(CoreError::TooFewFrames {
-            what: "transition target".into(),
-            got: target.len(),
-            need: t_max + 1,
-            why: "the target loop end lies beyond the target video".into(),
-        }
-        .into());
-    }
+    };
     let src = masks_to_mats(warped, "transition source")?;
     let dst = masks_to_mats(&target[..t_frames], "transition target")?;
     let ns = warped.len();
@@ -74,19 +45,10 @@ pub fn transition_table(
             Ok(())
         },
     )?;
-    Ok((0..ns)
-        .map(|s| {
-            let ws = window.min(ns - s);
-            (0..=t_max)
-                .filter(|t| t + ws <= t_frames)
-                .map(|t| {
-                    (
-                        (0..ws).map(|i| d[(s + i) * t_frames + t + i]).sum::<u64>(),
-                        t,
-                    )
-                })
-                .min()
-                .map(|(_, t)| t)
-        })
-        .collect())
+    Ok(
+        vt_core::transition::transitions_from_pair_costs(&d, ns, t_frames, t_max, window)
+            .into_iter()
+            .map(|e| e.map(|(t, _)| t))
+            .collect(),
+    )
 }
