@@ -98,7 +98,7 @@ impl AnalyzeArgs {
                 self.point_sigma
             );
         }
-        if self.blur_size % 2 == 0 {
+        if self.blur_size.is_multiple_of(2) {
             bail!("--blur-size {} must be odd", self.blur_size);
         }
         if self.window == 0 || self.min_length == 0 {

@@ -33,7 +33,7 @@ impl Default for GaussianParams {
 
 /// The 1-D kernel, exactly as OpenCV's `getGaussianKernel(ksize, sigma, CV_64F)`.
 pub fn gaussian_kernel(ksize: usize, sigma: f64) -> Result<Vec<f64>> {
-    if ksize == 0 || ksize % 2 == 0 {
+    if ksize == 0 || ksize.is_multiple_of(2) {
         return Err(Error::InvalidParameter {
             name: "ksize",
             value: ksize.to_string(),

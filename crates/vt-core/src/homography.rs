@@ -51,7 +51,9 @@ impl Homography {
         let m = m * (sign / norm);
         let sv = m.singular_values();
         let (smax, smin) = (sv.max(), sv.min());
-        if !(smin / smax > Self::MIN_CONDITION) {
+        let ratio = smin / smax;
+        // NaN (a NaN matrix slipped past) fails too.
+        if ratio.is_nan() || ratio <= Self::MIN_CONDITION {
             return Err(Error::SingularHomography(format!(
                 "singular values {smax:.3e} .. {smin:.3e}, ratio {:.3e} below {:.0e}",
                 smin / smax,

@@ -266,7 +266,7 @@ mod tests {
             let got = find_loop(&masks, &params, "p").unwrap();
             let mut best: Option<Loop> = None;
             for m in 0..n { for e in m + k..n {
-                if e + w - 1 >= n { continue; }
+                if e + w > n { continue; }
                 let c: u64 = (0..w).map(|i| xor_count(&masks[m + i], &masks[e + i])).sum();
                 if best.is_none_or(|b| c < b.cost) { best = Some(Loop { start: m, end: e, cost: c }); }
             }}

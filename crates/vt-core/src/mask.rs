@@ -323,7 +323,7 @@ mod tests {
         fn xor_count_matches_per_pixel_count(a in arbitrary_mask(40), seed in any::<u64>()) {
             // A second mask of the same size from a simple hash of the seed.
             let b = Mask::from_fn(a.width(), a.height(), |x, y| {
-                (seed ^ (x as u64 * 31 + y as u64 * 17)).count_ones() % 2 == 0
+                (seed ^ (x as u64 * 31 + y as u64 * 17)).count_ones().is_multiple_of(2)
             });
             let mut brute = 0u64;
             for y in 0..a.height() { for x in 0..a.width() {

@@ -99,8 +99,7 @@ fn missing_tool(tool: &str, path: &Path, e: std::io::Error) -> Error {
 fn last_line(s: &str) -> String {
     s.lines()
         .map(str::trim)
-        .filter(|l| !l.is_empty())
-        .last()
+        .rfind(|l| !l.is_empty())
         .unwrap_or("unknown error")
         .to_string()
 }

@@ -202,7 +202,7 @@ impl ObjectStore {
             let ok = x0 <= x1 && y0 <= y1 && x1 <= width && y1 <= height;
             let need = ok.then(|| 16 + (((x1 - x0) * (y1 - y0)) as usize).div_ceil(8));
             let len = (store.offsets[i + 1] - store.offsets[i]) as usize;
-            if need.is_none_or(|need| len < need || (len - need) % 3 != 0) {
+            if need.is_none_or(|need| len < need || !(len - need).is_multiple_of(3)) {
                 return Err(bad(format!("corrupted: frame {i} record is inconsistent")));
             }
         }

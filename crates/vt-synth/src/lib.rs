@@ -176,9 +176,9 @@ impl TextureScene {
                 params.exposure
             ));
         }
-        if !(params.baseline.is_finite() && params.baseline > 0.0)
-            || !(params.noise.is_finite() && params.noise >= 0.0)
-        {
+        let baseline_ok = params.baseline.is_finite() && params.baseline > 0.0;
+        let noise_ok = params.noise.is_finite() && params.noise >= 0.0;
+        if !(baseline_ok && noise_ok) {
             return Err(format!(
                 "baseline must be > 0 and noise >= 0 (got {}, {})",
                 params.baseline, params.noise
