@@ -10,6 +10,7 @@
 use image::RgbImage;
 use rayon::prelude::*;
 
+use crate::round_u8;
 use crate::{Error, Result};
 
 /// Gaussian smoothing parameters. The thesis uses a 3x3 kernel (Table 2) with OpenCV's default
@@ -110,6 +111,19 @@ pub fn gaussian_blur_into(
         return Ok(());
     }
     let row_len = w * 3;
+    if blur.binomial3 {
+        let mut tmp = vec![0u16; row_len * h];
+        tmp.par_chunks_mut(row_len)
+            .enumerate()
+            .for_each(|(y, row)| {
+                binomial_h_row(&src.as_raw()[y * row_len..(y + 1) * row_len], row)
+            });
+        out.as_mut()
+            .par_chunks_mut(row_len)
+            .enumerate()
+            .for_each(|(y, row)| binomial_v_row(&tmp, y, h, row));
+        return Ok(());
+    }
     let mut tmp = vec![0f32; row_len * h];
     tmp.par_chunks_mut(row_len).enumerate().for_each_init(
         || vec![0f32; (w + 2 * blur.radius()) * 3],
@@ -123,6 +137,40 @@ pub fn gaussian_blur_into(
             |acc, (y, row)| blur.vertical_row(&tmp, y, h, acc, row),
         );
     Ok(())
+}
+
+/// Horizontal `[1 2 1]` sums of one RGB row (reflect-101 borders), exact in `u16` (<= 1020).
+/// Same numbers as the f32 path times 4: the thesis's kernel is dyadic, so integers are exact.
+fn binomial_h_row(src: &[u8], row: &mut [u16]) {
+    let n = src.len();
+    if n == 3 {
+        for c in 0..3 {
+            row[c] = 4 * src[c] as u16;
+        }
+        return;
+    }
+    for c in 0..3 {
+        row[c] = 2 * src[c] as u16 + 2 * src[3 + c] as u16;
+        row[n - 3 + c] = 2 * src[n - 6 + c] as u16 + 2 * src[n - 3 + c] as u16;
+    }
+    for i in 3..n - 3 {
+        row[i] = src[i - 3] as u16 + 2 * src[i] as u16 + src[i + 3] as u16;
+    }
+}
+
+/// Vertical `[1 2 1]` of the horizontal sums, divided by 16 and rounded half up: the same bytes
+/// as the f32 path (whose sums are exact multiples of 1/16).
+fn binomial_v_row(tmp: &[u16], y: usize, h: usize, out: &mut [u8]) {
+    let n = out.len();
+    let row = |yy: usize| &tmp[yy * n..(yy + 1) * n];
+    let (a, b, c) = (
+        row(reflect101(y as isize - 1, h)),
+        row(y),
+        row(reflect101(y as isize + 1, h)),
+    );
+    for i in 0..n {
+        out[i] = ((a[i] + 2 * b[i] + c[i] + 8) >> 4) as u8;
+    }
 }
 
 fn check_sizes(src: &RgbImage, out: &RgbImage) -> Result<()> {
@@ -143,6 +191,8 @@ fn check_sizes(src: &RgbImage, out: &RgbImage) -> Result<()> {
 #[derive(Debug, Clone)]
 pub struct GaussianBlur {
     kernel: Vec<f32>,
+    /// The thesis's 3x3 kernel (OpenCV's table `[1/4, 1/2, 1/4]`), run in exact integers.
+    binomial3: bool,
 }
 
 /// Reusable buffers of [`GaussianBlur::apply_into`]: no allocation once warm.
@@ -151,16 +201,16 @@ pub struct BlurScratch {
     tmp: Vec<f32>,
     padded: Vec<f32>,
     acc: Vec<f32>,
+    tmp16: Vec<u16>,
 }
 
 impl GaussianBlur {
     /// Prepares the kernel of `params`.
     pub fn new(params: &GaussianParams) -> Result<Self> {
-        let kernel = gaussian_kernel(params.ksize, params.sigma)?
-            .iter()
-            .map(|&v| v as f32)
-            .collect();
-        Ok(Self { kernel })
+        let exact = gaussian_kernel(params.ksize, params.sigma)?;
+        let binomial3 = exact == [0.25, 0.5, 0.25];
+        let kernel = exact.iter().map(|&v| v as f32).collect();
+        Ok(Self { kernel, binomial3 })
     }
 
     fn radius(&self) -> usize {
@@ -181,6 +231,16 @@ impl GaussianBlur {
         scratch.padded.resize((w + 2 * self.radius()) * 3, 0.0);
         scratch.acc.resize(row_len, 0.0);
         if w == 0 || h == 0 {
+            return Ok(());
+        }
+        if self.binomial3 {
+            scratch.tmp16.resize(row_len * h, 0);
+            for (y, row) in scratch.tmp16.chunks_mut(row_len).enumerate() {
+                binomial_h_row(&src.as_raw()[y * row_len..(y + 1) * row_len], row);
+            }
+            for (y, row) in out.as_mut().chunks_mut(row_len).enumerate() {
+                binomial_v_row(&scratch.tmp16, y, h, row);
+            }
             return Ok(());
         }
         for (y, row) in scratch.tmp.chunks_mut(row_len).enumerate() {
@@ -222,7 +282,7 @@ impl GaussianBlur {
             }
         }
         for (o, &a) in row.iter_mut().zip(acc.iter()) {
-            *o = a.round().clamp(0.0, 255.0) as u8;
+            *o = round_u8(a);
         }
     }
 }
@@ -257,6 +317,22 @@ mod tests {
         assert_relative_eq!(k3[0], e / (1.0 + 2.0 * e), max_relative = 1e-14);
         assert!(gaussian_kernel(4, 1.0).is_err());
         assert!(gaussian_kernel(3, f64::NAN).is_err());
+    }
+
+    proptest! {
+        #[test]
+        fn integer_3x3_path_equals_the_float_path((w, h) in (1u32..20, 1u32..12), seed in any::<u32>()) {
+            let img = RgbImage::from_fn(w, h, |x, y| {
+                let t = (x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503) ^ seed) >> 7;
+                image::Rgb([t as u8, (t >> 8) as u8, (t >> 16) as u8])
+            });
+            let int = gaussian_blur(&img, &GaussianParams::default()).unwrap();
+            // The same kernel forced through the generic f32 rows.
+            let float = GaussianBlur { kernel: vec![0.25, 0.5, 0.25], binomial3: false };
+            let mut out = RgbImage::new(w, h);
+            float.apply_into(&img, &mut out, &mut BlurScratch::default()).unwrap();
+            prop_assert_eq!(int, out);
+        }
     }
 
     #[test]

@@ -25,3 +25,14 @@ pub mod warp;
 pub use error::{Error, Result};
 pub use homography::{Homography, Point};
 pub use mask::Mask;
+
+/// Rounds a non-negative value to the nearest `u8` (halves up), saturating at 255; negative
+/// values and NaN give 0.
+///
+/// Same results as `v.round().clamp(0.0, 255.0) as u8` for every value that occurs here (convex
+/// combinations of bytes), but `f32::round` is a library call on baseline x86-64 (no SSE4.1),
+/// which kept the blur and warp loops from vectorising (3x3 blur of 640x360: 1.38 -> 0.77 ms).
+#[inline(always)]
+pub(crate) fn round_u8(v: f32) -> u8 {
+    (v + 0.5) as u8
+}

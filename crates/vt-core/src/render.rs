@@ -27,6 +27,7 @@ use image::RgbImage;
 use rayon::prelude::*;
 
 use crate::model::{fit_model, MotionModel};
+use crate::round_u8;
 use crate::warp::Interpolation;
 use crate::{Error, Homography, Point, Result};
 
@@ -569,7 +570,7 @@ fn blend_warps(sources: &[Source], interp: Interpolation, out: &mut RgbImage) {
                 };
                 for k in 0..3 {
                     o[k] = if wsum > 0.0 {
-                        (acc[k] / wsum).round().clamp(0.0, 255.0) as u8
+                        round_u8(acc[k] / wsum)
                     } else {
                         0
                     };
@@ -735,7 +736,7 @@ fn composite(
             for c in 0..3 {
                 let v = colour[c] / gain[c];
                 let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
-                raw[o + c] = blended.round().clamp(0.0, 255.0) as u8;
+                raw[o + c] = round_u8(blended);
             }
         }
     }

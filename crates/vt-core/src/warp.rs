@@ -8,6 +8,7 @@
 use image::RgbImage;
 use rayon::prelude::*;
 
+use crate::round_u8;
 use crate::{Homography, Mask, Point};
 
 /// Warps `src` by `h` into a new `width x height` mask.
@@ -216,7 +217,7 @@ pub fn warp_rgb_with(
                             let (c, d) = (sraw[j + k] as f32, sraw[j + 3 + k] as f32);
                             let top = a + (b - a) * fx;
                             let bottom = c + (d - c) * fx;
-                            o[k] = (top + (bottom - top) * fy).round().clamp(0.0, 255.0) as u8;
+                            o[k] = round_u8(top + (bottom - top) * fy);
                         }
                         continue;
                     }
@@ -229,7 +230,7 @@ pub fn warp_rgb_with(
                     for k in 0..3 {
                         let top = a[k] + (b[k] - a[k]) * fx;
                         let bottom = c[k] + (d[k] - c[k]) * fx;
-                        o[k] = (top + (bottom - top) * fy).round().clamp(0.0, 255.0) as u8;
+                        o[k] = round_u8(top + (bottom - top) * fy);
                     }
                 }
             }
