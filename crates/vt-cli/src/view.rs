@@ -6,7 +6,7 @@
 //! The server binds 127.0.0.1 only and answers exactly five routes: `/`, `/stream.mjpg`,
 //! `/frame.jpg`, `/state`, `/control`; everything else is 404. No files are served.
 
-use std::io::Read;
+use std::io::Write;
 use std::path::PathBuf;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -117,7 +117,6 @@ pub fn run(args: ViewArgs) -> Result<()> {
         "vt view: serving {} at http://127.0.0.1:{port}/ (Ctrl-C to stop)",
         args.scene.display()
     );
-    use std::io::Write;
     std::io::stdout().flush().ok();
 
     for request in server.incoming_requests() {
@@ -171,29 +170,11 @@ pub fn run(args: ViewArgs) -> Result<()> {
                 )
             }
             "/stream.mjpg" => {
+                // Written straight to the socket and flushed per frame: a buffered response body
+                // would hold back the last frame while playback is paused.
                 let shared = shared.clone();
-                std::thread::spawn(move || {
-                    let reader = MjpegReader {
-                        shared,
-                        seq: 0,
-                        buf: Vec::new(),
-                        pos: 0,
-                    };
-                    let response = Response::new(
-                        200.into(),
-                        vec![
-                            header(
-                                "Content-Type",
-                                "multipart/x-mixed-replace; boundary=vtframe",
-                            ),
-                            header("Cache-Control", "no-cache, no-store"),
-                        ],
-                        reader,
-                        None,
-                        None,
-                    );
-                    let _ = request.respond(response);
-                });
+                let writer = request.into_writer();
+                std::thread::spawn(move || stream_mjpeg(shared, writer));
                 Ok(())
             }
             _ => request.respond(Response::from_string("not found").with_status_code(404)),
@@ -318,44 +299,50 @@ fn render_loop(
     }
 }
 
-/// A never-ending multipart body: each new frame becomes one part.
-struct MjpegReader {
-    shared: Arc<Shared>,
-    seq: u64,
-    buf: Vec<u8>,
-    pos: usize,
-}
-
-impl Read for MjpegReader {
-    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
-        if self.pos >= self.buf.len() {
-            let mut l = self.shared.latest.lock().expect("no panics hold the lock");
-            while l.seq == self.seq || l.jpeg.is_empty() {
-                l = self
-                    .shared
+/// Serves one MJPEG client until it disconnects: every new frame becomes one part, each part ends
+/// with the next boundary, and while nothing new is rendered (paused) the current frame is
+/// repeated every 200 ms, because browsers display a part only when the following one arrives.
+fn stream_mjpeg(shared: Arc<Shared>, mut out: Box<dyn Write + Send>) {
+    let head = "HTTP/1.1 200 OK\r\nContent-Type: multipart/x-mixed-replace; boundary=vtframe\r\n\
+                Cache-Control: no-cache, no-store\r\nConnection: close\r\n\r\n--vtframe\r\n";
+    if out
+        .write_all(head.as_bytes())
+        .and_then(|_| out.flush())
+        .is_err()
+    {
+        return;
+    }
+    let mut seen = 0u64;
+    loop {
+        // A new frame, or after 200 ms the current one again: browsers show a multipart part
+        // only once the next one starts, so a paused picture must still be followed.
+        let jpeg = {
+            let mut l = shared.latest.lock().expect("no panics hold the lock");
+            let deadline = Instant::now() + Duration::from_millis(200);
+            while (l.seq == seen && Instant::now() < deadline) || l.jpeg.is_empty() {
+                let left = deadline
+                    .saturating_duration_since(Instant::now())
+                    .max(Duration::from_millis(1));
+                l = shared
                     .fresh
-                    .wait_timeout(l, Duration::from_secs(5))
+                    .wait_timeout(l, left)
                     .expect("no panics hold the lock")
                     .0;
             }
-            self.seq = l.seq;
-            let jpeg = l.jpeg.clone();
-            drop(l);
-            self.buf.clear();
-            self.buf.extend_from_slice(
-                format!(
-                    "--vtframe\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
-                    jpeg.len()
-                )
-                .as_bytes(),
-            );
-            self.buf.extend_from_slice(&jpeg);
-            self.buf.extend_from_slice(b"\r\n");
-            self.pos = 0;
+            seen = l.seq;
+            l.jpeg.clone()
+        };
+        let part = format!(
+            "Content-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
+            jpeg.len()
+        );
+        let sent = out
+            .write_all(part.as_bytes())
+            .and_then(|_| out.write_all(&jpeg))
+            .and_then(|_| out.write_all(b"\r\n--vtframe\r\n"))
+            .and_then(|_| out.flush());
+        if sent.is_err() {
+            return;
         }
-        let n = out.len().min(self.buf.len() - self.pos);
-        out[..n].copy_from_slice(&self.buf[self.pos..self.pos + n]);
-        self.pos += n;
-        Ok(n)
     }
 }
