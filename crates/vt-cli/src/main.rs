@@ -93,7 +93,7 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     let args =
         analyze::AnalyzeArgs::for_demo(views, data.join("points.txt"), scene.clone(), frames);
     let result = analyze::run(args)?;
-    let report = analyze::check_against_truth(&scene, &data.join("truth.json"), &result)?;
+    let report = analyze::check_against_truth(&data.join("truth.json"), &result)?;
     println!("{report}");
     // A sweep across all views; mp4 when ffmpeg is there, PNG frames otherwise.
     let has_ffmpeg = std::process::Command::new("ffmpeg")
