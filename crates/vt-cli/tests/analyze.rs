@@ -229,6 +229,25 @@ fn real_tree_video_gives_its_68_frames_and_a_loop() {
         "summary table printed:\n{stdout}"
     );
     assert!(scene["model"].is_null(), "one view, no model");
+    // Without the frame cache the video is decoded twice (median, then masks): same scene.
+    let streamed = tmp.path().join("streamed");
+    vt_ok(&[
+        "analyze",
+        s(&tree),
+        "--out",
+        s(&streamed),
+        "--min-length",
+        "20",
+        "--cache-mb",
+        "0",
+    ]);
+    for f in ["scene.json", "background_000.png", "objects_000.bin"] {
+        let (a, b) = (
+            std::fs::read(out.join(f)).unwrap(),
+            std::fs::read(streamed.join(f)).unwrap(),
+        );
+        assert!(a == b, "{f} differs between cached and streamed analysis");
+    }
 }
 
 #[test]
