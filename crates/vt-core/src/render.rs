@@ -249,14 +249,6 @@ pub struct ObjectPatch {
 }
 
 impl ObjectPatch {
-    /// Clears to an empty box, keeping the allocations.
-    pub fn clear(&mut self) {
-        self.width = 0;
-        self.height = 0;
-        self.rgb.clear();
-        self.mask.clear();
-    }
-
     /// Sets the box and zeroes it (reusing storage).
     pub fn reset(&mut self, x0: u32, y0: u32, width: u32, height: u32) {
         let n = width as usize * height as usize;

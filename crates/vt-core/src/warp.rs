@@ -123,126 +123,80 @@ pub fn warp_rgb(
 
 /// [`warp_rgb`] into an existing image (every pixel is written).
 pub fn warp_rgb_into(src: &RgbImage, h: &Homography, interp: Interpolation, out: &mut RgbImage) {
-    warp_rgb_with(src, h, interp, Border::Constant, out, None);
-}
-
-/// What a warp samples outside the source image.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Border {
-    /// Black (OpenCV `BORDER_CONSTANT`, value 0).
-    Constant,
-    /// The nearest edge pixel (OpenCV `BORDER_REPLICATE`).
-    Replicate,
-}
-
-/// The general RGB warp: `border` chooses what lies outside the source, and `coverage` (one byte
-/// per output pixel, when given) is set to 1 where the sample point falls inside the source
-/// (`-0.5 <= x < w - 0.5`, same for y) and 0 elsewhere, so callers can blend several warped
-/// images by what each really sees.
-pub fn warp_rgb_with(
-    src: &RgbImage,
-    h: &Homography,
-    interp: Interpolation,
-    border: Border,
-    out: &mut RgbImage,
-    coverage: Option<&mut [u8]>,
-) {
     let inv = *h.raw().1;
     let (sw, sh) = (src.width() as i64, src.height() as i64);
     let sraw = src.as_raw();
     let ow = out.width() as usize;
     let px = |x: i64, y: i64| -> [f32; 3] {
-        let (x, y) = match border {
-            Border::Replicate => (x.clamp(0, sw - 1), y.clamp(0, sh - 1)),
-            Border::Constant if x < 0 || y < 0 || x >= sw || y >= sh => return [0.0; 3],
-            Border::Constant => (x, y),
-        };
+        if x < 0 || y < 0 || x >= sw || y >= sh {
+            return [0.0; 3];
+        }
         let i = (y as usize * sw as usize + x as usize) * 3;
         [sraw[i] as f32, sraw[i + 1] as f32, sraw[i + 2] as f32]
     };
-    let (fw, fh) = (sw as f64 - 0.5, sh as f64 - 0.5);
-    let mut no_coverage = Vec::new();
-    let coverage = match coverage {
-        Some(c) => c,
-        None => &mut no_coverage[..],
-    };
-    let has_coverage = !coverage.is_empty();
-    let rows = out.as_mut().par_chunks_mut(ow * 3);
-    let cov_rows = coverage.par_chunks_mut(ow.max(1));
-    let body = |y: usize, row: &mut [u8], cov: Option<&mut [u8]>| {
-        let yf = y as f64;
-        let (bx, by, bw) = (
-            inv[(0, 1)] * yf + inv[(0, 2)],
-            inv[(1, 1)] * yf + inv[(1, 2)],
-            inv[(2, 1)] * yf + inv[(2, 2)],
-        );
-        let mut cov = cov;
-        for x in 0..ow {
-            let xf = x as f64;
-            let w = bw + inv[(2, 0)] * xf;
-            let o = &mut row[x * 3..x * 3 + 3];
-            let (sx, sy) = if w == 0.0 {
-                (f64::NAN, f64::NAN)
-            } else {
-                let w = 1.0 / w;
-                ((bx + inv[(0, 0)] * xf) * w, (by + inv[(1, 0)] * xf) * w)
-            };
-            if !(sx.is_finite() && sy.is_finite()) || sx.abs() > 1e9 || sy.abs() > 1e9 {
-                o.fill(0);
-                if let Some(c) = cov.as_deref_mut() {
-                    c[x] = 0;
+    out.as_mut()
+        .par_chunks_mut(ow * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let yf = y as f64;
+            let (bx, by, bw) = (
+                inv[(0, 1)] * yf + inv[(0, 2)],
+                inv[(1, 1)] * yf + inv[(1, 2)],
+                inv[(2, 1)] * yf + inv[(2, 2)],
+            );
+            for x in 0..ow {
+                let xf = x as f64;
+                let w = bw + inv[(2, 0)] * xf;
+                let o = &mut row[x * 3..x * 3 + 3];
+                let (sx, sy) = if w == 0.0 {
+                    (f64::NAN, f64::NAN)
+                } else {
+                    let w = 1.0 / w;
+                    ((bx + inv[(0, 0)] * xf) * w, (by + inv[(1, 0)] * xf) * w)
+                };
+                if !(sx.is_finite() && sy.is_finite()) || sx.abs() > 1e9 || sy.abs() > 1e9 {
+                    o.fill(0);
+                    continue;
                 }
-                continue;
-            }
-            if let Some(c) = cov.as_deref_mut() {
-                c[x] = (sx >= -0.5 && sy >= -0.5 && sx < fw && sy < fh) as u8;
-            }
-            match interp {
-                Interpolation::Nearest => {
-                    let c = px(sx.round_ties_even() as i64, sy.round_ties_even() as i64);
-                    for k in 0..3 {
-                        o[k] = c[k] as u8;
-                    }
-                }
-                Interpolation::Bilinear => {
-                    let (x0, y0) = (sx.floor(), sy.floor());
-                    let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
-                    let (x0, y0) = (x0 as i64, y0 as i64);
-                    if x0 >= 0 && y0 >= 0 && x0 + 1 < sw && y0 + 1 < sh {
-                        // Interior: the four taps directly, no border logic.
-                        let i = (y0 as usize * sw as usize + x0 as usize) * 3;
-                        let j = i + sw as usize * 3;
+                match interp {
+                    Interpolation::Nearest => {
+                        let c = px(sx.round_ties_even() as i64, sy.round_ties_even() as i64);
                         for k in 0..3 {
-                            let (a, b) = (sraw[i + k] as f32, sraw[i + 3 + k] as f32);
-                            let (c, d) = (sraw[j + k] as f32, sraw[j + 3 + k] as f32);
-                            let top = a + (b - a) * fx;
-                            let bottom = c + (d - c) * fx;
+                            o[k] = c[k] as u8;
+                        }
+                    }
+                    Interpolation::Bilinear => {
+                        let (x0, y0) = (sx.floor(), sy.floor());
+                        let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
+                        let (x0, y0) = (x0 as i64, y0 as i64);
+                        if x0 >= 0 && y0 >= 0 && x0 + 1 < sw && y0 + 1 < sh {
+                            // Interior: the four taps directly, no border logic.
+                            let i = (y0 as usize * sw as usize + x0 as usize) * 3;
+                            let j = i + sw as usize * 3;
+                            for k in 0..3 {
+                                let (a, b) = (sraw[i + k] as f32, sraw[i + 3 + k] as f32);
+                                let (c, d) = (sraw[j + k] as f32, sraw[j + 3 + k] as f32);
+                                let top = a + (b - a) * fx;
+                                let bottom = c + (d - c) * fx;
+                                o[k] = round_u8(top + (bottom - top) * fy);
+                            }
+                            continue;
+                        }
+                        let (a, b, c, d) = (
+                            px(x0, y0),
+                            px(x0 + 1, y0),
+                            px(x0, y0 + 1),
+                            px(x0 + 1, y0 + 1),
+                        );
+                        for k in 0..3 {
+                            let top = a[k] + (b[k] - a[k]) * fx;
+                            let bottom = c[k] + (d[k] - c[k]) * fx;
                             o[k] = round_u8(top + (bottom - top) * fy);
                         }
-                        continue;
-                    }
-                    let (a, b, c, d) = (
-                        px(x0, y0),
-                        px(x0 + 1, y0),
-                        px(x0, y0 + 1),
-                        px(x0 + 1, y0 + 1),
-                    );
-                    for k in 0..3 {
-                        let top = a[k] + (b[k] - a[k]) * fx;
-                        let bottom = c[k] + (d[k] - c[k]) * fx;
-                        o[k] = round_u8(top + (bottom - top) * fy);
                     }
                 }
             }
-        }
-    };
-    if !has_coverage {
-        rows.enumerate().for_each(|(y, row)| body(y, row, None));
-    } else {
-        rows.zip(cov_rows)
-            .enumerate()
-            .for_each(|(y, (row, cov))| body(y, row, Some(cov)));
-    }
+        });
 }
 
 #[cfg(test)]
