@@ -152,22 +152,19 @@ pub fn temporal_median<'a>(frames: impl IntoIterator<Item = &'a RgbImage>) -> Re
                     hist[i * BINS + v as usize] += 1;
                 }
             }
-            // Extract and clear in the same walk, ready for the next row.
-            for (o, bins) in out_row.iter_mut().zip(hist.chunks_exact_mut(BINS)) {
+            // Walk each histogram only up to the median, then clear the whole block at once
+            // (a memset) for the next row.
+            for (o, bins) in out_row.iter_mut().zip(hist.chunks_exact(BINS)) {
                 let mut seen = 0usize;
-                let mut found = false;
-                for (v, c) in bins.iter_mut().enumerate() {
-                    if *c == 0 {
-                        continue;
-                    }
-                    seen += *c as usize;
-                    *c = 0;
-                    if !found && seen > rank {
+                for (v, &c) in bins.iter().enumerate() {
+                    seen += c as usize;
+                    if seen > rank {
                         *o = v as u8;
-                        found = true;
+                        break;
                     }
                 }
             }
+            hist.fill(0);
         },
     );
     Ok(RgbImage::from_raw(w, h, out).expect("buffer sized width*height*3"))
