@@ -117,17 +117,7 @@ pub fn find_loops(
     what: &str,
 ) -> Result<Vec<Loop>> {
     check_loop_input(masks.len(), params, what)?;
-    for (i, m) in masks.iter().enumerate() {
-        if (m.width(), m.height()) != (masks[0].width(), masks[0].height()) {
-            return Err(Error::SizeMismatch {
-                what: format!("{what} mask {i}"),
-                expected_w: masks[0].width(),
-                expected_h: masks[0].height(),
-                got_w: m.width(),
-                got_h: m.height(),
-            });
-        }
-    }
+    crate::mask::check_same_size(masks, what)?;
     let d = pair_costs(masks, params.min_length);
     Ok(loops_from_pair_costs(
         &d,

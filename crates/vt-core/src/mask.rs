@@ -286,6 +286,27 @@ pub fn xor_count_in(a: &Mask, b: &Mask, words: Range<usize>) -> u64 {
         .sum()
 }
 
+/// Checks that every mask has mask 0's size; the error names `what` and the mask's index.
+pub fn check_same_size(masks: &[Mask], what: &str) -> crate::Result<()> {
+    let Some(first) = masks.first() else {
+        return Ok(());
+    };
+    match masks
+        .iter()
+        .enumerate()
+        .find(|(_, m)| (m.width, m.height) != (first.width, first.height))
+    {
+        None => Ok(()),
+        Some((i, m)) => Err(Error::SizeMismatch {
+            what: format!("{what} mask {i}"),
+            expected_w: first.width,
+            expected_h: first.height,
+            got_w: m.width,
+            got_h: m.height,
+        }),
+    }
+}
+
 /// Smallest word range covering the active words of every mask given.
 pub fn union_active_words<'a>(masks: impl IntoIterator<Item = &'a Mask>) -> Range<usize> {
     let mut lo = usize::MAX;

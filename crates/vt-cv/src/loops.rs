@@ -6,7 +6,7 @@
 use opencv::core::Mat;
 use rayon::prelude::*;
 use vt_core::loops::{Loop, LoopParams};
-use vt_core::{Error as CoreError, Mask};
+use vt_core::Mask;
 
 use crate::convert::mask_to_mat;
 use crate::error::Result;
@@ -14,23 +14,8 @@ use crate::mask::xor_count_mat;
 
 /// Masks as 0/255 mats, checking that they share mask 0's size.
 pub(crate) fn masks_to_mats(masks: &[Mask], what: &str) -> Result<Vec<Mat>> {
-    masks
-        .iter()
-        .enumerate()
-        .map(|(i, m)| {
-            if (m.width(), m.height()) != (masks[0].width(), masks[0].height()) {
-                return Err(CoreError::SizeMismatch {
-                    what: format!("{what} mask {i}"),
-                    expected_w: masks[0].width(),
-                    expected_h: masks[0].height(),
-                    got_w: m.width(),
-                    got_h: m.height(),
-                }
-                .into());
-            }
-            mask_to_mat(m)
-        })
-        .collect()
+    vt_core::mask::check_same_size(masks, what)?;
+    masks.iter().map(mask_to_mat).collect()
 }
 
 /// Row-major `n x n` matrix of OpenCV `XOR(I(a), I(b))` for `b - a >= k` (0 elsewhere).
