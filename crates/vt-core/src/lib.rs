@@ -17,8 +17,10 @@ pub mod homography;
 pub mod loops;
 pub mod mask;
 pub mod median;
+pub mod metrics;
 pub mod model;
 pub mod render;
+pub mod rng;
 pub mod transition;
 pub mod warp;
 
