@@ -268,11 +268,7 @@ fn write_object(a: &ObjectArgs) -> Result<()> {
     let start = if a.seed == 0 {
         0.0
     } else {
-        let mut z = a.seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64 * spacing
+        vt_core::rng::unit(vt_core::rng::mix(a.seed)) * spacing
     };
     let mut extra = vec![10.0f64.min(spacing / 2.0)];
     extra.extend((0..a.views).map(|i| (i as f64 + 0.5) * spacing));

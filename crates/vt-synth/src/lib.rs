@@ -118,23 +118,7 @@ pub struct TextureScene {
     gains: Vec<f64>,
 }
 
-/// splitmix64: the one source of randomness, so results never depend on a crate's RNG version.
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-fn unit(h: u64) -> f64 {
-    (h >> 11) as f64 / (1u64 << 53) as f64
-}
-
-fn hash(parts: &[u64]) -> u64 {
-    parts
-        .iter()
-        .fold(0x51_7CC1_B727_220A, |acc, &p| mix(acc ^ mix(p)))
-}
+use vt_core::rng::{hash, mix, unit};
 
 /// Smooth value noise in [0, 1] on a unit lattice.
 fn value_noise(seed: u64, x: f64, y: f64) -> f64 {
