@@ -6,6 +6,7 @@ mod fv;
 mod progress;
 mod render;
 mod synth;
+mod synth_real;
 mod view;
 
 use std::path::PathBuf;

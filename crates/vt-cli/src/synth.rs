@@ -19,6 +19,9 @@ pub enum SynthCommand {
     /// System B test object: a textured sphere and box photographed from a ring of calibrated
     /// cameras, with masks and ground truth for extra viewpoints.
     Object(ObjectArgs),
+    /// System A test scene from a real video: M views of a slanted plane textured with the video,
+    /// known homographies, clock offsets, gains and marking noise, encoded to H.264, with truth.
+    Real(crate::synth_real::RealArgs),
 }
 
 #[derive(Args)]
@@ -101,6 +104,7 @@ fn parse_rig(s: &str) -> Result<Rig, String> {
 
 pub fn run(cmd: SynthCommand) -> Result<()> {
     match cmd {
+        SynthCommand::Real(a) => crate::synth_real::run(&a),
         SynthCommand::Object(a) => {
             write_object(&a)?;
             println!(

@@ -10,5 +10,6 @@ pub mod frames;
 pub mod objects;
 pub mod points;
 pub mod scene;
+pub mod video;
 
 pub use error::{Error, Result};

@@ -9,6 +9,8 @@
 //! same seed, same pixels.
 #![deny(missing_docs)]
 
+pub mod real;
+
 use image::RgbImage;
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 use rayon::prelude::*;
