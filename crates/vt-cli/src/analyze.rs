@@ -9,8 +9,8 @@ use vt_core::analysis::{analyze, AnalyzeParams, MaskParams, SceneAnalysis, Timin
 use vt_core::blur::GaussianParams;
 use vt_core::loops::LoopParams;
 use vt_core::model::{ModelParams, MotionModel};
-use vt_io::atomic::AtomicDir;
 use vt_io::frames::{write_png, ViewSource};
+use vt_io::output::{Output, OutputKind};
 use vt_io::scene::{background_name, SceneFile};
 
 use crate::progress::AnalysisObserver;
@@ -60,6 +60,13 @@ pub struct AnalyzeArgs {
     /// Keep a view's frames in memory between the two passes when they fit in this many MiB.
     #[arg(long, default_value_t = 768)]
     cache_mb: usize,
+    /// Per-pixel noise-model masks: moving where |frame - bg| > K noise deviations of that pixel
+    /// (0 = off: the global --threshold, the thesis).
+    #[arg(long, default_value_t = 3.0)]
+    noise_k: f32,
+    /// Dynamic region (pixels that move often, shown from the source frames): on or off.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    dynamic: String,
 }
 
 impl AnalyzeArgs {
@@ -80,6 +87,8 @@ impl AnalyzeArgs {
             model: "auto".into(),
             point_sigma: 1.0,
             cache_mb: 768,
+            noise_k: 3.0,
+            dynamic: "on".into(),
         }
     }
 
@@ -98,14 +107,50 @@ impl AnalyzeArgs {
                 self.point_sigma
             );
         }
-        if self.blur_size.is_multiple_of(2) {
-            bail!("--blur-size {} must be odd", self.blur_size);
+        if self.blur_size.is_multiple_of(2) || self.blur_size > MAX_BLUR_SIZE {
+            bail!(
+                "--blur-size {} must be odd and at most {MAX_BLUR_SIZE}",
+                self.blur_size
+            );
+        }
+        if !(self.blur_sigma.is_finite() && self.blur_sigma <= MAX_BLUR_SIGMA) {
+            bail!(
+                "--blur-sigma {} must be a finite number of pixels, at most {MAX_BLUR_SIGMA} (<= 0: derived from --blur-size)",
+                self.blur_sigma
+            );
         }
         if self.window == 0 || self.min_length == 0 {
             bail!(
                 "--window ({}) and --min-length ({}) must be at least 1",
                 self.window,
                 self.min_length
+            );
+        }
+        if self.window > MAX_WINDOW || self.min_length > vt_io::limits::MAX_FRAMES {
+            bail!(
+                "--window {} (at most {MAX_WINDOW}) or --min-length {} (at most {}) is too large",
+                self.window,
+                self.min_length,
+                vt_io::limits::MAX_FRAMES
+            );
+        }
+        if self.open > MAX_RADIUS || self.close > MAX_RADIUS {
+            bail!(
+                "--open {} / --close {}: radii are at most {MAX_RADIUS} pixels",
+                self.open,
+                self.close
+            );
+        }
+        if self.alternatives > MAX_ALTERNATIVES {
+            bail!(
+                "--alternatives {} is more than {MAX_ALTERNATIVES}",
+                self.alternatives
+            );
+        }
+        if self.cache_mb > MAX_CACHE_MB {
+            bail!(
+                "--cache-mb {} is more than {MAX_CACHE_MB} (1 TiB)",
+                self.cache_mb
             );
         }
         Ok(AnalyzeParams {
@@ -128,9 +173,30 @@ impl AnalyzeArgs {
             },
             alternative_loops: self.alternatives,
             cache_bytes: self.cache_mb << 20,
+            noise: vt_core::noise::NoiseParams {
+                k: self.noise_k,
+                dynamic: self.dynamic == "on",
+                ..Default::default()
+            },
         })
     }
 }
+
+/// Largest `--blur-size` (OpenCV allows any odd size; beyond this the kernel is wider than any
+/// useful smoothing and its cost grows with it).
+pub const MAX_BLUR_SIZE: usize = 255;
+/// Largest `--blur-sigma`, pixels.
+pub const MAX_BLUR_SIGMA: f64 = 1000.0;
+/// Largest `--window`.
+pub const MAX_WINDOW: usize = 1000;
+/// Largest `--open` / `--close` radius, pixels.
+pub const MAX_RADIUS: u32 = 255;
+/// Largest `--alternatives`.
+pub const MAX_ALTERNATIVES: usize = 100;
+/// Largest `--cache-mb` (1 TiB).
+pub const MAX_CACHE_MB: usize = 1 << 20;
+/// How far beyond the frame's edges a marked point may lie, as a fraction of the frame's side.
+pub const POINT_MARGIN: f64 = 0.1;
 
 /// What `run` returns, for the demo's truth check.
 pub struct AnalyzeResult {
@@ -178,8 +244,16 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
             size.1
         );
     }
+    if let Some(path) = &args.points {
+        check_points_in_frame(path, &points, first)?;
+    }
+    if m > vt_io::limits::MAX_VIEWS {
+        bail!("{m} views is more than {}", vt_io::limits::MAX_VIEWS);
+    }
     let started = Instant::now();
-    let dir = AtomicDir::create(&args.out)?;
+    let mut inputs: Vec<&Path> = args.views.iter().map(PathBuf::as_path).collect();
+    inputs.extend(args.points.as_deref());
+    let dir = Output::dir(&args.out, OutputKind::Scene, &inputs)?;
     let mut observer = AnalysisObserver::new(dir.path().to_path_buf());
     let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> =
         sources.iter_mut().map(|s| s.as_source()).collect();
@@ -195,12 +269,39 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
     for (p, v) in analysis.views.iter().enumerate() {
         write_png(&dir.path().join(background_name(p)), &v.background)?;
     }
+    vt_io::scene::write_dynamic(dir.path(), &analysis)?;
     let scene = SceneFile::from_analysis(&analysis, &points, &params);
     scene.write(dir.path())?;
     dir.commit()?;
     print_summary(&analysis, &scene, started.elapsed().as_secs_f64());
     println!("scene: {}", args.out.display());
     Ok(AnalyzeResult { scene })
+}
+
+/// Refuses marked points outside the frame (beyond [`POINT_MARGIN`] of its size).
+fn check_points_in_frame(
+    path: &Path,
+    points: &[Vec<vt_core::Point>],
+    size: (u32, u32),
+) -> Result<()> {
+    let (w, h) = (size.0 as f64, size.1 as f64);
+    let (mx, my) = (POINT_MARGIN * w, POINT_MARGIN * h);
+    for (p, view) in points.iter().enumerate() {
+        for (k, pt) in view.iter().enumerate() {
+            if pt.x < -0.5 - mx || pt.x > w - 0.5 + mx || pt.y < -0.5 - my || pt.y > h - 0.5 + my {
+                bail!(
+                    "{}: view {p} point {k} ({}, {}) is outside the {}x{} frame (at most {:.0}% beyond its edges)",
+                    path.display(),
+                    pt.x,
+                    pt.y,
+                    size.0,
+                    size.1,
+                    100.0 * POINT_MARGIN
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
@@ -246,6 +347,21 @@ fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
     println!(
         "seam score (mean over wraps and switches; 0 = invisible, 1 = one ordinary frame step): {:.3}",
         scene.seam_score
+    );
+    let kept: Vec<String> = a
+        .views
+        .iter()
+        .map(|v| format!("{:.1}%", 100.0 * v.motion_kept))
+        .collect();
+    let dynamic: Vec<String> = a
+        .views
+        .iter()
+        .map(|v| format!("{:.1}%", 100.0 * v.dynamic_fraction))
+        .collect();
+    println!(
+        "motion kept (share of the real frame-to-frame change shown at each view): {}; dynamic region: {} of the image",
+        kept.join(" "),
+        dynamic.join(" ")
     );
     if let Some(sel) = &a.selection {
         let scores: Vec<String> = sel

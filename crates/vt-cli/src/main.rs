@@ -51,7 +51,26 @@ enum Command {
 }
 
 fn main() {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(
+                e.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) {
+                e.exit();
+            }
+            eprintln!("error: {}", usage_error_line(&e.to_string()));
+            std::process::exit(2);
+        }
+    };
+    // Ctrl-C or SIGTERM: remove this run's temporaries and kill its encoders, then exit 130.
+    if let Err(e) = vt_io::output::install_interrupt_cleanup() {
+        eprintln!("warning: {e}");
+    }
     let result = match cli.command {
         Command::Synth { what } => synth::run(what),
         Command::Analyze(args) => analyze::run(args).map(|_| ()),
@@ -61,33 +80,82 @@ fn main() {
         Command::Demo { out, frames } => demo(out, frames),
     };
     if let Err(e) = result {
-        // One line: the chain of causes, outermost first.
-        let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-        eprintln!("error: {}", msg.join(": "));
+        eprintln!("error: {}", error_line(&e));
         std::process::exit(1);
     }
 }
 
-/// `vt demo`: synthesise, analyse, and compare with the truth.
+/// The chain of causes, outermost first, each said once: a cause whose text the message already
+/// holds (a wrapper that formats its source and also exposes it) is not repeated.
+fn error_line(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || msg.contains(&text) {
+            continue;
+        }
+        if text.contains(&msg) && !msg.is_empty() {
+            msg = text;
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&text);
+    }
+    msg
+}
+
+/// clap's usage error as one line: its first paragraph, with long quoted values shortened.
+fn usage_error_line(text: &str) -> String {
+    let para: Vec<&str> = text
+        .lines()
+        .take_while(|l| !l.trim().is_empty())
+        .map(str::trim)
+        .collect();
+    let line = para.join(" ");
+    let line = line.strip_prefix("error: ").unwrap_or(&line);
+    // Shorten every '...' segment (clap quotes the values it echoes).
+    let parts: Vec<&str> = line.split('\'').collect();
+    parts
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            if i % 2 == 1 {
+                vt_io::output::shorten(p)
+            } else {
+                p.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("'")
+}
+
+/// `vt demo`: synthesise, analyse, and compare with the truth. The whole folder is one vt
+/// output: built under a temporary name and moved into place only when every step succeeded.
 fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
-    std::fs::create_dir_all(&out).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
-    let data = out.join("textures");
+    if !(16..=2000).contains(&frames) {
+        anyhow::bail!("--frames {frames} must be in 16..=2000");
+    }
+    let output = vt_io::output::Output::dir(&out, vt_io::output::OutputKind::Demo, &[])?;
+    let root = output.path().to_path_buf();
+    let data = root.join("textures");
     let params = vt_synth::TextureParams {
         views: 3,
         frames,
         ..Default::default()
     };
     eprintln!(
-        "1/2 synthesising a {}-view scene ({} frames of {}x{} each) in {}",
+        "1/3 synthesising a {}-view scene ({} frames of {}x{} each) in {}",
         params.views,
         frames,
         params.width,
         params.height,
-        data.display()
+        out.join("textures").display()
     );
     synth::write_textures(&data, &params)?;
-    let scene = out.join("scene");
-    eprintln!("2/3 analysing it into {}", scene.display());
+    let scene = root.join("scene");
+    eprintln!("2/3 analysing it into {}", out.join("scene").display());
     let views: Vec<PathBuf> = (0..params.views)
         .map(|p| data.join(synth::view_dir(p)))
         .collect();
@@ -103,17 +171,18 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
         .stderr(std::process::Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
-    let video = out.join(if has_ffmpeg {
+    let video_name = if has_ffmpeg {
         "sweep.mp4"
     } else {
         "sweep_frames"
-    });
+    };
     eprintln!(
         "3/3 rendering a sweep across all views to {}",
-        video.display()
+        out.join(video_name).display()
     );
-    render::run(render::RenderArgs::demo_sweep(scene.clone(), video.clone()))?;
-    println!("scene: {}", scene.display());
-    println!("video: {}", video.display());
+    render::run(render::RenderArgs::demo_sweep(scene, root.join(video_name)))?;
+    output.commit()?;
+    println!("scene: {}", out.join("scene").display());
+    println!("video: {}", out.join(video_name).display());
     Ok(())
 }

@@ -1,18 +1,15 @@
 //! `vt render`: play a scene along a viewpoint path into a video, GIF or PNG folder.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::Args;
 use image::RgbImage;
 use vt_core::render::{FrameChoice, Player, RenderParams, Renderer, Step};
 use vt_core::warp::{warp_mask, Interpolation};
 use vt_core::Homography;
-use vt_io::atomic::AtomicDir;
-use vt_io::frames::write_png;
 use vt_io::scene::LoadedScene;
+use vt_io::writer::FrameWriter;
 
 use crate::progress::bar;
 
@@ -35,6 +32,9 @@ pub struct RenderArgs {
     /// last q, sweeps go on back and forth).
     #[arg(long)]
     duration: Option<f64>,
+    /// Allow a render longer than 10 minutes of output (up to 24 hours).
+    #[arg(long)]
+    long: bool,
     #[command(flatten)]
     options: RenderOptions,
 }
@@ -76,6 +76,7 @@ impl RenderArgs {
             out,
             fps: 30.0,
             duration: None,
+            long: false,
             options: RenderOptions {
                 nearest: false,
                 crossfade: 0,
@@ -85,18 +86,53 @@ impl RenderArgs {
     }
 }
 
-/// A viewpoint path, sampled per output frame.
-pub fn path_qs(spec: &str, n_views: usize, fps: f64, duration: Option<f64>) -> Result<Vec<f64>> {
+/// Longest render without `--long`, seconds of output.
+pub const MAX_SECONDS: f64 = 600.0;
+/// Longest render with `--long`, seconds of output (a day).
+pub const MAX_SECONDS_LONG: f64 = 86_400.0;
+/// Most frames of any render (a day at 60 fps); the path is checked against it before it is
+/// built.
+pub const MAX_FRAMES: usize = 5_184_000;
+
+/// A viewpoint path, sampled per output frame. Its length is checked (at most [`MAX_SECONDS`] of
+/// output, [`MAX_SECONDS_LONG`] with `long`, and [`MAX_FRAMES`] frames) before any of it is built.
+pub fn path_qs(
+    spec: &str,
+    n_views: usize,
+    fps: f64,
+    duration: Option<f64>,
+    long: bool,
+) -> Result<Vec<f64>> {
+    use vt_io::output::shorten;
     if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
         bail!("--fps {fps} must be in (0, 1000]");
     }
+    let max_secs = if long { MAX_SECONDS_LONG } else { MAX_SECONDS };
+    let hint = if long {
+        "the most vt renders"
+    } else {
+        "the most vt renders without --long (up to 86400 s with it)"
+    };
     if let Some(d) = duration {
-        if !(d.is_finite() && d > 0.0 && d <= 86_400.0) {
-            bail!("--duration {d} must be a positive number of seconds (at most a day)");
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration {d} must be a positive number of seconds");
+        }
+        if d > max_secs {
+            bail!("--duration {d} s is longer than {max_secs} s, {hint}");
         }
     }
-    let q_max = (n_views - 1) as f64;
-    let frames = |secs: f64| (secs * fps).round().max(1.0) as usize;
+    let q_max = n_views.saturating_sub(1) as f64;
+    // Frames of `secs` seconds, checked against the limits before anything is allocated.
+    let frames = |secs: f64, what: &str| -> Result<usize> {
+        if !(secs.is_finite() && secs <= max_secs) {
+            bail!("{what} is {secs:.4e} s long, longer than {max_secs} s, {hint}");
+        }
+        let n = (secs * fps).round().max(1.0);
+        if n > MAX_FRAMES as f64 {
+            bail!("{what} is {n} frames at {fps} fps, more than {MAX_FRAMES}");
+        }
+        Ok(n as usize)
+    };
     let check_q = |q: f64, what: &str| -> Result<f64> {
         if !q.is_finite() || q < 0.0 || q > q_max {
             bail!("--path: {what}: viewpoint {q} is outside [0, {q_max}] (the scene has {n_views} views)");
@@ -104,23 +140,35 @@ pub fn path_qs(spec: &str, n_views: usize, fps: f64, duration: Option<f64>) -> R
         Ok(q)
     };
     if let Some(file) = spec.strip_prefix('@') {
-        let text = std::fs::read_to_string(file).with_context(|| file.to_string())?;
+        let text = vt_io::limits::read_text(
+            Path::new(file),
+            vt_io::limits::MAX_TEXT_BYTES,
+            "viewpoint file",
+        )?;
+        let max_lines = if long {
+            MAX_FRAMES
+        } else {
+            (MAX_SECONDS * fps) as usize
+        };
         let mut qs = Vec::new();
         for (i, line) in text.lines().enumerate() {
             let t = line.split('#').next().unwrap_or("").trim();
             if t.is_empty() {
                 continue;
             }
-            let q: f64 = t
-                .parse()
-                .map_err(|_| anyhow::anyhow!("{file}:{}: '{t}' is not a number", i + 1))?;
+            let q: f64 = t.parse().map_err(|_| {
+                anyhow::anyhow!("{file}:{}: '{}' is not a number", i + 1, shorten(t))
+            })?;
             qs.push(check_q(q, &format!("{file}:{}", i + 1))?);
+            if qs.len() > max_lines {
+                bail!("{file}: more than {max_lines} viewpoints (one per frame), {hint}");
+            }
         }
         if qs.is_empty() {
             bail!("{file}: no viewpoints (one q per line)");
         }
         if let Some(d) = duration {
-            let n = frames(d);
+            let n = frames(d, "--duration")?;
             let last = *qs.last().expect("non-empty");
             qs.resize(n, last);
         }
@@ -128,17 +176,20 @@ pub fn path_qs(spec: &str, n_views: usize, fps: f64, duration: Option<f64>) -> R
     }
     if let Some(rest) = spec.strip_prefix("sweep") {
         let speed = match rest.strip_prefix(':') {
-            Some(s) => s
-                .parse::<f64>()
-                .map_err(|_| anyhow::anyhow!("--path sweep:{s}: speed is not a number"))?,
+            Some(s) => s.parse::<f64>().map_err(|_| {
+                anyhow::anyhow!("--path sweep:{}: speed is not a number", shorten(s))
+            })?,
             None if rest.is_empty() => 1.0,
-            None => bail!("--path '{spec}': expected sweep or sweep:SPEED"),
+            None => bail!("--path '{}': expected sweep or sweep:SPEED", shorten(spec)),
         };
         if !(speed.is_finite() && speed > 0.0) {
             bail!("--path sweep:{speed}: speed must be positive (views per second)");
         }
         let one_way = if q_max > 0.0 { q_max / speed } else { 1.0 };
-        let n = frames(duration.unwrap_or(2.0 * one_way));
+        let n = match duration {
+            Some(d) => frames(d, "--duration")?,
+            None => frames(2.0 * one_way, &format!("--path sweep:{speed}"))?,
+        };
         return Ok((0..n)
             .map(|i| {
                 let t = (i as f64 / fps) % (2.0 * one_way);
@@ -154,23 +205,32 @@ pub fn path_qs(spec: &str, n_views: usize, fps: f64, duration: Option<f64>) -> R
     let mut keys: Vec<(f64, f64)> = Vec::new();
     for part in spec.split(',') {
         let (t, q) = part.split_once(':').ok_or_else(|| {
-            anyhow::anyhow!("--path: '{part}' is not TIME:Q (e.g. 0s:0,4s:14,8s:0)")
+            anyhow::anyhow!(
+                "--path: '{}' is not TIME:Q (e.g. 0s:0,4s:14,8s:0)",
+                shorten(part)
+            )
         })?;
         let t = t.trim().trim_end_matches('s');
-        let t: f64 = t
-            .parse()
-            .map_err(|_| anyhow::anyhow!("--path: time '{t}' is not a number of seconds"))?;
+        let t: f64 = t.parse().map_err(|_| {
+            anyhow::anyhow!("--path: time '{}' is not a number of seconds", shorten(t))
+        })?;
         let q: f64 = q
             .trim()
             .parse()
-            .map_err(|_| anyhow::anyhow!("--path: viewpoint '{q}' is not a number"))?;
+            .map_err(|_| anyhow::anyhow!("--path: viewpoint '{}' is not a number", shorten(q)))?;
         if !t.is_finite() || t < 0.0 || keys.last().is_some_and(|&(pt, _)| t <= pt) {
-            bail!("--path: keyframe times must be finite, >= 0 and increasing ('{part}')");
+            bail!(
+                "--path: keyframe times must be finite, >= 0 and increasing ('{}')",
+                shorten(part)
+            );
         }
-        keys.push((t, check_q(q, part)?));
+        keys.push((t, check_q(q, &shorten(part))?));
     }
     let end = keys.last().map(|k| k.0).unwrap_or(0.0);
-    let n = frames(duration.unwrap_or(end.max(1.0 / fps)));
+    let n = match duration {
+        Some(d) => frames(d, "--duration")?,
+        None => frames(end.max(1.0 / fps), "--path")?,
+    };
     Ok((0..n)
         .map(|i| {
             let t = i as f64 / fps;
@@ -184,140 +244,6 @@ pub fn path_qs(spec: &str, n_views: usize, fps: f64, duration: Option<f64>) -> R
             }
         })
         .collect())
-}
-
-/// Where frames go.
-enum Sink {
-    Folder { dir: AtomicDir, n: usize },
-    Ffmpeg(FfmpegOut),
-}
-
-/// An ffmpeg process encoding into a temporary file; killed and cleaned up if dropped unfinished.
-struct FfmpegOut {
-    child: Option<Child>,
-    tmp: PathBuf,
-    out: PathBuf,
-}
-
-impl FfmpegOut {
-    fn finish(&mut self) -> Result<()> {
-        let mut child = self.child.take().context("ffmpeg already finished")?;
-        drop(child.stdin.take());
-        let output = child.wait_with_output().context("waiting for ffmpeg")?;
-        if !output.status.success() {
-            let _ = std::fs::remove_file(&self.tmp);
-            let err = String::from_utf8_lossy(&output.stderr);
-            bail!(
-                "{}: ffmpeg failed: {}",
-                self.out.display(),
-                err.lines().last().unwrap_or("unknown error")
-            );
-        }
-        std::fs::rename(&self.tmp, &self.out).with_context(|| self.out.display().to_string())
-    }
-}
-
-impl Drop for FfmpegOut {
-    fn drop(&mut self) {
-        if let Some(mut child) = self.child.take() {
-            let _ = child.kill();
-            let _ = child.wait();
-            let _ = std::fs::remove_file(&self.tmp);
-        }
-    }
-}
-
-fn ffmpeg_sink(out: &Path, w: u32, h: u32, fps: f64, gif: bool) -> Result<Sink> {
-    let name = out
-        .file_name()
-        .context("output has no file name")?
-        .to_string_lossy()
-        .to_string();
-    let tmp = out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let mut cmd = Command::new("ffmpeg");
-    cmd.args(["-v", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24"])
-        .args(["-s", &format!("{w}x{h}"), "-r", &fps.to_string(), "-i", "-"]);
-    if gif {
-        cmd.args([
-            "-filter_complex",
-            "[0:v]split[a][b];[a]palettegen[p];[b][p]paletteuse",
-            "-f",
-            "gif",
-        ]);
-    } else {
-        cmd.args([
-            "-vf",
-            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
-            "-c:v",
-            "libx264",
-            "-pix_fmt",
-            "yuv420p",
-            "-crf",
-            "18",
-        ])
-        .args(["-movflags", "+faststart", "-f", "mp4"]);
-    }
-    let child = cmd
-        .arg(&tmp)
-        .stdin(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| {
-            if e.kind() == std::io::ErrorKind::NotFound {
-                anyhow::anyhow!("{}: writing video needs `ffmpeg` (Debian: apt-get install ffmpeg); or write PNG frames to a folder", out.display())
-            } else {
-                anyhow::anyhow!("cannot run ffmpeg: {e}")
-            }
-        })?;
-    Ok(Sink::Ffmpeg(FfmpegOut {
-        child: Some(child),
-        tmp,
-        out: out.to_path_buf(),
-    }))
-}
-
-impl Sink {
-    fn open(out: &Path, w: u32, h: u32, fps: f64) -> Result<Sink> {
-        match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            None => Ok(Sink::Folder { dir: AtomicDir::create(out)?, n: 0 }),
-            Some("mp4") => ffmpeg_sink(out, w, h, fps, false),
-            Some("gif") => ffmpeg_sink(out, w, h, fps, true),
-            Some(other) => bail!(
-                "{}: unknown output extension '.{other}': use .mp4, .gif, or a folder name (no extension) for PNG frames",
-                out.display()
-            ),
-        }
-    }
-
-    fn write(&mut self, img: &RgbImage) -> Result<()> {
-        match self {
-            Sink::Folder { dir, n } => {
-                write_png(&dir.path().join(format!("frame_{n:05}.png")), img)?;
-                *n += 1;
-                Ok(())
-            }
-            Sink::Ffmpeg(f) => {
-                let stdin = f
-                    .child
-                    .as_mut()
-                    .and_then(|c| c.stdin.as_mut())
-                    .context("ffmpeg stdin")?;
-                stdin
-                    .write_all(img.as_raw())
-                    .context("ffmpeg stopped accepting frames")
-            }
-        }
-    }
-
-    fn finish(self) -> Result<()> {
-        match self {
-            Sink::Folder { dir, .. } => {
-                dir.commit()?;
-                Ok(())
-            }
-            Sink::Ffmpeg(mut f) => f.finish(),
-        }
-    }
 }
 
 /// Seam score of one jump, from the masks in the object stores: how far the new frame's mask is
@@ -362,10 +288,15 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
         scene.render.views.len(),
         args.fps,
         args.duration,
+        args.long,
     )?;
     let mut renderer = Renderer::new(scene.render.clone(), args.options.params())?;
     let (w, h) = renderer.size();
-    let mut sink = Sink::open(&args.out, w, h, args.fps)?;
+    let mut inputs: Vec<&Path> = vec![args.scene.as_path()];
+    if let Some(f) = args.path.strip_prefix('@') {
+        inputs.push(Path::new(f));
+    }
+    let mut sink = FrameWriter::create(&args.out, &inputs, w, h, args.fps)?;
     let mut player = Player::new();
     let mut frame = RgbImage::new(w, h);
     let mut seams = Vec::new();
@@ -408,19 +339,24 @@ mod tests {
 
     #[test]
     fn paths() {
-        let qs = path_qs("0s:0,1s:2,2s:2", 3, 4.0, None).unwrap();
+        let qs = path_qs("0s:0,1s:2,2s:2", 3, 4.0, None, false).unwrap();
         assert_eq!(qs, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.0, 2.0, 2.0]);
-        let sweep = path_qs("sweep:2", 3, 2.0, None).unwrap();
+        let sweep = path_qs("sweep:2", 3, 2.0, None, false).unwrap();
         assert_eq!(sweep, vec![0.0, 1.0, 2.0, 1.0]);
-        assert_eq!(path_qs("sweep", 1, 10.0, Some(0.5)).unwrap(), vec![0.0; 5]);
+        assert_eq!(
+            path_qs("sweep", 1, 10.0, Some(0.5), false).unwrap(),
+            vec![0.0; 5]
+        );
         for (bad, want) in [
             ("0s:0,1s:5", "outside [0, 2]"),
             ("0s:0,0s:1", "increasing"),
             ("zero", "TIME:Q"),
             ("sweep:-1", "positive"),
             ("sweep:x", "not a number"),
+            ("sweep:1e-300", "longer than 600 s"),
+            ("0s:0,1e9s:1", "longer than 600 s"),
         ] {
-            let e = path_qs(bad, 3, 30.0, None).unwrap_err().to_string();
+            let e = path_qs(bad, 3, 30.0, None, false).unwrap_err().to_string();
             assert!(e.contains(want), "{bad}: {e}");
         }
     }

@@ -6,8 +6,8 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use vt_io::atomic::AtomicDir;
 use vt_io::frames::write_png;
+use vt_io::output::{Output, OutputKind};
 use vt_synth::{Rig, TextureParams, TextureScene};
 
 use crate::progress::bar;
@@ -142,6 +142,37 @@ pub fn run(cmd: SynthCommand) -> Result<()> {
     }
 }
 
+/// Most pixels in one synthetic frame (3840 x 2160).
+pub const MAX_SYNTH_PIXELS: u64 = 3840 * 2160;
+/// Most views of a synthetic texture scene.
+pub const MAX_SYNTH_VIEWS: usize = 64;
+/// Most frames of a synthetic texture scene, all views together.
+pub const MAX_SYNTH_FRAMES: usize = 100_000;
+
+/// Checks a texture scene's sizes against the limits above before anything is allocated.
+fn check_texture_size(p: &TextureParams) -> Result<()> {
+    let px = p.width as u64 * p.height as u64;
+    if px > MAX_SYNTH_PIXELS {
+        bail!(
+            "--size {}x{} is {px} pixels per frame, more than {MAX_SYNTH_PIXELS} (3840x2160)",
+            p.width,
+            p.height
+        );
+    }
+    if p.views == 0 || p.views > MAX_SYNTH_VIEWS {
+        bail!("--views {} must be in 1..={MAX_SYNTH_VIEWS}", p.views);
+    }
+    let total = p.views.saturating_mul(p.frames);
+    if p.frames == 0 || total > MAX_SYNTH_FRAMES {
+        bail!(
+            "--views {} x --frames {} = {total} frames, more than {MAX_SYNTH_FRAMES} (or no frames)",
+            p.views,
+            p.frames
+        );
+    }
+    Ok(())
+}
+
 /// Folder name of view p's frames.
 pub fn view_dir(p: usize) -> String {
     format!("view_{p:02}")
@@ -182,11 +213,9 @@ pub struct TruthRender {
 
 /// Writes frames, points.txt and truth.json of a texture scene into `out`, atomically.
 pub fn write_textures(out: &Path, params: &TextureParams) -> Result<()> {
+    check_texture_size(params)?;
     let scene = TextureScene::new(*params).map_err(|e| anyhow::anyhow!(e))?;
-    if params.frames > 100_000 {
-        bail!("--frames {} is too many (at most 100000)", params.frames);
-    }
-    let dir = AtomicDir::create(out)?;
+    let dir = Output::dir(out, OutputKind::SynthTextures, &[])?;
     let root = dir.path().to_path_buf();
     let pb = bar((params.views * params.frames) as u64, "synth frames");
     for p in 0..params.views {
@@ -285,10 +314,11 @@ fn write_object(a: &ObjectArgs) -> Result<()> {
         start_angle_deg: start,
         ..Default::default()
     };
+    // The output is checked (and its temporary made) before the ray casting.
+    let dir = Output::dir(&a.out, OutputKind::SynthObject, &[])?;
     let pb = bar(1, "ray casting");
     let data = vt_fv::synth::generate(&params).map_err(|e| anyhow::anyhow!(e))?;
     pb.finish_and_clear();
-    let dir = AtomicDir::create(&a.out)?;
     let root = dir.path().to_path_buf();
     let write_set = |folder: &Path,
                      par: &str,

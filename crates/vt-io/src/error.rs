@@ -8,13 +8,30 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// What can go wrong reading or writing vt's files.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// An operating-system error on a path.
-    #[error("{}: {source}", path.display())]
+    /// An operating-system error on a path. The OS error is part of the message and not also
+    /// exposed as `source()`, so error chains print it once.
+    #[error("{}: {cause}", path.display())]
     Io {
         /// The path.
         path: PathBuf,
         /// The OS error.
-        source: std::io::Error,
+        cause: std::io::Error,
+    },
+    /// An output that cannot be written where asked (see [`crate::output`]).
+    #[error("{}: {message}", path.display())]
+    Output {
+        /// The output path.
+        path: PathBuf,
+        /// What is there, and how to proceed.
+        message: String,
+    },
+    /// A size or count from the input beyond vt's documented limit (refused before allocating).
+    #[error("{}: {message}", path.display())]
+    Limit {
+        /// The file or value.
+        path: PathBuf,
+        /// The number and the limit.
+        message: String,
     },
     /// A video that cannot be decoded, or a decoder that cannot run.
     #[error("{}: {message}", path.display())]
@@ -68,7 +85,7 @@ impl Error {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            cause: source,
         }
     }
 }

@@ -140,6 +140,7 @@ impl VideoSource {
                 message: format!("not a readable video ({why})"),
             });
         }
+        check_image_size(path, (dims[0], dims[1]))?;
         Ok(Self {
             path: path.to_path_buf(),
             name: path.display().to_string(),
@@ -270,6 +271,17 @@ impl FolderSource {
             path: first.clone(),
             message: e.to_string(),
         })?;
+        check_image_size(first, size)?;
+        if files.len() > crate::limits::MAX_FRAMES {
+            return Err(Error::Limit {
+                path: dir.to_path_buf(),
+                message: format!(
+                    "{} frames, more than the {} vt reads per view",
+                    files.len(),
+                    crate::limits::MAX_FRAMES
+                ),
+            });
+        }
         Ok(Self {
             name: dir.display().to_string(),
             files,
@@ -288,13 +300,60 @@ impl FolderSource {
     }
 }
 
-/// Reads an image file as RGB, naming the file in errors.
-pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    let img = image::open(path).map_err(|e| Error::Image {
+/// Refuses image sizes beyond [`crate::limits::MAX_IMAGE_SIDE`] per side or
+/// [`crate::limits::MAX_IMAGE_PIXELS`] in all.
+pub fn check_image_size(path: &Path, (w, h): (u32, u32)) -> Result<()> {
+    use crate::limits::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE};
+    if w == 0
+        || h == 0
+        || w > MAX_IMAGE_SIDE
+        || h > MAX_IMAGE_SIDE
+        || w as u64 * h as u64 > MAX_IMAGE_PIXELS
+    {
+        return Err(Error::Limit {
+            path: path.to_path_buf(),
+            message: format!(
+                "image is {w}x{h}; vt reads 1 to {MAX_IMAGE_SIDE} pixels per side and at most {MAX_IMAGE_PIXELS} pixels"
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The image front door: decodes PNG or JPEG bytes as RGB with the size limits of
+/// [`crate::limits`] checked from the header, before the pixels are allocated. `path` names the
+/// file in errors.
+pub fn decode_rgb(bytes: &[u8], path: &Path) -> Result<RgbImage> {
+    let bad = |e: image::ImageError| Error::Image {
         path: path.to_path_buf(),
         message: e.to_string(),
-    })?;
+    };
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    if reader.format().is_none() {
+        return Err(Error::Image {
+            path: path.to_path_buf(),
+            message: "not a PNG or JPEG image".into(),
+        });
+    }
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(crate::limits::MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(crate::limits::MAX_IMAGE_SIDE);
+    limits.max_alloc = Some(crate::limits::MAX_IMAGE_PIXELS * 4 + (64 << 20));
+    reader.limits(limits);
+    let decoder = reader.into_decoder().map_err(bad)?;
+    let size = image::ImageDecoder::dimensions(&decoder);
+    check_image_size(path, size)?;
+    let img = image::DynamicImage::from_decoder(decoder).map_err(bad)?;
     Ok(img.to_rgb8())
+}
+
+/// Reads an image file as RGB through [`decode_rgb`] (file size at most
+/// [`crate::limits::MAX_IMAGE_FILE_BYTES`]), naming the file in errors.
+pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    let bytes = crate::limits::read_bytes(path, crate::limits::MAX_IMAGE_FILE_BYTES, "image file")?;
+    decode_rgb(&bytes, path)
 }
 
 impl FrameSource for FolderSource {
@@ -311,11 +370,24 @@ impl FrameSource for FolderSource {
         let mut n = 0;
         for files in self.files.chunks(chunk) {
             let frames: Vec<Result<RgbImage>> = files.par_iter().map(|p| read_rgb(p)).collect();
-            for fr in frames {
+            for (fr, file) in frames.into_iter().zip(files) {
                 let fr = fr.map_err(|e| vt_core::Error::Source {
                     view: self.name.clone(),
                     message: e.to_string(),
                 })?;
+                if fr.dimensions() != self.size {
+                    return Err(vt_core::Error::Source {
+                        view: self.name.clone(),
+                        message: format!(
+                            "{} is {}x{}, but the first frame is {}x{}",
+                            file.display(),
+                            fr.width(),
+                            fr.height(),
+                            self.size.0,
+                            self.size.1
+                        ),
+                    });
+                }
                 f(n, &fr)?;
                 n += 1;
             }

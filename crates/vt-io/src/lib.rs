@@ -7,9 +7,12 @@
 pub mod atomic;
 mod error;
 pub mod frames;
+pub mod limits;
 pub mod objects;
+pub mod output;
 pub mod points;
 pub mod scene;
 pub mod video;
+pub mod writer;
 
 pub use error::{Error, Result};

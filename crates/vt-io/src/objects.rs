@@ -156,7 +156,8 @@ impl ObjectFrame<'_> {
 impl ObjectStore {
     /// Loads and validates a store.
     pub fn load(path: &Path) -> Result<Self> {
-        let data = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let data =
+            crate::limits::read_bytes(path, crate::limits::MAX_OBJECT_STORE_BYTES, "object store")?;
         let bad = |m: String| Error::Scene {
             path: path.to_path_buf(),
             message: m,
@@ -172,11 +173,17 @@ impl ObjectStore {
         let u32_at = |o: usize| u32::from_le_bytes(data[o..o + 4].try_into().expect("4 bytes"));
         let u64_at = |o: usize| u64::from_le_bytes(data[o..o + 8].try_into().expect("8 bytes"));
         let (width, height) = (u32_at(8), u32_at(12));
+        let side = crate::limits::MAX_IMAGE_SIDE;
+        if width == 0 || height == 0 || width > side || height > side {
+            return Err(bad(format!(
+                "corrupted: frame size {width}x{height} (1 to {side} per side)"
+            )));
+        }
         let n = u64_at(data.len() - 16) as usize;
         let table_len = n
             .checked_add(1)
             .and_then(|k| k.checked_mul(8))
-            .filter(|&l| l + 16 + HEADER <= data.len());
+            .filter(|&l| l.checked_add(16 + HEADER).is_some_and(|t| t <= data.len()));
         let Some(table_len) = table_len else {
             return Err(bad(format!(
                 "corrupted: {n} frames do not fit in {} bytes",
@@ -185,7 +192,7 @@ impl ObjectStore {
         };
         let table_start = data.len() - 16 - table_len;
         let offsets: Vec<u64> = (0..=n).map(|i| u64_at(table_start + 8 * i)).collect();
-        if offsets.windows(2).any(|w| w[1] < w[0] + 16)
+        if offsets.windows(2).any(|w| w[1] < w[0].saturating_add(16))
             || offsets.first() != Some(&(HEADER as u64))
             || offsets[n] != table_start as u64
         {
@@ -200,10 +207,27 @@ impl ObjectStore {
         for i in 0..n {
             let (x0, y0, x1, y1) = store.raw_bbox(i);
             let ok = x0 <= x1 && y0 <= y1 && x1 <= width && y1 <= height;
-            let need = ok.then(|| 16 + (((x1 - x0) * (y1 - y0)) as usize).div_ceil(8));
+            // Sizes are at most MAX_IMAGE_SIDE^2 = 2^28 bits: no overflow.
+            let n_bits = ok.then(|| (x1 - x0) as usize * (y1 - y0) as usize);
+            let need = n_bits.map(|b| 16 + b.div_ceil(8));
             let len = (store.offsets[i + 1] - store.offsets[i]) as usize;
             if need.is_none_or(|need| len < need || !(len - need).is_multiple_of(3)) {
                 return Err(bad(format!("corrupted: frame {i} record is inconsistent")));
+            }
+            // Every set bit needs its RGB triple, no more, no less.
+            let (n_bits, need) = (n_bits.unwrap_or(0), need.unwrap_or(16));
+            let o = store.offsets[i] as usize + 16;
+            let bits = &store.data[o..o + n_bits.div_ceil(8)];
+            let full = n_bits / 8;
+            let mut set: usize = bits[..full].iter().map(|b| b.count_ones() as usize).sum();
+            if n_bits % 8 != 0 {
+                set += (bits[full] & ((1u8 << (n_bits % 8)) - 1)).count_ones() as usize;
+            }
+            if set * 3 != len - need {
+                return Err(bad(format!(
+                    "corrupted: frame {i} has {set} object pixels but {} colours",
+                    (len - need) / 3
+                )));
             }
         }
         Ok(store)

@@ -36,11 +36,21 @@ pub fn parse_points(text: &str, path: &Path) -> Result<Vec<Vec<Point>>> {
             .split(|c: char| c.is_whitespace() || c == ',')
             .filter(|t| !t.is_empty())
         {
+            let short = crate::output::shorten(tok);
             let v: f64 = tok
                 .parse()
-                .map_err(|_| err(line_no, format!("'{tok}' is not a number")))?;
+                .map_err(|_| err(line_no, format!("'{short}' is not a number")))?;
             if !v.is_finite() {
-                return Err(err(line_no, format!("'{tok}' is not a finite number")));
+                return Err(err(line_no, format!("'{short}' is not a finite number")));
+            }
+            if nums.len() >= 2 * crate::limits::MAX_POINTS {
+                return Err(err(
+                    line_no,
+                    format!(
+                        "more than {} points (the most vt reads per view)",
+                        crate::limits::MAX_POINTS
+                    ),
+                ));
             }
             nums.push(v);
         }
@@ -67,6 +77,15 @@ pub fn parse_points(text: &str, path: &Path) -> Result<Vec<Vec<Point>>> {
             }
             _ => {}
         }
+        if views.len() >= crate::limits::MAX_VIEWS {
+            return Err(err(
+                line_no,
+                format!(
+                    "more than {} views (the most vt reads)",
+                    crate::limits::MAX_VIEWS
+                ),
+            ));
+        }
         views.push(nums.chunks(2).map(|c| Point::new(c[0], c[1])).collect());
     }
     if views.is_empty() {
@@ -80,7 +99,7 @@ pub fn parse_points(text: &str, path: &Path) -> Result<Vec<Vec<Point>>> {
 
 /// Reads and parses a points file.
 pub fn read_points(path: &Path) -> Result<Vec<Vec<Point>>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_TEXT_BYTES, "points file")?;
     parse_points(&text, path)
 }
 

@@ -5,7 +5,11 @@
 //!   scene.json            format "vt-scene", version 1 (see [`SceneFile`])
 //!   background_000.png    B_p, the unsmoothed median of view p
 //!   objects_000.bin       the moving object of every frame of view p (see [`crate::objects`])
+//!   dynamic_000.png       optional: alpha of view p's dynamic region (see [`vt_core::noise`]);
+//!                         the object store then also holds the frames' pixels under it
 //! ```
+//! Fields added after version 1 first shipped are optional (`serde(default)`), so every version-1
+//! scene still loads: a scene without `dynamic` renders objects only, as before.
 //! A reader refuses other format versions with a message saying which it found and which it
 //! reads, rather than guessing.
 
@@ -93,6 +97,19 @@ pub struct ViewEntry {
     pub to_prev: Option<LinkEntry>,
     /// Eq. (2) tables.
     pub transitions: Transitions,
+    /// Dynamic-region alpha image, relative to the scene (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dynamic: Option<String>,
+    /// Share of the image in the dynamic region.
+    #[serde(default)]
+    pub dynamic_fraction: f64,
+    /// Share of the real frame-to-frame change the view keeps at its own viewpoint (absent in
+    /// scenes analysed before it was measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_kept: Option<f64>,
+    /// Sensor noise estimate of the noise model, grey levels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_sigma: Option<f32>,
 }
 
 /// A loop.
@@ -169,6 +186,25 @@ pub fn background_name(p: usize) -> String {
     format!("background_{p:03}.png")
 }
 
+/// File name of view p's dynamic-region alpha image.
+pub fn dynamic_name(p: usize) -> String {
+    format!("dynamic_{p:03}.png")
+}
+
+/// Writes the dynamic-region alpha images of an analysis into a scene directory.
+pub fn write_dynamic(dir: &Path, a: &SceneAnalysis) -> Result<()> {
+    for (p, v) in a.views.iter().enumerate() {
+        if let Some(alpha) = &v.dynamic_alpha {
+            let path = dir.join(dynamic_name(p));
+            alpha.save(&path).map_err(|e| Error::Image {
+                path: path.clone(),
+                message: e.to_string(),
+            })?;
+        }
+    }
+    Ok(())
+}
+
 /// File name of view p's object store.
 pub fn objects_name(p: usize) -> String {
     format!("objects_{p:03}.bin")
@@ -217,6 +253,10 @@ impl SceneFile {
                             .unwrap_or_else(|| none.clone()),
                         prev: prev.map(|l| l.backward.clone()).unwrap_or(none),
                     },
+                    dynamic: v.dynamic_alpha.as_ref().map(|_| dynamic_name(p)),
+                    dynamic_fraction: v.dynamic_fraction,
+                    motion_kept: Some(v.motion_kept),
+                    noise_sigma: v.noise_sigma,
                 }
             })
             .collect();
@@ -254,7 +294,8 @@ impl SceneFile {
     /// Reads and validates `dir/scene.json` (format, version, and internal consistency).
     pub fn read(dir: &Path) -> Result<Self> {
         let path = dir.join("scene.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let text =
+            crate::limits::read_text(&path, crate::limits::MAX_SCENE_JSON_BYTES, "scene.json")?;
         let bad = |message: String| Error::Scene {
             path: path.clone(),
             message,
@@ -277,11 +318,46 @@ impl SceneFile {
     }
 
     fn validate(&self) -> std::result::Result<(), String> {
+        use crate::limits::{MAX_FRAMES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_POINTS, MAX_VIEWS};
         if self.views.is_empty() {
             return Err("no views".into());
         }
         let m = self.views.len();
+        if m > MAX_VIEWS {
+            return Err(format!("{m} views, more than the {MAX_VIEWS} vt reads"));
+        }
+        let (w, h) = (self.width, self.height);
+        if w == 0
+            || h == 0
+            || w > MAX_IMAGE_SIDE
+            || h > MAX_IMAGE_SIDE
+            || w as u64 * h as u64 > MAX_IMAGE_PIXELS
+        {
+            return Err(format!(
+                "frame size {w}x{h} is out of range (1 to {MAX_IMAGE_SIDE} per side, at most {MAX_IMAGE_PIXELS} pixels)"
+            ));
+        }
         for (p, v) in self.views.iter().enumerate() {
+            if v.frames > MAX_FRAMES {
+                return Err(format!(
+                    "view {p}: {} frames, more than the {MAX_FRAMES} vt reads",
+                    v.frames
+                ));
+            }
+            if v.points.len() > MAX_POINTS {
+                return Err(format!(
+                    "view {p}: {} points, more than the {MAX_POINTS} vt reads",
+                    v.points.len()
+                ));
+            }
+            for (what, name) in [("background", &v.background), ("objects", &v.objects)] {
+                if !is_plain_file_name(name) {
+                    return Err(format!(
+                        "view {p}: {what} '{}' is not a file name inside the scene folder",
+                        crate::output::shorten(name)
+                    ));
+                }
+            }
             let l = v.loop_;
             if !(l.start < l.end && l.end < v.frames) {
                 return Err(format!(
@@ -340,6 +416,16 @@ impl SceneFile {
     }
 }
 
+/// True for a bare file name: not empty, no folder separators, not `.` or `..`, so joining it
+/// to a folder stays inside that folder.
+pub fn is_plain_file_name(name: &str) -> bool {
+    !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name.contains(['/', '\\', '\0'])
+        && !(name.len() >= 2 && name.as_bytes()[1] == b':')
+}
+
 /// A scene loaded for rendering: its file, the renderer's view of it, and the object stores.
 pub struct LoadedScene {
     /// scene.json.
@@ -394,7 +480,33 @@ impl LoadedScene {
                 });
             }
             stores.push(store);
+            let dynamic = match &v.dynamic {
+                Some(name) => {
+                    let path = dir.join(name);
+                    let img = image::open(&path)
+                        .map_err(|e| Error::Image {
+                            path: path.clone(),
+                            message: e.to_string(),
+                        })?
+                        .to_luma8();
+                    if img.dimensions() != (file.width, file.height) {
+                        return Err(Error::Scene {
+                            path,
+                            message: format!(
+                                "dynamic region is {}x{}, the scene is {}x{}",
+                                img.width(),
+                                img.height(),
+                                file.width,
+                                file.height
+                            ),
+                        });
+                    }
+                    Some(std::sync::Arc::new(img))
+                }
+                None => None,
+            };
             views.push(vt_core::render::RenderView {
+                dynamic,
                 background,
                 loop_start: v.loop_.start,
                 loop_end: v.loop_.end,

@@ -1,0 +1,879 @@
+//! Outputs that cannot destroy: every file or folder vt writes goes through [`Output`].
+//!
+//! Rules, enforced here for every command:
+//! - An output is built under a hidden temporary sibling (`.NAME.tmp-PID`) and renamed into place
+//!   only when complete, so a failed or interrupted run leaves the previous output untouched.
+//! - An existing path is replaced only when it is a previous vt output *of the same kind*,
+//!   recognised by a marker vt writes: a `.vt-output` file inside a folder (its first line
+//!   `vt-output KIND`, then every entry vt wrote, so a folder holding anything else is refused),
+//!   and for single files a marker embedded in the file itself (an mp4 `comment` tag, a GIF comment
+//!   extension, a PNG `tEXt` chunk, a JPEG `COM` segment; see [`embed_marker`]).
+//! - An output is never one of the run's own inputs, nor a folder holding one.
+//! - Temporaries are registered while they exist: SIGINT/SIGTERM (see [`install_interrupt_cleanup`])
+//!   kill the run's encoders and remove its temporaries; temporaries left by a process that no
+//!   longer exists (killed, out of memory) are removed by the next run that writes beside them.
+//!
+//! Anything else at the output path gets a one-line error saying what is there and how to proceed.
+
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Component, Path, PathBuf};
+use std::process::Child;
+use std::sync::{Arc, Mutex};
+
+use crate::{Error, Result};
+
+/// Name of the marker file inside a vt output folder.
+pub const MARKER_FILE: &str = ".vt-output";
+
+/// Text that marks a vt output (followed by a space and the kind).
+const MARKER_PREFIX: &str = "vt-output";
+
+/// What a command writes. The kind is recorded in the marker; an output replaces only one of the
+/// same kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    /// A scene folder (`vt analyze`).
+    Scene,
+    /// A folder of PNG frames (`vt render --out NAME`).
+    Frames,
+    /// An mp4 or GIF video (`vt render`, `vt fv orbit`).
+    Video,
+    /// A single PNG or JPEG image (`vt fv render`).
+    Image,
+    /// A synthetic texture scene folder (`vt synth textures`).
+    SynthTextures,
+    /// A synthetic object folder (`vt synth object`).
+    SynthObject,
+    /// A hull folder (`vt fv hull`).
+    Hull,
+    /// The demo's folder (`vt demo`).
+    Demo,
+    /// Any other folder (written through [`crate::atomic::AtomicDir`]).
+    Folder,
+}
+
+impl OutputKind {
+    /// The word written in the marker.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputKind::Scene => "scene",
+            OutputKind::Frames => "frames",
+            OutputKind::Video => "video",
+            OutputKind::Image => "image",
+            OutputKind::SynthTextures => "synth-textures",
+            OutputKind::SynthObject => "synth-object",
+            OutputKind::Hull => "hull",
+            OutputKind::Demo => "demo",
+            OutputKind::Folder => "folder",
+        }
+    }
+
+    /// True for kinds that are folders.
+    pub fn is_dir(self) -> bool {
+        !matches!(self, OutputKind::Video | OutputKind::Image)
+    }
+
+    fn marker(self) -> String {
+        format!("{MARKER_PREFIX} {}", self.name())
+    }
+}
+
+/// Temporaries and encoder processes of this run, removed or killed on SIGINT/SIGTERM.
+#[derive(Default)]
+struct Live {
+    temps: Vec<PathBuf>,
+    children: Vec<Arc<Mutex<Child>>>,
+    /// Set once a signal arrived: nothing new may be registered.
+    stopping: bool,
+}
+
+static LIVE: Mutex<Live> = Mutex::new(Live {
+    temps: Vec::new(),
+    children: Vec::new(),
+    stopping: false,
+});
+
+fn live() -> std::sync::MutexGuard<'static, Live> {
+    // A poisoned lock still holds a valid list: cleanup must work after any panic.
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn register_temp(path: &Path) -> Result<()> {
+    let mut l = live();
+    if l.stopping {
+        return Err(Error::Output {
+            path: path.to_path_buf(),
+            message: "interrupted".into(),
+        });
+    }
+    l.temps.push(path.to_path_buf());
+    Ok(())
+}
+
+fn unregister_temp(path: &Path) {
+    live().temps.retain(|p| p != path);
+}
+
+/// Registers an encoder process so an interruption kills it before removing its output.
+pub fn register_child(child: &Arc<Mutex<Child>>) {
+    live().children.push(child.clone());
+}
+
+/// Forgets an encoder process (it has exited).
+pub fn unregister_child(child: &Arc<Mutex<Child>>) {
+    live().children.retain(|c| !Arc::ptr_eq(c, child));
+}
+
+fn remove_path(p: &Path) {
+    match std::fs::symlink_metadata(p) {
+        Ok(m) if m.is_dir() => {
+            // Another thread may still be writing into it: retry a few times.
+            for _ in 0..5 {
+                if std::fs::remove_dir_all(p).is_ok() || !p.exists() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
+        Ok(_) => {
+            let _ = std::fs::remove_file(p);
+        }
+        Err(_) => {}
+    }
+}
+
+/// Kills this run's encoders and removes its temporaries; later registrations fail. Called by
+/// the signal handler; also usable before an abnormal exit.
+pub fn cleanup_now() {
+    let mut l = live();
+    l.stopping = true;
+    for c in l.children.drain(..) {
+        let mut c = c.lock().unwrap_or_else(|e| e.into_inner());
+        let _ = c.kill();
+        let _ = c.wait();
+    }
+    for t in l.temps.drain(..) {
+        remove_path(&t);
+    }
+}
+
+/// Installs the SIGINT/SIGTERM (and SIGHUP) handler of a command-line run: it removes the run's
+/// temporaries, kills its encoders, says so on stderr and exits with status 130.
+pub fn install_interrupt_cleanup() -> Result<()> {
+    ctrlc::set_handler(|| {
+        cleanup_now();
+        eprintln!("error: interrupted; temporary output removed");
+        std::process::exit(130);
+    })
+    .map_err(|e| Error::Output {
+        path: PathBuf::from("."),
+        message: format!("cannot install the interrupt handler: {e}"),
+    })
+}
+
+/// Shortens a user-supplied value for a message: at most 40 characters, the rest counted.
+pub fn shorten(s: &str) -> String {
+    const MAX: usize = 40;
+    let n = s.chars().count();
+    if n <= MAX {
+        return s.to_string();
+    }
+    let head: String = s.chars().take(MAX - 8).collect();
+    format!("{head}... ({n} characters)")
+}
+
+/// An output being written. Dropped without [`Output::commit`], its temporary is removed and the
+/// target is untouched.
+pub struct Output {
+    target: PathBuf,
+    tmp: PathBuf,
+    kind: OutputKind,
+    committed: bool,
+}
+
+impl Output {
+    /// Starts a folder output of `kind` at `target`. Checks `target` (see the module rules)
+    /// against `inputs`, removes stale temporaries beside it, and creates the temporary folder.
+    pub fn dir(target: &Path, kind: OutputKind, inputs: &[&Path]) -> Result<Self> {
+        debug_assert!(kind.is_dir());
+        let tmp = prepare(target, kind, inputs)?;
+        register_temp(&tmp)?;
+        let out = Self {
+            target: target.to_path_buf(),
+            tmp,
+            kind,
+            committed: false,
+        };
+        std::fs::create_dir(&out.tmp).map_err(|e| Error::io(&out.tmp, e))?;
+        Ok(out)
+    }
+
+    /// Starts a single-file output of `kind` at `target` (checked as for [`Output::dir`]). The
+    /// temporary file is not created: write it at [`Output::path`].
+    pub fn file(target: &Path, kind: OutputKind, inputs: &[&Path]) -> Result<Self> {
+        debug_assert!(!kind.is_dir());
+        let tmp = prepare(target, kind, inputs)?;
+        register_temp(&tmp)?;
+        Ok(Self {
+            target: target.to_path_buf(),
+            tmp,
+            kind,
+            committed: false,
+        })
+    }
+
+    /// Where to write now (the temporary).
+    pub fn path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// Where it will be.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Marks the output (a marker file listing the folder's entries, or a marker embedded in the
+    /// file) and moves it into place, replacing a previous vt output of the same kind.
+    pub fn commit(mut self) -> Result<PathBuf> {
+        if self.kind.is_dir() {
+            let mut entries = Vec::new();
+            list_entries(&self.tmp, Path::new(""), &mut entries)
+                .map_err(|e| Error::io(&self.tmp, e))?;
+            let mut text = self.kind.marker();
+            text.push('\n');
+            for e in entries {
+                text.push_str(&e);
+                text.push('\n');
+            }
+            let marker = self.tmp.join(MARKER_FILE);
+            std::fs::write(&marker, text).map_err(|e| Error::io(&marker, e))?;
+        } else {
+            embed_marker(&self.tmp, self.kind)?;
+        }
+        // Re-check the target: something may have appeared there while we worked.
+        check_existing(&self.target, self.kind)?;
+        // Hold the registry while renaming, so an interruption cannot fall between the renames.
+        let mut l = live();
+        if l.stopping {
+            return Err(Error::Output {
+                path: self.target.clone(),
+                message: "interrupted".into(),
+            });
+        }
+        let result = if self.kind.is_dir() && self.target.exists() {
+            let old = sibling(&self.target, "old")?;
+            std::fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
+            l.temps.push(old.clone());
+            match std::fs::rename(&self.tmp, &self.target) {
+                Ok(()) => {
+                    remove_path(&old);
+                    l.temps.retain(|p| p != &old);
+                    Ok(())
+                }
+                Err(e) => {
+                    let _ = std::fs::rename(&old, &self.target);
+                    l.temps.retain(|p| p != &old);
+                    Err(Error::io(&self.target, e))
+                }
+            }
+        } else {
+            std::fs::rename(&self.tmp, &self.target).map_err(|e| Error::io(&self.target, e))
+        };
+        l.temps.retain(|p| p != &self.tmp);
+        drop(l);
+        result?;
+        self.committed = true;
+        Ok(self.target.clone())
+    }
+}
+
+impl Drop for Output {
+    fn drop(&mut self) {
+        if !self.committed {
+            remove_path(&self.tmp);
+            unregister_temp(&self.tmp);
+        }
+    }
+}
+
+/// `.NAME.WHAT-PID` beside `target`.
+fn sibling(target: &Path, what: &str) -> Result<PathBuf> {
+    let name = target
+        .file_name()
+        .ok_or_else(|| out_err(target, "has no file name"))?
+        .to_string_lossy();
+    Ok(parent_of(target).join(format!(".{name}.{what}-{}", std::process::id())))
+}
+
+fn parent_of(target: &Path) -> PathBuf {
+    match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+fn out_err(path: &Path, message: impl Into<String>) -> Error {
+    Error::Output {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// All checks before writing; returns the temporary path.
+fn prepare(target: &Path, kind: OutputKind, inputs: &[&Path]) -> Result<PathBuf> {
+    match target.components().next_back() {
+        Some(Component::Normal(_)) => {}
+        _ => return Err(out_err(target, "is not a file or folder name to write")),
+    }
+    let parent = parent_of(target);
+    match std::fs::metadata(&parent) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => {
+            return Err(out_err(
+                target,
+                format!(
+                    "cannot be written: {} is a file, not a folder",
+                    parent.display()
+                ),
+            ))
+        }
+        Err(_) => {
+            return Err(out_err(
+                target,
+                format!(
+                    "cannot be written: folder {} does not exist",
+                    parent.display()
+                ),
+            ))
+        }
+    }
+    check_not_input(target, inputs)?;
+    check_existing(target, kind)?;
+    remove_stale_temps(&parent);
+    let tmp = sibling(target, "tmp")?;
+    if std::fs::symlink_metadata(&tmp).is_ok() {
+        // Left by an earlier run of this very process id (pid reuse): ours to remove.
+        remove_path(&tmp);
+    }
+    Ok(tmp)
+}
+
+/// Refuses an output that is one of the inputs or holds one.
+fn check_not_input(target: &Path, inputs: &[&Path]) -> Result<()> {
+    let Some(t) = canonical_target(target) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let Ok(i) = std::fs::canonicalize(input) else {
+            continue;
+        };
+        if i == t {
+            return Err(out_err(
+                target,
+                "is one of this run's inputs; choose another --out",
+            ));
+        }
+        if i.starts_with(&t) {
+            return Err(out_err(
+                target,
+                format!(
+                    "holds {}, one of this run's inputs; choose another --out",
+                    input.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The target's absolute path with its parent resolved (the target itself may not exist).
+fn canonical_target(target: &Path) -> Option<PathBuf> {
+    let parent = std::fs::canonicalize(parent_of(target)).ok()?;
+    let name = target.file_name()?;
+    let t = parent.join(name);
+    // A symbolic link at the target resolves to what it points at.
+    Some(std::fs::canonicalize(&t).unwrap_or(t))
+}
+
+/// Refuses anything at `target` but a previous vt output of the same kind.
+fn check_existing(target: &Path, kind: OutputKind) -> Result<()> {
+    let meta = match std::fs::symlink_metadata(target) {
+        Ok(m) => m,
+        Err(_) => return Ok(()),
+    };
+    let how = "choose another --out, or move it away first";
+    if meta.file_type().is_symlink() {
+        return Err(out_err(
+            target,
+            format!("exists and is a symbolic link, not a vt output; {how}"),
+        ));
+    }
+    if meta.is_dir() {
+        let marker = target.join(MARKER_FILE);
+        let text = read_small(&marker, 16 << 20);
+        let Some(text) = text else {
+            let n = std::fs::read_dir(target).map(|d| d.count()).unwrap_or(0);
+            return Err(out_err(
+                target,
+                format!(
+                    "exists and is not a vt output (a folder with {n} entries and no {MARKER_FILE} marker); {how}"
+                ),
+            ));
+        };
+        let mut lines = text.lines();
+        let first = lines.next().unwrap_or("");
+        let found = first.strip_prefix(MARKER_PREFIX).map(str::trim);
+        if found != Some(kind.name()) {
+            return Err(out_err(
+                target,
+                format!(
+                    "is {}, not a vt {} output; {how}",
+                    match found {
+                        Some(k) if !k.is_empty() => format!("a vt {} output", shorten(k)),
+                        _ => "a folder with an unreadable vt marker".to_string(),
+                    },
+                    kind.name()
+                ),
+            ));
+        }
+        let written: std::collections::HashSet<&str> = lines.collect();
+        let mut present = Vec::new();
+        list_entries(target, Path::new(""), &mut present).map_err(|e| Error::io(target, e))?;
+        if let Some(extra) = present
+            .iter()
+            .find(|e| e.as_str() != MARKER_FILE && !written.contains(e.as_str()))
+        {
+            return Err(out_err(
+                target,
+                format!(
+                    "is a vt {} output but also holds {}, which vt did not write; {how}",
+                    kind.name(),
+                    shorten(extra)
+                ),
+            ));
+        }
+        return Ok(());
+    }
+    if kind.is_dir() {
+        return Err(out_err(
+            target,
+            format!(
+                "exists and is a file, not a vt {} folder; {how}",
+                kind.name()
+            ),
+        ));
+    }
+    match has_marker(target, kind) {
+        Ok(true) => Ok(()),
+        _ => Err(out_err(
+            target,
+            format!(
+                "exists and is not a vt {} output (no vt marker in it); {how}",
+                kind.name()
+            ),
+        )),
+    }
+}
+
+fn read_small(path: &Path, limit: u64) -> Option<String> {
+    let f = std::fs::File::open(path).ok()?;
+    if f.metadata().ok()?.len() > limit {
+        return None;
+    }
+    let mut s = String::new();
+    f.take(limit).read_to_string(&mut s).ok()?;
+    Some(s)
+}
+
+/// Every entry under `dir`, relative, `/`-separated, folders too; symbolic links not followed.
+fn list_entries(dir: &Path, rel: &Path, out: &mut Vec<String>) -> std::io::Result<()> {
+    for e in std::fs::read_dir(dir.join(rel))? {
+        let e = e?;
+        let r = rel.join(e.file_name());
+        out.push(r.to_string_lossy().replace('\\', "/"));
+        if e.file_type()?.is_dir() {
+            list_entries(dir, &r, out)?;
+        }
+    }
+    Ok(())
+}
+
+/// Whether a process id is running (Linux: `/proc/PID`). Elsewhere every process counts as
+/// running, so nothing is removed.
+fn process_alive(pid: u32) -> bool {
+    if !Path::new("/proc/self").exists() {
+        return true;
+    }
+    Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Removes `.NAME.tmp-PID` / `.NAME.old-PID` entries in `dir` whose process no longer exists.
+pub fn remove_stale_temps(dir: &Path) {
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let me = std::process::id();
+    for e in rd.flatten() {
+        let name = e.file_name();
+        let Some(pid) = stale_pid(&name.to_string_lossy()) else {
+            continue;
+        };
+        if pid == me || process_alive(pid) {
+            continue;
+        }
+        remove_path(&e.path());
+    }
+}
+
+/// The process id in a vt temporary's name `.NAME.tmp-PID` or `.NAME.old-PID`.
+fn stale_pid(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    let (stem, pid) = rest.rsplit_once('-')?;
+    if !(stem.ends_with(".tmp") || stem.ends_with(".old")) || stem.len() < 5 {
+        return None;
+    }
+    if pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok()
+}
+
+// ---- Markers embedded in single files ----
+
+/// Adds vt's marker to a finished file, in a way its format allows: a PNG `tEXt` chunk after
+/// `IHDR`, a JPEG `COM` segment after `SOI`, a GIF comment extension before the trailer. MP4 files
+/// get theirs from the encoder (`-metadata comment=...`, see [`mp4_marker_args`]) and are only
+/// checked here.
+pub fn embed_marker(path: &Path, kind: OutputKind) -> Result<()> {
+    let mut head = [0u8; 8];
+    let mut f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .map_err(|e| Error::io(path, e))?;
+    let n = f.read(&mut head).map_err(|e| Error::io(path, e))?;
+    let marker = kind.marker();
+    let io = |e| Error::io(path, e);
+    if n == 8 && head == *b"\x89PNG\r\n\x1a\n" {
+        let mut data = Vec::new();
+        f.seek(SeekFrom::Start(0)).map_err(io)?;
+        f.read_to_end(&mut data).map_err(io)?;
+        let ihdr_end = 8 + 25;
+        if data.len() < ihdr_end || &data[12..16] != b"IHDR" {
+            return Err(out_err(path, "not a PNG vt can mark"));
+        }
+        let mut body = b"tEXt".to_vec();
+        body.extend_from_slice(b"Comment\0");
+        body.extend_from_slice(marker.as_bytes());
+        let mut chunk = ((body.len() - 4) as u32).to_be_bytes().to_vec();
+        chunk.extend_from_slice(&body);
+        chunk.extend_from_slice(&crc32fast::hash(&body).to_be_bytes());
+        data.splice(ihdr_end..ihdr_end, chunk);
+        std::fs::write(path, data).map_err(io)
+    } else if n >= 2 && head[..2] == [0xFF, 0xD8] {
+        let mut data = Vec::new();
+        f.seek(SeekFrom::Start(0)).map_err(io)?;
+        f.read_to_end(&mut data).map_err(io)?;
+        let mut seg = vec![0xFF, 0xFE];
+        seg.extend_from_slice(&((marker.len() + 2) as u16).to_be_bytes());
+        seg.extend_from_slice(marker.as_bytes());
+        data.splice(2..2, seg);
+        std::fs::write(path, data).map_err(io)
+    } else if n >= 6 && (&head[..6] == b"GIF89a" || &head[..6] == b"GIF87a") {
+        let len = f.metadata().map_err(io)?.len();
+        let mut last = [0u8; 1];
+        f.seek(SeekFrom::Start(len.saturating_sub(1))).map_err(io)?;
+        f.read_exact(&mut last).map_err(io)?;
+        if last[0] != 0x3B {
+            return Err(out_err(path, "GIF without its trailer"));
+        }
+        f.seek(SeekFrom::Start(len - 1)).map_err(io)?;
+        f.write_all(&gif_comment(&marker)).map_err(io)
+    } else if has_marker(path, kind)? {
+        Ok(())
+    } else {
+        Err(out_err(path, "vt could not mark this file as its output"))
+    }
+}
+
+fn gif_comment(marker: &str) -> Vec<u8> {
+    let mut v = vec![0x21, 0xFE, marker.len() as u8];
+    v.extend_from_slice(marker.as_bytes());
+    v.extend_from_slice(&[0x00, 0x3B]);
+    v
+}
+
+/// ffmpeg arguments that put vt's marker in an mp4's metadata.
+pub fn mp4_marker_args() -> [String; 2] {
+    [
+        "-metadata".into(),
+        format!("comment={}", OutputKind::Video.marker()),
+    ]
+}
+
+/// Whether a file carries vt's marker of `kind` (see [`embed_marker`]).
+pub fn has_marker(path: &Path, kind: OutputKind) -> Result<bool> {
+    let marker = kind.marker();
+    let io = |e| Error::io(path, e);
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len();
+    let mut head = vec![0u8; 64 << 10];
+    let n = read_up_to(&mut f, &mut head).map_err(io)?;
+    head.truncate(n);
+    if head.starts_with(b"\x89PNG") {
+        // tEXt chunks before IDAT; vt puts its own right after IHDR.
+        let mut o = 8usize;
+        while o + 8 <= head.len() {
+            let l = u32::from_be_bytes(head[o..o + 4].try_into().expect("4 bytes")) as usize;
+            let t = &head[o + 4..o + 8];
+            if t == b"IDAT" {
+                break;
+            }
+            let end = o.saturating_add(8).saturating_add(l);
+            if t == b"tEXt" && end <= head.len() {
+                let body = &head[o + 8..end];
+                if body.strip_prefix(b"Comment\0") == Some(marker.as_bytes()) {
+                    return Ok(true);
+                }
+            }
+            o = end.saturating_add(4);
+        }
+        return Ok(false);
+    }
+    if head.starts_with(&[0xFF, 0xD8]) {
+        let mut seg = vec![0xFF, 0xFE];
+        seg.extend_from_slice(&((marker.len() + 2) as u16).to_be_bytes());
+        seg.extend_from_slice(marker.as_bytes());
+        return Ok(head[2..].starts_with(&seg));
+    }
+    if head.starts_with(b"GIF8") {
+        let tail = gif_comment(&marker);
+        if len < tail.len() as u64 {
+            return Ok(false);
+        }
+        let mut buf = vec![0u8; tail.len()];
+        f.seek(SeekFrom::Start(len - tail.len() as u64))
+            .map_err(io)?;
+        f.read_exact(&mut buf).map_err(io)?;
+        return Ok(buf == tail);
+    }
+    if head.len() >= 8 && &head[4..8] == b"ftyp" {
+        // MP4: find the top-level moov box and look for the comment in it.
+        let mut o = 0u64;
+        while o + 8 <= len {
+            let mut hdr = [0u8; 16];
+            f.seek(SeekFrom::Start(o)).map_err(io)?;
+            let got = read_up_to(&mut f, &mut hdr).map_err(io)?;
+            if got < 8 {
+                break;
+            }
+            let mut size = u32::from_be_bytes(hdr[..4].try_into().expect("4 bytes")) as u64;
+            let mut body = 8;
+            if size == 1 && got >= 16 {
+                size = u64::from_be_bytes(hdr[8..16].try_into().expect("8 bytes"));
+                body = 16;
+            } else if size == 0 {
+                size = len - o;
+            }
+            if size < body {
+                break;
+            }
+            if &hdr[4..8] == b"moov" {
+                let take = (size - body).min(64 << 20);
+                let mut moov = Vec::new();
+                f.seek(SeekFrom::Start(o + body)).map_err(io)?;
+                (&mut f).take(take).read_to_end(&mut moov).map_err(io)?;
+                return Ok(moov.windows(marker.len()).any(|w| w == marker.as_bytes()));
+            }
+            o = o.saturating_add(size);
+        }
+        return Ok(false);
+    }
+    Ok(false)
+}
+
+fn read_up_to(f: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match f.read(&mut buf[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn replaces_only_its_own_kind_and_never_foreign_folders() {
+        let root = tempfile::tempdir().unwrap();
+        let target = root.path().join("scene");
+        // A first output, then a replacement.
+        let o = Output::dir(&target, OutputKind::Scene, &[]).unwrap();
+        std::fs::write(o.path().join("a.txt"), "1").unwrap();
+        o.commit().unwrap();
+        let o = Output::dir(&target, OutputKind::Scene, &[]).unwrap();
+        std::fs::write(o.path().join("b.txt"), "2").unwrap();
+        {
+            // An unfinished one is dropped: the committed one stays.
+            let d = Output::dir(&root.path().join("other"), OutputKind::Scene, &[]).unwrap();
+            std::fs::write(d.path().join("x"), "x").unwrap();
+        }
+        o.commit().unwrap();
+        assert_eq!(entries(&target), vec![".vt-output", "b.txt"]);
+        assert_eq!(entries(root.path()), vec!["scene"], "no temporary left");
+        // Another kind, a user file inside, a foreign folder, a file: refused, untouched.
+        let e = Output::dir(&target, OutputKind::Frames, &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("is a vt scene output, not a vt frames output"),
+            "{e}"
+        );
+        std::fs::write(target.join("photo.jpg"), "mine").unwrap();
+        let e = Output::dir(&target, OutputKind::Scene, &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("also holds photo.jpg"), "{e}");
+        let foreign = root.path().join("photos");
+        std::fs::create_dir(&foreign).unwrap();
+        std::fs::write(foreign.join("p.jpg"), "x").unwrap();
+        let e = Output::dir(&foreign, OutputKind::Scene, &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("not a vt output (a folder with 1 entries"),
+            "{e}"
+        );
+        let file = root.path().join("notes.txt");
+        std::fs::write(&file, "x").unwrap();
+        let e = Output::dir(&file, OutputKind::Scene, &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("is a file"), "{e}");
+        let e = Output::dir(&file.join("x"), OutputKind::Scene, &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("notes.txt is a file, not a folder"), "{e}");
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
+        assert_eq!(
+            std::fs::read_to_string(target.join("photo.jpg")).unwrap(),
+            "mine"
+        );
+    }
+
+    #[test]
+    fn refuses_inputs_and_folders_holding_them() {
+        let root = tempfile::tempdir().unwrap();
+        let frames = root.path().join("frames");
+        std::fs::create_dir(&frames).unwrap();
+        let f = frames.join("f0.png");
+        std::fs::write(&f, "x").unwrap();
+        for (target, want) in [
+            (&frames, "is one of this run's inputs"),
+            (&root.path().to_path_buf(), "holds"),
+        ] {
+            let e = Output::dir(target, OutputKind::Scene, &[&frames])
+                .err()
+                .unwrap()
+                .to_string();
+            assert!(e.contains(want), "{e}");
+        }
+        // Through a relative path with `..` too.
+        let sneaky = frames.join("..").join("frames");
+        assert!(Output::dir(&sneaky, OutputKind::Scene, &[&f]).is_err());
+        assert!(f.exists());
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_processes_are_removed() {
+        let root = tempfile::tempdir().unwrap();
+        // A pid that cannot be running (above Linux's pid_max limit of 2^22).
+        let dead = root.path().join(".scene.tmp-4194305");
+        std::fs::create_dir(&dead).unwrap();
+        std::fs::write(dead.join("half"), "x").unwrap();
+        let alive = root.path().join(format!(".scene.tmp-{}", 1));
+        std::fs::create_dir(&alive).unwrap();
+        let user = root.path().join(".tmp-notes");
+        std::fs::write(&user, "x").unwrap();
+        let o = Output::dir(&root.path().join("scene"), OutputKind::Scene, &[]).unwrap();
+        o.commit().unwrap();
+        let left = entries(root.path());
+        if Path::new("/proc/self").exists() {
+            assert!(
+                !left.contains(&".scene.tmp-4194305".to_string()),
+                "{left:?}"
+            );
+        }
+        assert!(
+            left.contains(&".scene.tmp-1".to_string()),
+            "pid 1 is alive: {left:?}"
+        );
+        assert!(left.contains(&".tmp-notes".to_string()), "{left:?}");
+        assert_eq!(stale_pid(".a.b.tmp-12"), Some(12));
+        assert_eq!(stale_pid(".a.old-7"), Some(7));
+        assert_eq!(stale_pid(".tmp-7"), None);
+        assert_eq!(stale_pid("a.tmp-7"), None);
+        assert_eq!(stale_pid(".a.tmp-7x"), None);
+    }
+
+    #[test]
+    fn file_markers_round_trip() {
+        let root = tempfile::tempdir().unwrap();
+        let img = image::RgbImage::from_pixel(5, 4, image::Rgb([1, 2, 3]));
+        for (name, fmt) in [
+            ("a.png", image::ImageFormat::Png),
+            ("a.jpg", image::ImageFormat::Jpeg),
+        ] {
+            let target = root.path().join(name);
+            let o = Output::file(&target, OutputKind::Image, &[]).unwrap();
+            img.save_with_format(o.path(), fmt).unwrap();
+            o.commit().unwrap();
+            assert!(has_marker(&target, OutputKind::Image).unwrap(), "{name}");
+            assert!(!has_marker(&target, OutputKind::Video).unwrap(), "{name}");
+            let back = image::open(&target).unwrap().to_rgb8();
+            assert_eq!(back.dimensions(), (5, 4), "{name} still decodes");
+            // Replaceable now; a plain image of the user's is not.
+            assert!(Output::file(&target, OutputKind::Image, &[]).is_ok());
+            let user = root.path().join(format!("user_{name}"));
+            img.save_with_format(&user, fmt).unwrap();
+            let e = Output::file(&user, OutputKind::Image, &[])
+                .err()
+                .unwrap()
+                .to_string();
+            assert!(e.contains("not a vt image output"), "{e}");
+        }
+        // A GIF (1x1, hand-made): the comment goes before the trailer.
+        let gif = root.path().join("a.gif");
+        let o = Output::file(&gif, OutputKind::Video, &[]).unwrap();
+        let bytes: &[u8] = b"GIF89a\x01\x00\x01\x00\x80\x00\x00\xff\xff\xff\x00\x00\x00,\x00\x00\x00\x00\x01\x00\x01\x00\x00\x02\x02D\x01\x00;";
+        std::fs::write(o.path(), bytes).unwrap();
+        o.commit().unwrap();
+        assert!(has_marker(&gif, OutputKind::Video).unwrap());
+        let back = std::fs::read(&gif).unwrap();
+        assert_eq!(&back[..bytes.len() - 1], &bytes[..bytes.len() - 1]);
+        assert_eq!(back.last(), Some(&0x3B));
+        assert_eq!(shorten("short"), "short");
+        assert_eq!(
+            shorten(&"9".repeat(309)),
+            format!("{}... (309 characters)", "9".repeat(32))
+        );
+    }
+}

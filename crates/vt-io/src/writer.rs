@@ -1,0 +1,337 @@
+//! Frame and image writers of every command, all through [`crate::output::Output`]: one ffmpeg
+//! video writer (H.264 mp4 at CRF 18, or GIF with a generated palette), a PNG-frame folder, and
+//! single images.
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::{Arc, Mutex};
+
+use image::RgbImage;
+
+use crate::output::{self, Output, OutputKind};
+use crate::{Error, Result};
+
+/// The x264 quality of every mp4 vt writes (visually lossless for these frames).
+pub const MP4_CRF: u32 = 18;
+
+/// An ffmpeg process encoding raw RGB frames into a temporary file that becomes the output on
+/// [`VideoWriter::finish`]. Dropped unfinished, ffmpeg is killed and the temporary removed.
+pub struct VideoWriter {
+    output: Option<Output>,
+    child: Arc<Mutex<Child>>,
+    stdin: Option<ChildStdin>,
+    stderr: Option<std::thread::JoinHandle<String>>,
+    size: (u32, u32),
+}
+
+fn video_err(path: &Path, message: String) -> Error {
+    Error::Video {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
+/// The last non-empty line of ffmpeg's messages.
+fn last_line(s: &str) -> String {
+    s.lines()
+        .map(str::trim)
+        .rfind(|l| !l.is_empty())
+        .unwrap_or("no message")
+        .to_string()
+}
+
+impl VideoWriter {
+    /// Starts encoding `w x h` frames at `fps` into `target` (`.mp4` or `.gif`), which is checked
+    /// against `inputs` and existing files as every vt output is.
+    pub fn create(target: &Path, inputs: &[&Path], w: u32, h: u32, fps: f64) -> Result<Self> {
+        let gif = match ext_of(target).as_deref() {
+            Some("mp4") => false,
+            Some("gif") => true,
+            _ => {
+                return Err(video_err(
+                    target,
+                    "a video must be named .mp4 or .gif".into(),
+                ))
+            }
+        };
+        if w == 0 || h == 0 || !(fps.is_finite() && fps > 0.0) {
+            return Err(video_err(
+                target,
+                format!("cannot encode {w}x{h} at {fps} fps"),
+            ));
+        }
+        let output = Output::file(target, OutputKind::Video, inputs)?;
+        let mut cmd = Command::new("ffmpeg");
+        cmd.args(["-hide_banner", "-v", "error", "-y", "-f", "rawvideo"])
+            .args(["-pix_fmt", "rgb24", "-s", &format!("{w}x{h}")])
+            .args(["-r", &fps.to_string(), "-i", "-"]);
+        if gif {
+            cmd.args([
+                "-filter_complex",
+                "[0:v]split[a][b];[a]palettegen[p];[b][p]paletteuse",
+                "-f",
+                "gif",
+            ]);
+        } else {
+            cmd.args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264"])
+                .args(["-pix_fmt", "yuv420p", "-crf", &MP4_CRF.to_string()])
+                .args(output::mp4_marker_args())
+                .args(["-movflags", "+faststart", "-f", "mp4"]);
+        }
+        let mut child = cmd
+            .arg(output.path())
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| {
+                video_err(
+                    target,
+                    if e.kind() == std::io::ErrorKind::NotFound {
+                        "writing video needs `ffmpeg` (Debian: apt-get install ffmpeg); or write PNG frames to a folder".into()
+                    } else {
+                        format!("cannot run ffmpeg: {e}")
+                    },
+                )
+            })?;
+        let stdin = child.stdin.take();
+        // Drain stderr on a thread so a chatty encoder never blocks on a full pipe.
+        let stderr = child.stderr.take().map(|mut s| {
+            std::thread::spawn(move || {
+                let mut text = String::new();
+                let _ = s.read_to_string(&mut text);
+                text
+            })
+        });
+        let child = Arc::new(Mutex::new(child));
+        output::register_child(&child);
+        Ok(Self {
+            output: Some(output),
+            child,
+            stdin,
+            stderr,
+            size: (w, h),
+        })
+    }
+
+    fn target(&self) -> PathBuf {
+        self.output
+            .as_ref()
+            .map(|o| o.target().to_path_buf())
+            .unwrap_or_default()
+    }
+
+    /// Waits for ffmpeg; its last message when it failed.
+    fn wait(&mut self) -> Result<Option<String>> {
+        drop(self.stdin.take());
+        let status = self
+            .child
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .wait()
+            .map_err(|e| video_err(&self.target(), format!("waiting for ffmpeg: {e}")))?;
+        output::unregister_child(&self.child);
+        let messages = self
+            .stderr
+            .take()
+            .and_then(|t| t.join().ok())
+            .unwrap_or_default();
+        Ok((!status.success()).then(|| format!("{status}: {}", last_line(&messages))))
+    }
+
+    /// Sends one frame. When ffmpeg has stopped, the error carries ffmpeg's own message.
+    pub fn write(&mut self, img: &RgbImage) -> Result<()> {
+        if img.dimensions() != self.size {
+            return Err(video_err(
+                &self.target(),
+                format!(
+                    "frame is {}x{}, the video is {}x{}",
+                    img.width(),
+                    img.height(),
+                    self.size.0,
+                    self.size.1
+                ),
+            ));
+        }
+        let Some(stdin) = self.stdin.as_mut() else {
+            return Err(video_err(&self.target(), "ffmpeg already finished".into()));
+        };
+        if let Err(e) = stdin.write_all(img.as_raw()) {
+            let why = self.wait()?.unwrap_or_else(|| e.to_string());
+            return Err(video_err(
+                &self.target(),
+                format!("ffmpeg stopped encoding ({why})"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Closes the stream, waits for ffmpeg, marks the file and moves it into place.
+    pub fn finish(mut self) -> Result<PathBuf> {
+        if let Some(why) = self.wait()? {
+            return Err(video_err(&self.target(), format!("ffmpeg failed ({why})")));
+        }
+        let output = self.output.take().expect("finish runs once");
+        output.commit()
+    }
+}
+
+impl Drop for VideoWriter {
+    fn drop(&mut self) {
+        if self.output.is_some() {
+            drop(self.stdin.take());
+            let mut c = self.child.lock().unwrap_or_else(|e| e.into_inner());
+            let _ = c.kill();
+            let _ = c.wait();
+            drop(c);
+            output::unregister_child(&self.child);
+        }
+        // `output` drops here and removes the temporary.
+    }
+}
+
+fn ext_of(p: &Path) -> Option<String> {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+}
+
+/// Where rendered frames go: a video through ffmpeg, or a folder of PNG frames.
+pub enum FrameWriter {
+    /// `.mp4` or `.gif`.
+    Video(VideoWriter),
+    /// A folder of `frame_NNNNN.png`.
+    Folder {
+        /// The folder being written.
+        output: Output,
+        /// Frames written.
+        count: usize,
+    },
+}
+
+impl FrameWriter {
+    /// Chooses by the name: `.mp4`, `.gif`, or no extension for a PNG folder.
+    pub fn create(target: &Path, inputs: &[&Path], w: u32, h: u32, fps: f64) -> Result<Self> {
+        match ext_of(target).as_deref() {
+            None => Ok(FrameWriter::Folder {
+                output: Output::dir(target, OutputKind::Frames, inputs)?,
+                count: 0,
+            }),
+            Some("mp4" | "gif") => Ok(FrameWriter::Video(VideoWriter::create(
+                target, inputs, w, h, fps,
+            )?)),
+            Some(other) => Err(video_err(
+                target,
+                format!(
+                    "unknown output extension '.{}': use .mp4, .gif, or a folder name (no extension) for PNG frames",
+                    output::shorten(other)
+                ),
+            )),
+        }
+    }
+
+    /// Writes the next frame.
+    pub fn write(&mut self, img: &RgbImage) -> Result<()> {
+        match self {
+            FrameWriter::Video(v) => v.write(img),
+            FrameWriter::Folder { output, count } => {
+                crate::frames::write_png(
+                    &output.path().join(format!("frame_{count:05}.png")),
+                    img,
+                )?;
+                *count += 1;
+                Ok(())
+            }
+        }
+    }
+
+    /// Finishes and moves the output into place.
+    pub fn finish(self) -> Result<PathBuf> {
+        match self {
+            FrameWriter::Video(v) => v.finish(),
+            FrameWriter::Folder { output, .. } => output.commit(),
+        }
+    }
+}
+
+/// Writes one image (`.png` or `.jpg`/`.jpeg`, by the name) through a temporary, marked as vt's.
+pub fn write_image(target: &Path, inputs: &[&Path], img: &RgbImage) -> Result<PathBuf> {
+    let format = match ext_of(target).as_deref() {
+        Some("png") => image::ImageFormat::Png,
+        Some("jpg" | "jpeg") => image::ImageFormat::Jpeg,
+        _ => {
+            return Err(Error::Image {
+                path: target.to_path_buf(),
+                message: "use a .png or .jpg file name".into(),
+            })
+        }
+    };
+    let output = Output::file(target, OutputKind::Image, inputs)?;
+    img.save_with_format(output.path(), format)
+        .map_err(|e| Error::Image {
+            path: target.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    output.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn has_ffmpeg() -> bool {
+        Command::new("ffmpeg")
+            .arg("-version")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    }
+
+    #[test]
+    fn videos_are_marked_replaceable_and_fail_cleanly() {
+        if !has_ffmpeg() {
+            eprintln!("skipped: no ffmpeg");
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let img = RgbImage::from_fn(33, 17, |x, y| image::Rgb([x as u8 * 7, y as u8 * 13, 99]));
+        for name in ["a.mp4", "a.gif"] {
+            let target = dir.path().join(name);
+            for _ in 0..2 {
+                let mut w = VideoWriter::create(&target, &[], 33, 17, 10.0).unwrap();
+                for _ in 0..3 {
+                    w.write(&img).unwrap();
+                }
+                w.finish().unwrap();
+                assert!(
+                    output::has_marker(&target, OutputKind::Video).unwrap(),
+                    "{name}"
+                );
+            }
+        }
+        // A user's file with the same name is refused and kept.
+        let user = dir.path().join("mine.mp4");
+        std::fs::write(&user, b"\0\0\0\x18ftypisom").unwrap();
+        let e = VideoWriter::create(&user, &[], 33, 17, 10.0)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("not a vt video output"), "{e}");
+        // A frame of the wrong size is refused with both sizes; nothing is left behind.
+        let target = dir.path().join("b.mp4");
+        let mut w = VideoWriter::create(&target, &[], 32, 16, 10.0).unwrap();
+        let e = w.write(&img).unwrap_err().to_string();
+        assert!(e.contains("33x17, the video is 32x16"), "{e}");
+        drop(w);
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .collect();
+        assert!(
+            !names.iter().any(|n| n.contains(".tmp-") || n == "b.mp4"),
+            "{names:?}"
+        );
+    }
+}
