@@ -19,8 +19,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 use vt_fv::camera::{interpolate, parse_par, Ring};
 use vt_fv::hull::{auto_bounds, dims_for, grid_bytes, Aabb, HullParams};
-use vt_fv::photo::{photo_hull, PhotoParams, VoxelModel};
-use vt_fv::pipeline::{leave_one_out, novel_view};
+use vt_fv::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
+use vt_fv::pipeline::{leave_one_out, novel_view, EvalReport, Method, ViewParams};
 use vt_fv::silhouette::{mask_from_image, threshold_silhouette, SilhouetteParams};
 use vt_fv::synthesis::SynthParams;
 use vt_fv::{render_rough, visual_hull, Camera, Mask};
@@ -72,6 +72,10 @@ pub struct ModelArgs {
     /// voxel's colours across the cameras that see it.
     #[arg(long, default_value_t = 20.0)]
     photo_threshold: f64,
+    /// Carve as the paper does: remove every inconsistent voxel, even where that leaves part of
+    /// a camera's silhouette empty (default: keep what the silhouettes prove is there).
+    #[arg(long)]
+    paper_carving: bool,
 }
 
 /// Guided synthesis settings.
@@ -85,6 +89,26 @@ pub struct SynthArgs {
     /// (default: the speed options, see vt-fv's README).
     #[arg(long)]
     exact: bool,
+    /// How new views are made: `textured` (default: the nearest reference photos projected
+    /// onto the voxel surface, holes filled) or `paper` (guided synthesis of the rough render
+    /// from the nearest photo, as in the paper).
+    #[arg(long, value_enum, default_value_t = MethodArg::Textured)]
+    method: MethodArg,
+    /// With `--method textured`: also run guided synthesis with the textured view as guide.
+    #[arg(long)]
+    refine: bool,
+    /// With `--method textured`: reference photos blended per pixel (nearest by direction).
+    #[arg(long, default_value_t = 3)]
+    references: usize,
+}
+
+/// `--method`.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// View-dependent texturing (the default).
+    Textured,
+    /// The paper's guided synthesis of the rough render.
+    Paper,
 }
 
 /// `vt fv hull`.
@@ -153,12 +177,18 @@ pub struct EvalArgs {
     model: ModelArgs,
     #[command(flatten)]
     synth: SynthArgs,
-    /// The view to withhold, 0-based in the par file.
-    #[arg(long)]
-    leave_out: usize,
-    /// Print exactly one JSON object {"rough": {"psnr", "ssim"}, "guided": {...}} on stdout.
+    /// The views to withhold one at a time, 0-based in the par file: `2` or `1,2,5`.
+    #[arg(long, value_delimiter = ',', required = true, num_args = 1..)]
+    leave_out: Vec<usize>,
+    /// Print exactly one JSON object on stdout: `rough`, `rough_blur2`, `nearest_photo`,
+    /// `guide`, `guided` (each `{"psnr", "ssim"}` inside the withheld silhouette; the mean over
+    /// the views when several), `silhouette_iou`, and `views` with every view's details.
     #[arg(long)]
     json: bool,
+    /// Write each view's images (truth, nearest photo, rough, rough blurred, guide, result) and
+    /// error maps into DIR/view_NN/ (DIR is created, or replaces a previous vt output folder).
+    #[arg(long)]
+    save: Option<PathBuf>,
 }
 
 /// Runs a `vt fv` command.
@@ -398,13 +428,19 @@ fn build(
     let vh_voxels = grid.count();
     let params = PhotoParams {
         threshold: m.photo_threshold,
+        keep_silhouettes: !m.paper_carving,
         ..Default::default()
     };
     let t = Instant::now();
     let pb = bar(params.max_passes as u64, "photo hull passes");
-    let model = photo_hull(grid, cams, images, &params, &mut |_, done, _| {
-        pb.set_position(done)
-    })
+    let model = photo_hull_keeping(
+        grid,
+        cams,
+        images,
+        Some(masks),
+        &params,
+        &mut |_, done, _| pb.set_position(done),
+    )
     .with_context(|| format!("{what}: photo hull"))?;
     pb.finish_and_clear();
     let summary = BuildSummary {
@@ -646,7 +682,7 @@ fn render(a: RenderArgs) -> Result<()> {
     temp_sibling(&a.out)?;
     let d = load(&a.data)?;
     let (w, h) = d.images[0].dimensions();
-    let synth = synth_params(&a.synth, w, h)?;
+    let view = view_params(&a.synth, w, h)?;
     // Check the camera against the volume before the expensive model build.
     let bounds = volume(&d, &a.model)?;
     let cam = parse_camera(&a.camera, &d.cams, a.data.scale, &bounds.centre())?;
@@ -678,7 +714,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let t = Instant::now();
     let (img, what) = if a.guided {
         let pb = bar(1, "guided synthesis");
-        let v = novel_view(&model, &d.cams, &d.images, &cam, w, h, &synth)
+        let v = novel_view(&model, &d.cams, &d.images, &cam, w, h, &view)
             .context("guided synthesis")?;
         pb.finish_and_clear();
         if v.rough.coverage.count() == 0 {
@@ -686,10 +722,22 @@ fn render(a: RenderArgs) -> Result<()> {
         }
         (
             v.guided,
-            format!(
-                "guided from {} (patch {})",
-                d.cams[v.reference].name, synth.patch
-            ),
+            match view.method {
+                Method::Paper => format!(
+                    "guided (paper) from {} (patch {})",
+                    d.cams[v.reference].name, view.synth.patch
+                ),
+                Method::Textured => format!(
+                    "textured from {} and its {} nearest{}",
+                    d.cams[v.reference].name,
+                    view.texture.references.saturating_sub(1),
+                    if view.refine {
+                        ", refined by synthesis"
+                    } else {
+                        ""
+                    }
+                ),
+            },
         )
     } else {
         let r = render_rough(&model, &cam, w, h);
@@ -732,7 +780,7 @@ fn orbit(a: OrbitArgs) -> Result<()> {
     let tmp = temp_sibling(&a.out)?;
     let d = load(&a.data)?;
     let (w, h) = d.images[0].dimensions();
-    let synth = synth_params(&a.synth, w, h)?;
+    let view = view_params(&a.synth, w, h)?;
     let ring = Ring::fit(&d.cams).context("orbit: the cameras' ring")?;
     let (model, _) = build(
         &d.cams,
@@ -808,7 +856,7 @@ fn orbit(a: OrbitArgs) -> Result<()> {
             let angle = 360.0 * i as f64 / a.frames as f64;
             let cam = ring.camera(angle, &target)?;
             let img = if a.guided {
-                novel_view(&model, &d.cams, &d.images, &cam, w, h, &synth)
+                novel_view(&model, &d.cams, &d.images, &cam, w, h, &view)
                     .with_context(|| format!("frame {i} (angle {angle:.1})"))?
                     .guided
             } else {
@@ -850,106 +898,283 @@ fn orbit(a: OrbitArgs) -> Result<()> {
     Ok(())
 }
 
-/// PSNR and SSIM of one render.
-#[derive(Serialize)]
-struct Score {
+/// PSNR and SSIM of one image.
+#[derive(Serialize, Clone, Copy)]
+struct ScoreJson {
     psnr: f64,
     ssim: f64,
 }
 
-/// `vt fv eval --json` output.
+impl From<vt_fv::pipeline::Score> for ScoreJson {
+    fn from(s: vt_fv::pipeline::Score) -> Self {
+        Self {
+            psnr: s.psnr,
+            ssim: s.ssim,
+        }
+    }
+}
+
+/// One withheld view in `vt fv eval --json`.
+#[derive(Serialize)]
+struct ViewJson {
+    withheld: usize,
+    name: String,
+    reference: usize,
+    rough: ScoreJson,
+    rough_blur2: ScoreJson,
+    nearest_photo: ScoreJson,
+    guide: ScoreJson,
+    guided: ScoreJson,
+    /// The same five over the whole image.
+    whole: std::collections::BTreeMap<&'static str, ScoreJson>,
+    silhouette_iou: f64,
+    surface_voxels: usize,
+    /// Seconds per stage.
+    secs: std::collections::BTreeMap<&'static str, f64>,
+    total_secs: f64,
+}
+
+/// `vt fv eval --json` output: means over the withheld views inside their silhouettes, and
+/// every view.
 #[derive(Serialize)]
 struct EvalJson {
-    rough: Score,
-    guided: Score,
+    method: &'static str,
+    rough: ScoreJson,
+    rough_blur2: ScoreJson,
+    nearest_photo: ScoreJson,
+    guide: ScoreJson,
+    guided: ScoreJson,
+    silhouette_iou: f64,
+    views: Vec<ViewJson>,
+}
+
+/// The named candidates of a report, in table order.
+fn candidates(r: &EvalReport) -> [(&'static str, vt_fv::pipeline::Scores); 5] {
+    [
+        ("nearest_photo", r.nearest_photo),
+        ("rough", r.rough),
+        ("rough_blur2", r.rough_blur2),
+        ("guide", r.guide),
+        ("guided", r.guided),
+    ]
+}
+
+fn view_json(r: &EvalReport, name: &str) -> ViewJson {
+    ViewJson {
+        withheld: r.withheld,
+        name: name.to_string(),
+        reference: r.reference,
+        rough: r.rough.inside.into(),
+        rough_blur2: r.rough_blur2.inside.into(),
+        nearest_photo: r.nearest_photo.inside.into(),
+        guide: r.guide.inside.into(),
+        guided: r.guided.inside.into(),
+        whole: candidates(r)
+            .iter()
+            .map(|(n, s)| (*n, s.whole.into()))
+            .collect(),
+        silhouette_iou: r.silhouette_iou,
+        surface_voxels: r.surface_voxels,
+        secs: r.times.iter().copied().collect(),
+        total_secs: r.times.iter().map(|t| t.1).sum(),
+    }
+}
+
+/// The method's settings from the flags.
+fn view_params(s: &SynthArgs, w: u32, h: u32) -> Result<ViewParams> {
+    let synth = synth_params(s, w, h)?;
+    if s.references == 0 || s.references > 64 {
+        bail!("--references {} must be in 1..=64", s.references);
+    }
+    if s.refine && s.method == MethodArg::Paper {
+        bail!("--refine applies to --method textured only");
+    }
+    Ok(match s.method {
+        MethodArg::Paper => ViewParams::paper(synth),
+        MethodArg::Textured => {
+            let mut p = ViewParams {
+                method: Method::Textured,
+                synth,
+                refine: s.refine,
+                ..ViewParams::default()
+            };
+            p.texture.references = s.references;
+            p
+        }
+    })
 }
 
 fn eval(a: EvalArgs) -> Result<()> {
     check_grid(&a.model)?;
     let d = load(&a.data)?;
     let n = d.cams.len();
-    if a.leave_out >= n {
-        bail!(
-            "--leave-out {}: there are {n} views (0-based, 0..{})",
-            a.leave_out,
-            n.saturating_sub(1)
-        );
-    }
     if n < 3 {
         bail!(
             "--leave-out needs at least 3 views, {} has {n}",
             d.par.display()
         );
     }
-    let (w, h) = d.images[a.leave_out].dimensions();
-    let synth = synth_params(&a.synth, w, h)?;
-    let keep: Vec<usize> = (0..n).filter(|&i| i != a.leave_out).collect();
-    let sub_cams: Vec<Camera> = keep.iter().map(|&i| d.cams[i].clone()).collect();
-    let sub_masks: Vec<Mask> = keep.iter().map(|&i| d.masks[i].clone()).collect();
-    let bounds = match a.model.bounds {
-        Some(b) => b,
-        None => auto_bounds(&sub_cams, &sub_masks, &HullParams::default())
-            .context("volume bounds from the silhouettes")?,
-    };
-    let hull = HullParams {
-        dims: dims_for(&bounds, a.model.grid),
-        bounds: Some(bounds),
-        ..Default::default()
-    };
-    let photo = PhotoParams {
-        threshold: a.model.photo_threshold,
-        ..Default::default()
-    };
-    let pb = bar(1, "leave one out");
-    let r = leave_one_out(
-        &d.cams,
-        &d.images,
-        &d.masks,
-        a.leave_out,
-        &hull,
-        &photo,
-        &synth,
-    )
-    .with_context(|| {
-        format!(
-            "leaving out view {} ({})",
-            a.leave_out, d.cams[a.leave_out].name
-        )
-    })?;
+    for &k in &a.leave_out {
+        if k >= n {
+            bail!(
+                "--leave-out {k}: there are {n} views (0-based, 0..{})",
+                n.saturating_sub(1)
+            );
+        }
+    }
+    if let Some(dir) = &a.save {
+        if dir.exists() && !dir.is_dir() {
+            bail!("--save {}: exists and is not a folder", dir.display());
+        }
+        temp_sibling(dir)?;
+    }
+    let (w, h) = d.images[a.leave_out[0]].dimensions();
+    let view = view_params(&a.synth, w, h)?;
+    let save = a.save.as_deref().map(AtomicDir::create).transpose()?;
+    let pb = bar(a.leave_out.len() as u64, "leave one out");
+    let mut reports = Vec::new();
+    for &k in &a.leave_out {
+        let keep: Vec<usize> = (0..n).filter(|&i| i != k).collect();
+        let sub_cams: Vec<Camera> = keep.iter().map(|&i| d.cams[i].clone()).collect();
+        let sub_masks: Vec<Mask> = keep.iter().map(|&i| d.masks[i].clone()).collect();
+        let t = Instant::now();
+        let bounds = match a.model.bounds {
+            Some(b) => b,
+            None => auto_bounds(&sub_cams, &sub_masks, &HullParams::default())
+                .context("volume bounds from the silhouettes")?,
+        };
+        let bounds_secs = t.elapsed().as_secs_f64();
+        let hull = HullParams {
+            dims: dims_for(&bounds, a.model.grid),
+            bounds: Some(bounds),
+            ..Default::default()
+        };
+        let photo = PhotoParams {
+            threshold: a.model.photo_threshold,
+            keep_silhouettes: !a.model.paper_carving,
+            ..Default::default()
+        };
+        let (mut r, imgs) = leave_one_out(&d.cams, &d.images, &d.masks, k, &hull, &photo, &view)
+            .with_context(|| format!("leaving out view {k} ({})", d.cams[k].name))?;
+        r.times.insert(0, ("bounds", bounds_secs));
+        if let Some(dir) = &save {
+            let sub = dir.path().join(format!("view_{k:02}"));
+            std::fs::create_dir(&sub).with_context(|| sub.display().to_string())?;
+            let mask = &d.masks[k];
+            let files = [
+                ("truth.png", imgs.truth.clone()),
+                ("nearest_photo.png", imgs.nearest_photo.clone()),
+                ("rough.png", imgs.rough.clone()),
+                ("rough_blur2.png", imgs.rough_blur2.clone()),
+                ("guide.png", imgs.guide.clone()),
+                ("guided.png", imgs.guided.clone()),
+                (
+                    "rough_error.png",
+                    vt_fv::pipeline::error_map(&imgs.rough, &imgs.truth, mask),
+                ),
+                (
+                    "rough_blur2_error.png",
+                    vt_fv::pipeline::error_map(&imgs.rough_blur2, &imgs.truth, mask),
+                ),
+                (
+                    "guided_error.png",
+                    vt_fv::pipeline::error_map(&imgs.guided, &imgs.truth, mask),
+                ),
+            ];
+            for (name, img) in files {
+                let p = sub.join(name);
+                img.save(&p).with_context(|| p.display().to_string())?;
+            }
+            let p = sub.join("silhouette.png");
+            mask.to_image()
+                .save(&p)
+                .with_context(|| p.display().to_string())?;
+        }
+        reports.push(r);
+        pb.inc(1);
+    }
     pb.finish_and_clear();
+    let views: Vec<ViewJson> = reports
+        .iter()
+        .map(|r| view_json(r, &d.cams[r.withheld].name))
+        .collect();
+    if let Some(dir) = save {
+        std::fs::write(
+            dir.path().join("eval.json"),
+            serde_json::to_string_pretty(&views)?,
+        )
+        .context("eval.json")?;
+        dir.commit()?;
+    }
+    let method = match (view.method, view.refine) {
+        (Method::Paper, _) => "paper",
+        (Method::Textured, false) => "textured",
+        (Method::Textured, true) => "textured+synthesis",
+    };
+    let nv = reports.len() as f64;
+    let mean = |f: &dyn Fn(&EvalReport) -> vt_fv::pipeline::Score| ScoreJson {
+        psnr: reports.iter().map(|r| f(r).psnr).sum::<f64>() / nv,
+        ssim: reports.iter().map(|r| f(r).ssim).sum::<f64>() / nv,
+    };
     if a.json {
         let j = EvalJson {
-            rough: Score {
-                psnr: r.psnr_rough,
-                ssim: r.ssim_rough,
-            },
-            guided: Score {
-                psnr: r.psnr_guided,
-                ssim: r.ssim_guided,
-            },
+            method,
+            rough: mean(&|r| r.rough.inside),
+            rough_blur2: mean(&|r| r.rough_blur2.inside),
+            nearest_photo: mean(&|r| r.nearest_photo.inside),
+            guide: mean(&|r| r.guide.inside),
+            guided: mean(&|r| r.guided.inside),
+            silhouette_iou: reports.iter().map(|r| r.silhouette_iou).sum::<f64>() / nv,
+            views,
         };
         println!("{}", serde_json::to_string(&j)?);
         return Ok(());
     }
-    println!(
-        "withheld view {} ({}), synthesised from view {} ({}); scored inside its silhouette",
-        r.withheld, d.cams[r.withheld].name, r.reference, d.cams[r.reference].name
-    );
-    println!("{:<8} {:>9} {:>7}", "render", "PSNR dB", "SSIM");
-    println!("{:<8} {:>9.2} {:>7.3}", "rough", r.psnr_rough, r.ssim_rough);
-    println!(
-        "{:<8} {:>9.2} {:>7.3}",
-        "guided", r.psnr_guided, r.ssim_guided
-    );
-    println!(
-        "model {:.2} s ({} surface voxels, grid {}x{}x{}), render + synthesis {:.2} s (patch {})",
-        r.model_secs,
-        r.surface_voxels,
-        hull.dims[0],
-        hull.dims[1],
-        hull.dims[2],
-        r.synth_secs,
-        synth.patch
-    );
+    for r in &reports {
+        println!(
+            "withheld view {} ({}); nearest photo view {} ({}); method {method}",
+            r.withheld, d.cams[r.withheld].name, r.reference, d.cams[r.reference].name
+        );
+        println!(
+            "{:<14} {:>10} {:>8} {:>10} {:>8}",
+            "image", "PSNR in", "SSIM in", "PSNR all", "SSIM all"
+        );
+        for (name, s) in candidates(r) {
+            println!(
+                "{:<14} {:>10.2} {:>8.3} {:>10.2} {:>8.3}",
+                name, s.inside.psnr, s.inside.ssim, s.whole.psnr, s.whole.ssim
+            );
+        }
+        println!(
+            "silhouette IoU (rough render vs withheld photo) {:.3}; {} surface voxels",
+            r.silhouette_iou, r.surface_voxels
+        );
+        let total: f64 = r.times.iter().map(|t| t.1).sum();
+        let stages: Vec<String> = r.times.iter().map(|(n, s)| format!("{n} {s:.2}")).collect();
+        println!("seconds: {} (total {total:.2})\n", stages.join(", "));
+    }
+    if reports.len() > 1 {
+        println!(
+            "mean over {} views, inside the silhouettes: PSNR dB / SSIM",
+            reports.len()
+        );
+        for (name, f) in [
+            (
+                "nearest_photo",
+                &(|r: &EvalReport| r.nearest_photo.inside) as &dyn Fn(&EvalReport) -> _,
+            ),
+            ("rough", &|r: &EvalReport| r.rough.inside),
+            ("rough_blur2", &|r: &EvalReport| r.rough_blur2.inside),
+            ("guide", &|r: &EvalReport| r.guide.inside),
+            ("guided", &|r: &EvalReport| r.guided.inside),
+        ] {
+            let m = mean(f);
+            println!("{name:<14} {:>10.2} {:>8.3}", m.psnr, m.ssim);
+        }
+        println!(
+            "silhouette IoU {:.3}",
+            reports.iter().map(|r| r.silhouette_iou).sum::<f64>() / nv
+        );
+    }
     Ok(())
 }

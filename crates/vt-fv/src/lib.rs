@@ -25,11 +25,11 @@ pub mod render;
 pub mod rng;
 pub mod synth;
 
-pub use photo::{photo_hull, PhotoParams, SurfaceVoxel, VoxelModel};
+pub use photo::{photo_hull, photo_hull_keeping, PhotoParams, SurfaceVoxel, VoxelModel};
 pub use render::{render_rough, Rendered};
 
 /// Builds the coloured voxel model: visual hull (SPEC B.1) then photo hull and colours (B.2,
-/// B.3). `progress(stage, done, total)` reports the stages.
+/// B.3), keeping what the silhouettes prove is there unless `photo.keep_silhouettes` is off. `progress(stage, done, total)` reports the stages.
 pub fn build_model(
     cams: &[Camera],
     images: &[image::RgbImage],
@@ -59,12 +59,13 @@ pub fn build_model(
     progress("visual hull", 0, 1);
     let grid = visual_hull(cams, silhouettes, hull)?;
     progress("visual hull", 1, 1);
-    photo_hull(grid, cams, images, photo, progress)
+    photo_hull_keeping(grid, cams, images, Some(silhouettes), photo, progress)
 }
 pub mod eval;
 pub mod patchmatch;
 pub mod pipeline;
 pub mod synthesis;
+pub mod texture;
 
-pub use pipeline::{leave_one_out, novel_view, EvalReport, NovelView};
+pub use pipeline::{leave_one_out, novel_view, EvalReport, Method, NovelView, ViewParams};
 pub use synthesis::{guided_synthesis, SynthParams};

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::hull::VoxelGrid;
+use crate::silhouette::Mask;
 use crate::{Error, Result};
 
 /// Photo hull parameters.
@@ -44,6 +45,9 @@ pub struct PhotoParams {
     /// Radius in voxels of the offset table searched for the nearest seen voxel (8); beyond it
     /// the nearest seen voxel is found by a linear scan.
     pub fill_radius: usize,
+    /// With silhouettes ([`photo_hull_keeping`]): never carve a voxel whose removal leaves a
+    /// silhouette pixel of some camera uncovered (true; false is the paper's rule).
+    pub keep_silhouettes: bool,
 }
 
 impl Default for PhotoParams {
@@ -53,6 +57,7 @@ impl Default for PhotoParams {
             max_passes: 1000,
             splat_scale: 1.5,
             fill_radius: 8,
+            keep_silhouettes: true,
         }
     }
 }
@@ -231,6 +236,22 @@ impl IdBuffer {
         }
     }
 
+    /// Puts a removed voxel back (its slot goes into each tile list at its place in slot
+    /// order) and marks its tiles for re-rendering.
+    fn restore(&mut self, cam: &Camera, slot: u32, c: &Vector3<f64>, size: f64, scale: f64) {
+        if let Some(t) = self.tiles_of(cam, c, size, scale) {
+            for ty in t[1]..=t[3] {
+                for tx in t[0]..=t[2] {
+                    let b = &mut self.buckets[ty * self.tiles_x + tx];
+                    if let Err(at) = b.binary_search(&slot) {
+                        b.insert(at, slot);
+                    }
+                }
+            }
+            self.mark(t);
+        }
+    }
+
     /// Marks the tiles under a removed voxel for re-rendering.
     fn remove(&mut self, cam: &Camera, c: &Vector3<f64>, size: f64, scale: f64) {
         if let Some(t) = self.tiles_of(cam, c, size, scale) {
@@ -238,7 +259,8 @@ impl IdBuffer {
         }
     }
 
-    /// Re-renders the dirty tiles; pushes `(old id, new id)` of every pixel that changed.
+    /// Re-renders the dirty tiles; pushes `(old id, new id, pixel index)` of every pixel that
+    /// changed.
     fn refresh(
         &mut self,
         cam: &Camera,
@@ -246,7 +268,7 @@ impl IdBuffer {
         alive: &[bool],
         size: f64,
         scale: f64,
-        changed: &mut Vec<(u32, u32)>,
+        changed: &mut Vec<(u32, u32, u32)>,
     ) {
         let (w, h) = (self.w as usize, self.h as usize);
         let mut old = Vec::with_capacity(TILE * TILE);
@@ -289,9 +311,10 @@ impl IdBuffer {
             self.buckets[t] = bucket;
             let tw = px1 - px0;
             for (k, &o) in old.iter().enumerate() {
-                let n = self.ids[(py0 + k / tw) * w + px0 + k % tw];
+                let p = (py0 + k / tw) * w + px0 + k % tw;
+                let n = self.ids[p];
                 if n != o {
-                    changed.push((o, n));
+                    changed.push((o, n, p as u32));
                 }
             }
         }
@@ -391,16 +414,53 @@ fn surface_of(grid: &VoxelGrid) -> Vec<usize> {
         .collect()
 }
 
-/// Carves the photo hull out of `grid` (a visual hull) and colours its surface.
+/// Carves the photo hull out of `grid` (a visual hull) and colours its surface (the paper's
+/// rule: every inconsistent voxel goes).
 ///
 /// `progress(stage, done, total)` is called once per pass.
 pub fn photo_hull(
-    mut grid: VoxelGrid,
+    grid: VoxelGrid,
     cams: &[Camera],
     images: &[RgbImage],
     params: &PhotoParams,
     progress: &mut dyn FnMut(&str, u64, u64),
 ) -> Result<VoxelModel> {
+    photo_hull_keeping(grid, cams, images, None, params, progress)
+}
+
+/// [`photo_hull`] that, given the cameras' silhouettes, never removes what they prove is there:
+/// when removing a pass's inconsistent voxels leaves a pixel inside some camera's silhouette
+/// with no voxel at all, the voxels that covered it are put back and kept for good. Thin parts
+/// (the temple's columns), which voxel colouring otherwise carves away whole because their few
+/// voxels mix object and background colours, survive this way.
+pub fn photo_hull_keeping(
+    mut grid: VoxelGrid,
+    cams: &[Camera],
+    images: &[RgbImage],
+    silhouettes: Option<&[Mask]>,
+    params: &PhotoParams,
+    progress: &mut dyn FnMut(&str, u64, u64),
+) -> Result<VoxelModel> {
+    if let Some(m) = silhouettes {
+        if m.len() != cams.len() {
+            return Err(Error::CountMismatch {
+                what: "cameras vs silhouettes".into(),
+                a: cams.len(),
+                b: m.len(),
+            });
+        }
+        for (i, (mask, img)) in m.iter().zip(images).enumerate() {
+            if (mask.width(), mask.height()) != img.dimensions() {
+                return Err(Error::SizeMismatch {
+                    what: format!("silhouette of view {i} vs its image"),
+                    expected_w: img.width(),
+                    expected_h: img.height(),
+                    got_w: mask.width(),
+                    got_h: mask.height(),
+                });
+            }
+        }
+    }
     if cams.len() != images.len() {
         return Err(Error::CountMismatch {
             what: "cameras vs images".into(),
@@ -448,9 +508,10 @@ pub fn photo_hull(
             b
         })
         .collect();
-    let mut changed: Vec<Vec<(u32, u32)>> = vec![Vec::new(); cams.len()];
+    let mut changed: Vec<Vec<(u32, u32, u32)>> = vec![Vec::new(); cams.len()];
+    let mut kept = vec![false; index.len()];
     let refresh = |bufs: &mut Vec<IdBuffer>,
-                   changed: &mut Vec<Vec<(u32, u32)>>,
+                   changed: &mut Vec<Vec<(u32, u32, u32)>>,
                    centres: &[Vector3<f64>],
                    alive: &[bool]| {
         bufs.par_iter_mut()
@@ -478,7 +539,7 @@ pub fn photo_hull(
         let bad: Vec<u32> = test
             .iter()
             .zip(&st)
-            .filter(|(_, s)| !s.consistent(params.threshold))
+            .filter(|(&slot, s)| !kept[slot as usize] && !s.consistent(params.threshold))
             .map(|(&slot, _)| slot)
             .collect();
         if bad.is_empty() {
@@ -511,15 +572,11 @@ pub fn photo_hull(
                         index.push(j);
                         centres.push(grid.centre(grid.coords(j)));
                         alive.push(true);
+                        kept.push(false);
                         stats.push(Stats::default());
                     }
                 }
             }
-        }
-        if !alive.iter().any(|&a| a) {
-            return Err(Error::EmptyModel {
-                stage: "photo hull".into(),
-            });
         }
         bufs.par_iter_mut().zip(cams).for_each(|(b, cam)| {
             for &slot in &bad {
@@ -530,9 +587,47 @@ pub fn photo_hull(
             }
         });
         refresh(&mut bufs, &mut changed, &centres, &alive);
+        if let Some(masks) = silhouettes.filter(|_| params.keep_silhouettes) {
+            // Pixels of a silhouette left with no voxel: put back what covered them.
+            let mut back: Vec<u32> = changed
+                .iter()
+                .zip(masks)
+                .flat_map(|(ch, m)| {
+                    ch.iter()
+                        .filter(|&&(o, n, p)| o > 0 && n == 0 && m.as_slice()[p as usize] != 0)
+                        .map(|&(o, _, _)| o - 1)
+                })
+                .filter(|&slot| !alive[slot as usize])
+                .collect();
+            back.sort_unstable();
+            back.dedup();
+            if !back.is_empty() {
+                for &slot in &back {
+                    alive[slot as usize] = true;
+                    kept[slot as usize] = true;
+                    grid.set_index(index[slot as usize], true);
+                }
+                removed_total -= back.len();
+                bufs.par_iter_mut().zip(cams).for_each(|(b, cam)| {
+                    for &slot in &back {
+                        b.restore(cam, slot, &centres[slot as usize], size, scale);
+                    }
+                });
+                let mut more = vec![Vec::new(); cams.len()];
+                refresh(&mut bufs, &mut more, &centres, &alive);
+                for (ch, m) in changed.iter_mut().zip(more) {
+                    ch.extend(m);
+                }
+            }
+        }
+        if !alive.iter().any(|&a| a) {
+            return Err(Error::EmptyModel {
+                stage: "photo hull".into(),
+            });
+        }
         let mut next: Vec<u32> = (first_new as u32..index.len() as u32).collect();
         for ch in &changed {
-            for &(o, n) in ch {
+            for &(o, n, _) in ch {
                 for id in [o, n] {
                     if id > 0 && alive[(id - 1) as usize] {
                         next.push(id - 1);
@@ -544,7 +639,10 @@ pub fn photo_hull(
         next.dedup();
         test = next;
     }
-    let mut order: Vec<usize> = (0..index.len()).filter(|&k| alive[k]).collect();
+    // Voxels exposed by a removal that was undone are listed but no longer on the surface.
+    let mut order: Vec<usize> = (0..index.len())
+        .filter(|&k| alive[k] && grid.is_surface(grid.coords(index[k])))
+        .collect();
     order.sort_unstable_by_key(|&k| index[k]);
     let mut voxels: Vec<SurfaceVoxel> = order
         .iter()

@@ -1,17 +1,19 @@
-//! Whole-pipeline helpers: new views from a model, and leave-one-out evaluation.
+//! Whole-pipeline helpers: new views from a model (the paper's method or view-dependent
+//! texturing), and leave-one-out evaluation against the obvious baselines.
 
 use std::time::Instant;
 
-use image::RgbImage;
+use image::{Rgb, RgbImage};
 
 use crate::camera::Camera;
 use crate::eval::{psnr, ssim};
-use crate::hull::HullParams;
-use crate::photo::{PhotoParams, VoxelModel};
+use crate::hull::{visual_hull, HullParams};
+use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
 use crate::render::{render_rough, Rendered};
 use crate::silhouette::Mask;
 use crate::synthesis::{guided_synthesis, SynthParams};
-use crate::{build_model, Error, Result};
+use crate::texture::{model_centre, nearest_by_direction, texture_view, TextureParams};
+use crate::{Error, Result};
 
 /// The reference camera whose viewing direction is closest in angle to `cam`'s (the paper picks
 /// the nearest reference photo as the synthesis input).
@@ -25,18 +27,71 @@ pub fn nearest_reference(cams: &[Camera], cam: &Camera) -> Option<usize> {
     })
 }
 
-/// A new view: the rough render and its guided synthesis.
-#[derive(Debug, Clone)]
-pub struct NovelView {
-    /// The rough render (the guide).
-    pub rough: Rendered,
-    /// The guided synthesis result.
-    pub guided: RgbImage,
-    /// Index of the reference photo used as synthesis input.
-    pub reference: usize,
+/// How a new view is made from the model and the photos.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// The paper (SPEC B.4-B.6): the rough render (flat voxel colours) is the guide; guided
+    /// synthesis re-textures it from the one nearest reference photo.
+    Paper,
+    /// View-dependent texturing ([`crate::texture`]): the nearest reference photos projected
+    /// onto the voxel surface with visibility, holes filled; optionally refined by guided
+    /// synthesis ([`ViewParams::refine`]).
+    Textured,
 }
 
-/// Renders `model` from `cam` and synthesises the view from the nearest reference photo.
+/// New-view settings. [`Default`] is the measured best (see the crate README): view-dependent
+/// texturing without synthesis refinement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewParams {
+    /// The method.
+    pub method: Method,
+    /// Guided synthesis settings (the paper's method, and [`Method::Textured`] with `refine`).
+    pub synth: SynthParams,
+    /// View-dependent texturing settings ([`Method::Textured`]).
+    pub texture: TextureParams,
+    /// [`Method::Textured`]: run guided synthesis from the nearest photo with the textured view
+    /// as the guide.
+    pub refine: bool,
+}
+
+impl Default for ViewParams {
+    fn default() -> Self {
+        Self {
+            method: Method::Textured,
+            synth: SynthParams::fast_for(7),
+            texture: TextureParams::default(),
+            refine: false,
+        }
+    }
+}
+
+impl ViewParams {
+    /// The paper's method with these synthesis settings.
+    pub fn paper(synth: SynthParams) -> Self {
+        Self {
+            method: Method::Paper,
+            synth,
+            ..Self::default()
+        }
+    }
+}
+
+/// A new view: the rough render, the guide and the result.
+#[derive(Debug, Clone)]
+pub struct NovelView {
+    /// The rough render (flat voxel colours).
+    pub rough: Rendered,
+    /// The synthesis guide: the rough image ([`Method::Paper`]) or the textured view.
+    pub guide: RgbImage,
+    /// The result.
+    pub guided: RgbImage,
+    /// The nearest reference photo (the synthesis input), index into the cameras.
+    pub reference: usize,
+    /// Seconds per stage, in order: rough render, texturing, synthesis.
+    pub times: Vec<(&'static str, f64)>,
+}
+
+/// Renders `model` from `cam` and makes the new view as `p` says.
 pub fn novel_view(
     model: &VoxelModel,
     cams: &[Camera],
@@ -44,47 +99,190 @@ pub fn novel_view(
     cam: &Camera,
     w: u32,
     h: u32,
-    synth: &SynthParams,
+    p: &ViewParams,
 ) -> Result<NovelView> {
     let reference = nearest_reference(cams, cam).ok_or(Error::TooFew {
         what: "reference cameras".into(),
         got: 0,
         need: 1,
     })?;
+    let mut times = Vec::new();
+    let t = Instant::now();
     let rough = render_rough(model, cam, w, h);
-    let guided = guided_synthesis(&images[reference], &rough.image, synth)?;
+    times.push(("rough render", t.elapsed().as_secs_f64()));
+    let (guide, reference, synthesise) = match p.method {
+        Method::Paper => (rough.image.clone(), reference, true),
+        Method::Textured => {
+            let t = Instant::now();
+            let tex = texture_view(model, cams, images, cam, &rough, &p.texture)?;
+            times.push(("texturing", t.elapsed().as_secs_f64()));
+            (tex.image, tex.references[0], p.refine)
+        }
+    };
+    let guided = if synthesise {
+        let t = Instant::now();
+        let g = guided_synthesis(&images[reference], &guide, &p.synth)?;
+        times.push(("synthesis", t.elapsed().as_secs_f64()));
+        g
+    } else {
+        guide.clone()
+    };
     Ok(NovelView {
         rough,
+        guide,
         guided,
         reference,
+        times,
     })
 }
 
-/// Scores of a withheld view, measured inside its silhouette.
+/// PSNR (dB) and SSIM of one image against the withheld photo.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Score {
+    /// PSNR in dB.
+    pub psnr: f64,
+    /// SSIM.
+    pub ssim: f64,
+}
+
+/// Scores inside the withheld photo's silhouette and over the whole image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scores {
+    /// Inside the withheld photo's silhouette.
+    pub inside: Score,
+    /// Over the whole image.
+    pub whole: Score,
+}
+
+/// Scores `img` against `truth`, inside `mask` and over the whole image.
+pub fn score(img: &RgbImage, truth: &RgbImage, mask: &Mask) -> Result<Scores> {
+    Ok(Scores {
+        inside: Score {
+            psnr: psnr(img, truth, Some(mask))?,
+            ssim: ssim(img, truth, Some(mask))?,
+        },
+        whole: Score {
+            psnr: psnr(img, truth, None)?,
+            ssim: ssim(img, truth, None)?,
+        },
+    })
+}
+
+/// Intersection over union of two masks of the same size (1 when both are empty).
+pub fn iou(a: &Mask, b: &Mask) -> f64 {
+    let (mut inter, mut union) = (0usize, 0usize);
+    for (x, y) in a.as_slice().iter().zip(b.as_slice()) {
+        inter += (*x != 0 && *y != 0) as usize;
+        union += (*x != 0 || *y != 0) as usize;
+    }
+    if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    }
+}
+
+/// The rough render blurred by a Gaussian of sigma 2 (kernel 13, OpenCV's size for 8-bit
+/// images at that sigma): the baseline a smoothing method has to beat.
+pub fn blur2(img: &RgbImage) -> Result<RgbImage> {
+    vt_core::blur::gaussian_blur(
+        img,
+        &vt_core::blur::GaussianParams {
+            ksize: 13,
+            sigma: 2.0,
+        },
+    )
+    .map_err(|e| Error::BadParam {
+        name: "blur".into(),
+        value: "sigma 2".into(),
+        why: e.to_string(),
+    })
+}
+
+/// An error map: per pixel, 4x the mean absolute channel difference as grey, with the truth
+/// silhouette's outline in red.
+pub fn error_map(img: &RgbImage, truth: &RgbImage, mask: &Mask) -> RgbImage {
+    RgbImage::from_fn(truth.width(), truth.height(), |x, y| {
+        let (a, b) = (img.get_pixel(x, y).0, truth.get_pixel(x, y).0);
+        let e: u32 = (0..3).map(|k| a[k].abs_diff(b[k]) as u32).sum();
+        let g = (e * 4 / 3).min(255) as u8;
+        let (xi, yi) = (x as i64, y as i64);
+        let edge = mask.get(xi, yi)
+            && [(-1, 0), (1, 0), (0, -1), (0, 1)]
+                .iter()
+                .any(|(dx, dy)| !mask.get(xi + dx, yi + dy));
+        if edge {
+            Rgb([255, 0, 0])
+        } else {
+            Rgb([g, g, g])
+        }
+    })
+}
+
+/// Scores of a withheld view: the result and three baselines, and the model's silhouette.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EvalReport {
     /// The withheld view.
     pub withheld: usize,
-    /// The reference photo used as synthesis input (index into all views).
+    /// The nearest reference photo (index into all views).
     pub reference: usize,
-    /// PSNR of the rough render, dB.
-    pub psnr_rough: f64,
-    /// PSNR of the guided synthesis, dB.
-    pub psnr_guided: f64,
-    /// SSIM of the rough render.
-    pub ssim_rough: f64,
-    /// SSIM of the guided synthesis.
-    pub ssim_guided: f64,
+    /// The nearest reference photo as it is (no warping).
+    pub nearest_photo: Scores,
+    /// The rough render (flat voxel colours).
+    pub rough: Scores,
+    /// The rough render blurred with a Gaussian of sigma 2.
+    pub rough_blur2: Scores,
+    /// The synthesis guide (the rough render for the paper's method, else the textured view).
+    pub guide: Scores,
+    /// The result.
+    pub guided: Scores,
+    /// IoU of the rough render's coverage against the withheld photo's silhouette.
+    pub silhouette_iou: f64,
     /// Surface voxels of the model.
     pub surface_voxels: usize,
-    /// Seconds to build the model.
-    pub model_secs: f64,
-    /// Seconds to render and synthesise.
-    pub synth_secs: f64,
+    /// Seconds per stage: visual hull, photo hull, rough render, texturing, synthesis, scoring.
+    pub times: Vec<(&'static str, f64)>,
 }
 
-/// Builds the model from every view but `withheld`, renders that view rough and guided, and
-/// scores both against the withheld photo inside its silhouette.
+impl EvalReport {
+    /// Seconds to build the model (visual and photo hull).
+    pub fn model_secs(&self) -> f64 {
+        self.stage_secs(&["visual hull", "photo hull"])
+    }
+
+    /// Seconds to make the new view (render, texturing, synthesis).
+    pub fn view_secs(&self) -> f64 {
+        self.stage_secs(&["rough render", "texturing", "synthesis"])
+    }
+
+    fn stage_secs(&self, names: &[&str]) -> f64 {
+        self.times
+            .iter()
+            .filter(|(n, _)| names.contains(n))
+            .map(|(_, s)| s)
+            .sum()
+    }
+}
+
+/// The images of a leave-one-out run, for saving.
+#[derive(Debug, Clone)]
+pub struct EvalImages {
+    /// The withheld photo.
+    pub truth: RgbImage,
+    /// The nearest reference photo.
+    pub nearest_photo: RgbImage,
+    /// The rough render.
+    pub rough: RgbImage,
+    /// The rough render blurred (sigma 2).
+    pub rough_blur2: RgbImage,
+    /// The guide.
+    pub guide: RgbImage,
+    /// The result.
+    pub guided: RgbImage,
+}
+
+/// Builds the model from every view but `withheld`, makes that view as `view` says, and scores
+/// it and the baselines against the withheld photo.
 pub fn leave_one_out(
     cams: &[Camera],
     images: &[RgbImage],
@@ -92,8 +290,8 @@ pub fn leave_one_out(
     withheld: usize,
     hull: &HullParams,
     photo: &PhotoParams,
-    synth: &SynthParams,
-) -> Result<EvalReport> {
+    view: &ViewParams,
+) -> Result<(EvalReport, EvalImages)> {
     if withheld >= cams.len() || cams.len() != images.len() || cams.len() != masks.len() {
         return Err(Error::CountMismatch {
             what: format!("withheld view {withheld} of cameras/images/masks"),
@@ -105,31 +303,51 @@ pub fn leave_one_out(
     let sub_cams: Vec<Camera> = keep.iter().map(|&i| cams[i].clone()).collect();
     let sub_imgs: Vec<RgbImage> = keep.iter().map(|&i| images[i].clone()).collect();
     let sub_masks: Vec<Mask> = keep.iter().map(|&i| masks[i].clone()).collect();
+    let mut times = Vec::new();
     let t = Instant::now();
-    let model = build_model(
+    let grid = visual_hull(&sub_cams, &sub_masks, hull)?;
+    times.push(("visual hull", t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let model = photo_hull_keeping(
+        grid,
         &sub_cams,
         &sub_imgs,
-        &sub_masks,
-        hull,
+        Some(&sub_masks),
         photo,
         &mut |_, _, _| {},
     )?;
-    let model_secs = t.elapsed().as_secs_f64();
-    let t = Instant::now();
+    times.push(("photo hull", t.elapsed().as_secs_f64()));
     let (w, h) = images[withheld].dimensions();
-    let view = novel_view(&model, &sub_cams, &sub_imgs, &cams[withheld], w, h, synth)?;
-    let synth_secs = t.elapsed().as_secs_f64();
+    let v = novel_view(&model, &sub_cams, &sub_imgs, &cams[withheld], w, h, view)?;
+    times.extend(v.times.iter().copied());
+    let t = Instant::now();
     let truth = &images[withheld];
-    let m = Some(&masks[withheld]);
-    Ok(EvalReport {
+    let mask = &masks[withheld];
+    // The baseline photo: nearest by direction from the object, as the texturing picks it.
+    let nearest = nearest_by_direction(&sub_cams, &cams[withheld], &model_centre(&model), 1)[0];
+    let blurred = blur2(&v.rough.image)?;
+    let report = EvalReport {
         withheld,
-        reference: keep[view.reference],
-        psnr_rough: psnr(&view.rough.image, truth, m)?,
-        psnr_guided: psnr(&view.guided, truth, m)?,
-        ssim_rough: ssim(&view.rough.image, truth, m)?,
-        ssim_guided: ssim(&view.guided, truth, m)?,
+        reference: keep[nearest],
+        nearest_photo: score(&sub_imgs[nearest], truth, mask)?,
+        rough: score(&v.rough.image, truth, mask)?,
+        rough_blur2: score(&blurred, truth, mask)?,
+        guide: score(&v.guide, truth, mask)?,
+        guided: score(&v.guided, truth, mask)?,
+        silhouette_iou: iou(&v.rough.coverage, mask),
         surface_voxels: model.surface.len(),
-        model_secs,
-        synth_secs,
-    })
+        times: {
+            times.push(("scoring", t.elapsed().as_secs_f64()));
+            times
+        },
+    };
+    let imgs = EvalImages {
+        truth: truth.clone(),
+        nearest_photo: sub_imgs[nearest].clone(),
+        rough: v.rough.image,
+        rough_blur2: blurred,
+        guide: v.guide,
+        guided: v.guided,
+    };
+    Ok((report, imgs))
 }

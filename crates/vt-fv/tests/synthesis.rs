@@ -9,7 +9,7 @@ use std::time::Instant;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::HullParams;
 use vt_fv::synth::{generate, SceneParams};
-use vt_fv::{build_model, novel_view, PhotoParams, SynthParams};
+use vt_fv::{build_model, novel_view, PhotoParams, SynthParams, ViewParams};
 
 #[test]
 fn guided_synthesis_beats_rough_render_on_synthetic_object() {
@@ -55,7 +55,16 @@ fn guided_synthesis_beats_rough_render_on_synthetic_object() {
     for (k, cam) in d.extra_cameras.iter().enumerate() {
         for (name, p) in &configs {
             let t = Instant::now();
-            let v = novel_view(&model, &d.cameras, &d.photos, cam, 96, 96, p).unwrap();
+            let v = novel_view(
+                &model,
+                &d.cameras,
+                &d.photos,
+                cam,
+                96,
+                96,
+                &ViewParams::paper(p.clone()),
+            )
+            .unwrap();
             let secs = t.elapsed().as_secs_f64();
             let m = Some(&d.extra_masks[k]);
             let truth = &d.extra_truth[k];
@@ -120,7 +129,7 @@ fn synthesis_stage_keeps_large_patches_on_the_guide() {
             &d.extra_cameras[0],
             160,
             160,
-            p,
+            &ViewParams::paper(p.clone()),
         )
         .unwrap();
         psnr(&v.guided, &d.extra_truth[0], Some(&d.extra_masks[0])).unwrap()

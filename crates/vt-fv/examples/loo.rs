@@ -1,0 +1,140 @@
+//! Leave-one-out measurement over several settings, for the tables in the README:
+//!
+//! ```sh
+//! cargo run --release -p vt-fv --example loo -- DATA VIEWS GRID [CONFIG...]
+//! ```
+//!
+//! DATA: a folder with one `*_par.txt` and its images (silhouettes by the Middlebury
+//! threshold); VIEWS: `1,2,3` (0-based); GRID: voxels along the longest side; CONFIG:
+//! `name:key=value,...` with keys `method` (textured|paper|refine), `refs`, `smooth`, `sweep`,
+//! `step`, `window`, `fill`, `tol`, `threshold`, `keep` (0|1), `patch`. Prints one row per view
+//! and configuration, then the means.
+
+use std::path::Path;
+
+use vt_fv::camera::parse_par;
+use vt_fv::hull::{auto_bounds, dims_for, HullParams};
+use vt_fv::pipeline::{leave_one_out, Method, ViewParams};
+use vt_fv::silhouette::{threshold_silhouette, SilhouetteParams};
+use vt_fv::synthesis::SynthParams;
+use vt_fv::PhotoParams;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 4 {
+        eprintln!("usage: loo DATA VIEWS GRID [name:key=value,...]...");
+        std::process::exit(2);
+    }
+    let dir = Path::new(&args[1]);
+    let par = std::fs::read_dir(dir)
+        .expect("data folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.to_string_lossy().ends_with("_par.txt"))
+        .expect("a *_par.txt");
+    let cams = parse_par(&std::fs::read_to_string(&par).unwrap()).unwrap();
+    let images: Vec<_> = cams
+        .iter()
+        .map(|c| image::open(dir.join(&c.name)).unwrap().to_rgb8())
+        .collect();
+    let masks: Vec<_> = images
+        .iter()
+        .map(|i| threshold_silhouette(i, &SilhouetteParams::default()))
+        .collect();
+    let views: Vec<usize> = args[2].split(',').map(|v| v.parse().unwrap()).collect();
+    let grid: usize = args[3].parse().unwrap();
+    let configs: Vec<String> = if args.len() > 4 {
+        args[4..].to_vec()
+    } else {
+        vec!["default:".into()]
+    };
+    let mut means = Vec::new();
+    for cfg in &configs {
+        let (name, kv) = cfg.split_once(':').unwrap_or((cfg, ""));
+        let mut view = ViewParams::default();
+        let mut photo = PhotoParams::default();
+        let mut sil = SilhouetteParams::default();
+        for pair in kv.split(',').filter(|p| !p.is_empty()) {
+            let (k, v) = pair.split_once('=').expect("key=value");
+            let f = || v.parse::<f64>().unwrap();
+            match k {
+                "method" => match v {
+                    "paper" => view.method = Method::Paper,
+                    "refine" => view.refine = true,
+                    _ => view.method = Method::Textured,
+                },
+                "refs" => view.texture.references = f() as usize,
+                "smooth" => view.texture.depth_smooth = f() as u32,
+                "sweep" => view.texture.sweep = f() as usize,
+                "step" => view.texture.sweep_step = f(),
+                "window" => view.texture.sweep_window = f() as u32,
+                "fill" => view.texture.fill_radius = f() as u32,
+                "tol" => view.texture.depth_tolerance = f(),
+                "threshold" => photo.threshold = f(),
+                "keep" => photo.keep_silhouettes = f() != 0.0,
+                "dil" => sil.dilate = f() as u32,
+                "ero" => sil.erode = f() as u32,
+                "patch" => view.synth = SynthParams::fast_for(f() as usize),
+                _ => panic!("unknown key {k}"),
+            }
+        }
+        // Silhouettes for the model (the scored view keeps the Middlebury recipe's).
+        let model_masks: Vec<_> = images
+            .iter()
+            .map(|i| threshold_silhouette(i, &sil))
+            .collect();
+        let mut acc = [0.0f64; 11];
+        for &k in &views {
+            let keep: Vec<usize> = (0..cams.len()).filter(|&i| i != k).collect();
+            let sc: Vec<_> = keep.iter().map(|&i| cams[i].clone()).collect();
+            let sm: Vec<_> = keep.iter().map(|&i| model_masks[i].clone()).collect();
+            let mut mm = model_masks.clone();
+            mm[k] = masks[k].clone();
+            let t = std::time::Instant::now();
+            let bounds = auto_bounds(&sc, &sm, &HullParams::default()).unwrap();
+            let hull = HullParams {
+                dims: dims_for(&bounds, grid),
+                bounds: Some(bounds),
+                ..Default::default()
+            };
+            let (r, imgs) = leave_one_out(&cams, &images, &mm, k, &hull, &photo, &view).unwrap();
+            if let Ok(out) = std::env::var("VT_SAVE") {
+                let e = vt_fv::pipeline::error_map(&imgs.guided, &imgs.truth, &masks[k]);
+                e.save(format!("{out}/{name}_{k}_error.png")).unwrap();
+                imgs.guided.save(format!("{out}/{name}_{k}.png")).unwrap();
+                imgs.truth.save(format!("{out}/truth_{k}.png")).unwrap();
+            }
+            let secs = t.elapsed().as_secs_f64();
+            let row = [
+                r.nearest_photo.inside.psnr,
+                r.rough.inside.psnr,
+                r.rough_blur2.inside.psnr,
+                r.guided.inside.psnr,
+                r.nearest_photo.inside.ssim,
+                r.rough.inside.ssim,
+                r.rough_blur2.inside.ssim,
+                r.guided.inside.ssim,
+                r.silhouette_iou,
+                secs,
+                r.model_secs(),
+            ];
+            println!(
+                "{name:<14} view {k:>2}: PSNR photo {:.2} rough {:.2} blur2 {:.2} guided {:.2} | SSIM {:.3} {:.3} {:.3} {:.3} | IoU {:.3} | {:.2} s (model {:.2}) {:?}",
+                row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10], r.times
+            );
+            for (a, v) in acc.iter_mut().zip(row) {
+                *a += v / views.len() as f64;
+            }
+        }
+        means.push((name.to_string(), acc));
+    }
+    println!("\nmeans over views {:?}, grid {grid}:", views);
+    println!(
+        "config          PSNR photo  rough  blur2 guided | SSIM photo rough blur2 guided | IoU | s"
+    );
+    for (name, m) in means {
+        println!(
+            "{name:<14} {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:.3} {:.3} {:.3} {:.3} | {:.3} | {:.2}",
+            m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9]
+        );
+    }
+}

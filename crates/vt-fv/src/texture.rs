@@ -1,0 +1,459 @@
+//! View-dependent texturing: a new view coloured by projecting the reference photos onto the
+//! voxel model's surface, instead of painting each voxel one flat colour (the rough view).
+//!
+//! For every pixel the rough render covers, its surface point is the back-projection of the
+//! pixel at the rendered depth. The point is projected into the `references` reference cameras
+//! nearest in viewing direction (angle between the directions from the model's centre to the
+//! cameras); a camera contributes when the point is not hidden in it (its depth is within
+//! `depth_tolerance` voxels of the camera's own render of the model at that pixel) and the
+//! sample lies inside the camera's photo. Samples are bilinear and blended with weights
+//! `1 / (angle^2 + eps^2)`, `angle` being the angle at the surface point between the new ray and
+//! the reference ray (unstructured-lumigraph style: a camera that looks along the same ray
+//! dominates). Pixels no camera sees keep the voxel colour; cracks of the rough render inside
+//! its closed coverage (closing radius `fill_radius`) are filled by push-pull interpolation.
+
+use image::{Rgb, RgbImage};
+use nalgebra::{Matrix3, Matrix3x4, Vector3};
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::photo::VoxelModel;
+use crate::render::{render_rough, Rendered};
+use crate::silhouette::Mask;
+use crate::{Error, Result};
+
+/// View-dependent texturing parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TextureParams {
+    /// Reference photos blended per pixel (the nearest by viewing direction), at least 1 (3).
+    pub references: usize,
+    /// Visibility slack in voxel sizes: a reference sees a surface point when the point's depth
+    /// is at most its own render's depth plus this (2).
+    pub depth_tolerance: f64,
+    /// Angle in degrees below which a reference counts as looking along the same ray (the eps
+    /// of the blending weights, 2).
+    pub eps_deg: f64,
+    /// Closing radius in pixels of the rough render's coverage: uncovered pixels inside the
+    /// closed coverage are holes and get filled (3; 0 fills nothing).
+    pub fill_radius: u32,
+    /// Radius in pixels of the box filter that smooths the rough render's depth (voxel-centre
+    /// depths, flat per splat) before back-projection (3; 0 keeps the splat depths).
+    pub depth_smooth: u32,
+    /// Depth refinement: candidate depths tried on each side of the smoothed depth (4; 0 =
+    /// none); per pixel the candidate whose reference colours agree best (variance across the
+    /// references, summed over a `(2 sweep_window + 1)^2` window) wins.
+    pub sweep: usize,
+    /// Spacing of the candidate depths in voxel sizes (0.25).
+    pub sweep_step: f64,
+    /// Window radius in pixels of the refinement's agreement cost (2).
+    pub sweep_window: u32,
+}
+
+impl Default for TextureParams {
+    fn default() -> Self {
+        Self {
+            references: 3,
+            depth_tolerance: 2.0,
+            eps_deg: 2.0,
+            fill_radius: 3,
+            depth_smooth: 3,
+            sweep: 4,
+            sweep_step: 0.25,
+            sweep_window: 2,
+        }
+    }
+}
+
+/// A view-dependently textured new view.
+#[derive(Debug, Clone)]
+pub struct Textured {
+    /// The image: photo texture where some reference sees the surface, the voxel colour where
+    /// none does, filled holes, black outside the (closed) coverage.
+    pub image: RgbImage,
+    /// Pixels coloured from at least one reference photo.
+    pub textured: Mask,
+    /// The object region: the rough render's coverage after closing.
+    pub region: Mask,
+    /// The reference cameras used, nearest first.
+    pub references: Vec<usize>,
+}
+
+/// Indices of the `n` cameras whose direction from `centre` is closest in angle to `cam`'s,
+/// nearest first.
+pub fn nearest_by_direction(
+    cams: &[Camera],
+    cam: &Camera,
+    centre: &Vector3<f64>,
+    n: usize,
+) -> Vec<usize> {
+    let d = (cam.centre() - centre).normalize();
+    let mut order: Vec<(f64, usize)> = cams
+        .iter()
+        .enumerate()
+        .map(|(i, c)| (-(c.centre() - centre).normalize().dot(&d), i))
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    order.into_iter().take(n).map(|(_, i)| i).collect()
+}
+
+/// The centroid of the model's surface voxels.
+pub fn model_centre(model: &VoxelModel) -> Vector3<f64> {
+    let n = model.surface.len().max(1) as f64;
+    model
+        .surface
+        .iter()
+        .map(|v| model.centre(v))
+        .sum::<Vector3<f64>>()
+        / n
+}
+
+/// One reference camera prepared for sampling.
+struct Reference<'a> {
+    p: Matrix3x4<f64>,
+    centre: Vector3<f64>,
+    image: &'a RgbImage,
+    depth: Vec<f32>,
+}
+
+#[inline]
+fn bilinear(img: &RgbImage, u: f64, v: f64) -> [f64; 3] {
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    let (x0, y0) = (u.floor(), v.floor());
+    let (fx, fy) = (u - x0, v - y0);
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let px = |x: i64, y: i64| {
+        img.get_pixel(x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32)
+            .0
+    };
+    let (a, b, c, d) = (
+        px(x0, y0),
+        px(x0 + 1, y0),
+        px(x0, y0 + 1),
+        px(x0 + 1, y0 + 1),
+    );
+    let mut out = [0.0; 3];
+    for k in 0..3 {
+        let top = a[k] as f64 * (1.0 - fx) + b[k] as f64 * fx;
+        let bottom = c[k] as f64 * (1.0 - fx) + d[k] as f64 * fx;
+        out[k] = top * (1.0 - fy) + bottom * fy;
+    }
+    out
+}
+
+/// Textures the view of `cam` (rendered rough as `rough`, `w x h`) from the reference photos.
+pub fn texture_view(
+    model: &VoxelModel,
+    cams: &[Camera],
+    images: &[RgbImage],
+    cam: &Camera,
+    rough: &Rendered,
+    p: &TextureParams,
+) -> Result<Textured> {
+    if cams.len() != images.len() {
+        return Err(Error::CountMismatch {
+            what: "cameras vs images".into(),
+            a: cams.len(),
+            b: images.len(),
+        });
+    }
+    if p.references == 0 || cams.is_empty() {
+        return Err(Error::TooFew {
+            what: "reference photos for texturing".into(),
+            got: p.references.min(cams.len()),
+            need: 1,
+        });
+    }
+    for (name, v) in [
+        ("depth_tolerance", p.depth_tolerance),
+        ("eps_deg", p.eps_deg),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(Error::BadParam {
+                name: name.into(),
+                value: v.to_string(),
+                why: "must be > 0".into(),
+            });
+        }
+    }
+    let (w, h) = rough.image.dimensions();
+    let centre = model_centre(model);
+    let chosen = nearest_by_direction(cams, cam, &centre, p.references);
+    let refs: Vec<Reference> = chosen
+        .par_iter()
+        .map(|&i| {
+            let (rw, rh) = images[i].dimensions();
+            Reference {
+                p: cams[i].projection(),
+                centre: cams[i].centre(),
+                image: &images[i],
+                depth: render_rough(model, &cams[i], rw, rh).depth,
+            }
+        })
+        .collect();
+    let vs = model.grid.voxel_size();
+    let tol = p.depth_tolerance * (vs.x * vs.y * vs.z).cbrt();
+    let eps2 = p.eps_deg.to_radians().powi(2);
+    // X = A (u, v, 1) d + b: the back-projection with K inverted once.
+    let kinv: Matrix3<f64> = cam
+        .k
+        .try_inverse()
+        .expect("K is invertible: checked by Camera::new");
+    let a = cam.r.transpose() * kinv;
+    let b = -(cam.r.transpose() * cam.t);
+    let own = cam.centre();
+    let wu = w as usize;
+    let n = wu * h as usize;
+    let depth = smooth_depth(&rough.depth, wu, h as usize, p.depth_smooth as usize);
+    let step = p.sweep_step * (vs.x * vs.y * vs.z).cbrt();
+    let point = |i: usize, d: f64| a * Vector3::new((i % wu) as f64, (i / wu) as f64, 1.0) * d + b;
+    // The references that see a point, with their pixel and blending weight.
+    let seen = |pt: &Vector3<f64>| -> Vec<(usize, f64, f64, f64)> {
+        let view = (own - pt).normalize();
+        let mut out = Vec::with_capacity(refs.len());
+        for (k, r) in refs.iter().enumerate() {
+            let q = r.p * pt.push(1.0);
+            if q.z <= 0.0 {
+                continue;
+            }
+            let (u, v) = (q.x / q.z, q.y / q.z);
+            let (rw, rh) = r.image.dimensions();
+            if u < 0.0 || v < 0.0 || u > (rw - 1) as f64 || v > (rh - 1) as f64 {
+                continue;
+            }
+            let (ix, iy) = ((u + 0.5) as usize, (v + 0.5) as usize);
+            let rd = r.depth[iy.min(rh as usize - 1) * rw as usize + ix.min(rw as usize - 1)];
+            // q.z is the camera-space depth: P's third row is (0, 0, 1) K times [R | t].
+            if !rd.is_finite() || q.z > rd as f64 + tol {
+                continue;
+            }
+            let angle = view.angle(&(r.centre - pt).normalize());
+            out.push((k, u, v, 1.0 / (angle * angle + eps2)));
+        }
+        out
+    };
+    let refined: Vec<f64> = if p.sweep > 0 && refs.len() >= 2 {
+        // Cost volume: per candidate, the variance of the references' colours (NaN where
+        // fewer than two see the point), box-filtered over the window.
+        let nc = 2 * p.sweep + 1;
+        let costs: Vec<Vec<f32>> = (0..nc)
+            .into_par_iter()
+            .map(|c| {
+                let off = (c as f64 - p.sweep as f64) * step;
+                let raw: Vec<f32> = (0..n)
+                    .map(|i| {
+                        let d = depth[i];
+                        if !d.is_finite() {
+                            return f32::NAN;
+                        }
+                        let s = seen(&point(i, d + off));
+                        if s.len() < 2 {
+                            return f32::NAN;
+                        }
+                        let cols: Vec<[f64; 3]> = s
+                            .iter()
+                            .map(|&(k, u, v, _)| bilinear(refs[k].image, u, v))
+                            .collect();
+                        let m = cols.len() as f64;
+                        let mut var = 0.0;
+                        for ch in 0..3 {
+                            let mean = cols.iter().map(|c| c[ch]).sum::<f64>() / m;
+                            var += cols.iter().map(|c| (c[ch] - mean).powi(2)).sum::<f64>() / m;
+                        }
+                        var as f32
+                    })
+                    .collect();
+                box_mean_nan(&raw, wu, h as usize, p.sweep_window as usize)
+            })
+            .collect();
+        (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let mut best = (f32::INFINITY, p.sweep);
+                for (c, cost) in costs.iter().enumerate() {
+                    let v = cost[i];
+                    // Ties (and no information) keep the hull's depth.
+                    let better = v < best.0
+                        || (v == best.0 && c.abs_diff(p.sweep) < best.1.abs_diff(p.sweep));
+                    if v.is_finite() && better {
+                        best = (v, c);
+                    }
+                }
+                depth[i] + (best.1 as f64 - p.sweep as f64) * step
+            })
+            .collect()
+    } else {
+        depth.clone()
+    };
+    // Per pixel: Some(colour) when some reference sees it.
+    let samples: Vec<Option<[u8; 3]>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let d = refined[i];
+            if !d.is_finite() {
+                return None;
+            }
+            let (mut acc, mut wsum) = ([0.0f64; 3], 0.0f64);
+            for (k, u, v, wt) in seen(&point(i, d)) {
+                let c = bilinear(refs[k].image, u, v);
+                for ch in 0..3 {
+                    acc[ch] += wt * c[ch];
+                }
+                wsum += wt;
+            }
+            (wsum > 0.0).then(|| acc.map(|c| (c / wsum).round().clamp(0.0, 255.0) as u8))
+        })
+        .collect();
+    let region = if p.fill_radius > 0 {
+        rough.coverage.dilate(p.fill_radius).erode(p.fill_radius)
+    } else {
+        rough.coverage.clone()
+    };
+    let textured = Mask::from_fn(w, h, |x, y| samples[(y * w + x) as usize].is_some());
+    // Known colours: photo samples, else the voxel colour where the rough render covers.
+    let mut known: Vec<Option<[f64; 3]>> = samples
+        .iter()
+        .enumerate()
+        .map(|(i, s)| match s {
+            Some(c) => Some(c.map(|v| v as f64)),
+            None if rough.depth[i].is_finite() => {
+                let c = rough.image.as_raw();
+                Some([c[3 * i] as f64, c[3 * i + 1] as f64, c[3 * i + 2] as f64])
+            }
+            None => None,
+        })
+        .collect();
+    push_pull(&mut known, wu, h as usize);
+    let image = RgbImage::from_fn(w, h, |x, y| {
+        let i = (y * w + x) as usize;
+        if !region.get(x as i64, y as i64) {
+            return Rgb([0, 0, 0]);
+        }
+        Rgb(known[i]
+            .unwrap_or([0.0; 3])
+            .map(|v| v.round().clamp(0.0, 255.0) as u8))
+    });
+    Ok(Textured {
+        image,
+        textured,
+        region,
+        references: chosen,
+    })
+}
+
+/// Box-filtered depth over the covered (finite) pixels; uncovered pixels stay infinite.
+fn smooth_depth(depth: &[f32], w: usize, h: usize, r: usize) -> Vec<f64> {
+    let d: Vec<f32> = depth
+        .iter()
+        .map(|&v| if v.is_finite() { v } else { f32::NAN })
+        .collect();
+    let m = if r == 0 {
+        d.clone()
+    } else {
+        box_mean_nan(&d, w, h, r)
+    };
+    depth
+        .iter()
+        .zip(m)
+        .map(|(&o, v)| {
+            if o.is_finite() {
+                v as f64
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// Mean over a `(2r + 1)^2` box of the non-NaN values (NaN where the box holds none), by
+/// summed-area tables.
+fn box_mean_nan(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let (sw, sh) = (w + 1, h + 1);
+    let mut sum = vec![0.0f64; sw * sh];
+    let mut cnt = vec![0u32; sw * sh];
+    for y in 0..h {
+        let (mut rs, mut rc) = (0.0f64, 0u32);
+        for x in 0..w {
+            let a = v[y * w + x];
+            if !a.is_nan() {
+                rs += a as f64;
+                rc += 1;
+            }
+            sum[(y + 1) * sw + x + 1] = sum[y * sw + x + 1] + rs;
+            cnt[(y + 1) * sw + x + 1] = cnt[y * sw + x + 1] + rc;
+        }
+    }
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (x0, y0) = (x.saturating_sub(r), y.saturating_sub(r));
+            let (x1, y1) = ((x + r + 1).min(w), (y + r + 1).min(h));
+            let c = cnt[y1 * sw + x1] + cnt[y0 * sw + x0] - cnt[y0 * sw + x1] - cnt[y1 * sw + x0];
+            if c == 0 {
+                return f32::NAN;
+            }
+            let s = sum[y1 * sw + x1] + sum[y0 * sw + x0] - sum[y0 * sw + x1] - sum[y1 * sw + x0];
+            (s / c as f64) as f32
+        })
+        .collect()
+}
+
+/// Fills every `None` of a `w x h` image from its known neighbours by push-pull: average the
+/// known pixels 2x2 down a pyramid until everything is known, then fill each level's gaps from
+/// the coarser level on the way back up.
+pub fn push_pull(px: &mut [Option<[f64; 3]>], w: usize, h: usize) {
+    if px.iter().all(Option::is_some) || px.iter().all(Option::is_none) || w * h <= 1 {
+        return;
+    }
+    let (hw, hh) = (w.div_ceil(2), h.div_ceil(2));
+    let mut coarse: Vec<Option<[f64; 3]>> = vec![None; hw * hh];
+    for (cy, row) in coarse.chunks_mut(hw).enumerate() {
+        for (cx, c) in row.iter_mut().enumerate() {
+            let (mut acc, mut n) = ([0.0; 3], 0.0);
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let (x, y) = (2 * cx + dx, 2 * cy + dy);
+                if x < w && y < h {
+                    if let Some(v) = px[y * w + x] {
+                        (0..3).for_each(|k| acc[k] += v[k]);
+                        n += 1.0;
+                    }
+                }
+            }
+            if n > 0.0 {
+                *c = Some(acc.map(|a| a / n));
+            }
+        }
+    }
+    push_pull(&mut coarse, hw, hh);
+    for y in 0..h {
+        for x in 0..w {
+            if px[y * w + x].is_none() {
+                px[y * w + x] = coarse[(y / 2) * hw + x / 2];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn push_pull_fills_gaps_from_neighbours_and_keeps_known_pixels() {
+        let (w, h) = (9, 7);
+        let mut px: Vec<Option<[f64; 3]>> = (0..w * h)
+            .map(|i| (i % 3 != 0).then_some([(i % w) as f64 * 10.0, 50.0, 0.0]))
+            .collect();
+        let before = px.clone();
+        push_pull(&mut px, w, h);
+        for (a, b) in px.iter().zip(&before) {
+            let a = a.expect("every pixel filled");
+            if let Some(b) = b {
+                assert_eq!(a, *b);
+            } else {
+                // A filled value lies within the range of the known values.
+                assert!((0.0..=80.0).contains(&a[0]) && a[1] == 50.0);
+            }
+        }
+    }
+}
