@@ -73,8 +73,6 @@ fn main() -> Result<()> {
                 "--release",
                 "--quiet",
                 "-p",
-                "vt-cli",
-                "--bin",
                 "vt-bench",
                 "--",
             ])
