@@ -69,6 +69,9 @@ fn main() {
                 "window" => view.texture.sweep_window = f() as u32,
                 "fill" => view.texture.fill_radius = f() as u32,
                 "tol" => view.texture.depth_tolerance = f(),
+                "soft" => view.texture.soften_sigma = f(),
+                "agree" => view.texture.agree_sd = f(),
+                "eps" => view.texture.eps_deg = f(),
                 "threshold" => photo.threshold = f(),
                 "keep" => photo.keep_silhouettes = f() != 0.0,
                 "dil" => sil.dilate = f() as u32,
@@ -97,6 +100,15 @@ fn main() {
                 ..Default::default()
             };
             let (r, imgs) = leave_one_out(&cams, &images, &mm, k, &hull, &photo, &view).unwrap();
+            for sigma in [1.0] {
+                let b = vt_core::blur::gaussian_blur(
+                    &imgs.guided,
+                    &vt_core::blur::GaussianParams { ksize: 13, sigma },
+                )
+                .unwrap();
+                let sc = vt_fv::pipeline::score(&b, &imgs.truth, &masks[k]).unwrap();
+                println!("   guided blurred sigma {sigma}: {:.2} dB {:.3}", sc.inside.psnr, sc.inside.ssim);
+            }
             if let Ok(out) = std::env::var("VT_SAVE") {
                 let e = vt_fv::pipeline::error_map(&imgs.guided, &imgs.truth, &masks[k]);
                 e.save(format!("{out}/{name}_{k}_error.png")).unwrap();

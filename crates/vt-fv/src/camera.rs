@@ -180,8 +180,17 @@ pub fn parse_par(text: &str) -> Result<Vec<Camera>> {
     })?;
     let declared: usize = header.trim().parse().map_err(|_| Error::ParLine {
         line: hline + 1,
-        what: format!("expected the camera count, got {:?}", header.trim()),
+        what: format!(
+            "expected the camera count, got {:?}",
+            shorten(header.trim())
+        ),
     })?;
+    if declared > MAX_CAMERAS {
+        return Err(Error::ParLine {
+            line: hline + 1,
+            what: format!("{declared} cameras, more than the {MAX_CAMERAS} vt reads"),
+        });
+    }
     let mut cams = Vec::with_capacity(declared);
     for (i, line) in lines {
         let lineno = i + 1;
@@ -203,13 +212,18 @@ pub fn parse_par(text: &str) -> Result<Vec<Camera>> {
                     "field {} ({}) is not a number: {:?}",
                     j + 2,
                     field_name(j),
-                    f
+                    shorten(f)
                 ),
             })?;
             if !x.is_finite() {
                 return Err(Error::ParLine {
                     line: lineno,
-                    what: format!("field {} ({}) is not finite: {:?}", j + 2, field_name(j), f),
+                    what: format!(
+                        "field {} ({}) is not finite: {:?}",
+                        j + 2,
+                        field_name(j),
+                        shorten(f)
+                    ),
                 });
             }
             v[j] = x;
@@ -217,6 +231,7 @@ pub fn parse_par(text: &str) -> Result<Vec<Camera>> {
         let k = Matrix3::from_row_slice(&v[0..9]);
         let r = Matrix3::from_row_slice(&v[9..18]);
         let t = Vector3::new(v[18], v[19], v[20]);
+        check_par_camera(fields[0], &r).map_err(|what| Error::ParLine { line: lineno, what })?;
         let cam = Camera::new(fields[0], k, r, t).map_err(|e| Error::ParLine {
             line: lineno,
             what: e.to_string(),
@@ -230,6 +245,51 @@ pub fn parse_par(text: &str) -> Result<Vec<Camera>> {
         });
     }
     Ok(cams)
+}
+
+/// Most cameras a par file may declare (checked before anything is allocated).
+pub const MAX_CAMERAS: usize = 10_000;
+/// Largest deviation of a par file's R from a rotation: `max |R^T R - I|` and `|det R - 1|`.
+pub const ROTATION_TOLERANCE: f64 = 1e-3;
+
+/// A user's value shortened for a message (at most 40 characters).
+fn shorten(s: &str) -> String {
+    let n = s.chars().count();
+    if n <= 40 {
+        return s.to_string();
+    }
+    format!(
+        "{}... ({n} characters)",
+        s.chars().take(32).collect::<String>()
+    )
+}
+
+/// Checks one par-file camera: its image name stays inside the data folder (relative, no `..`)
+/// and its R is a rotation (orthonormal, determinant +1, within [`ROTATION_TOLERANCE`]).
+fn check_par_camera(name: &str, r: &Matrix3<f64>) -> std::result::Result<(), String> {
+    let p = std::path::Path::new(name);
+    let inside = !name.contains('\\')
+        && p.components().all(|c| {
+            matches!(
+                c,
+                std::path::Component::Normal(_) | std::path::Component::CurDir
+            )
+        });
+    if !inside {
+        return Err(format!(
+            "image name {:?} points outside the data folder (use a name relative to it, without ..)",
+            shorten(name)
+        ));
+    }
+    let det = r.determinant();
+    let ortho = (r.transpose() * r - Matrix3::identity()).abs().max();
+    if (det - 1.0).abs() > ROTATION_TOLERANCE || ortho > ROTATION_TOLERANCE {
+        return Err(format!(
+            "camera {:?}: R is not a rotation (det {det:.4}, max |R^T R - I| {ortho:.4}; tolerance {ROTATION_TOLERANCE})",
+            shorten(name)
+        ));
+    }
+    Ok(())
 }
 
 fn field_name(j: usize) -> String {

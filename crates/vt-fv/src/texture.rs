@@ -25,7 +25,7 @@ use crate::{Error, Result};
 /// View-dependent texturing parameters.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TextureParams {
-    /// Reference photos blended per pixel (the nearest by viewing direction), at least 1 (3).
+    /// Reference photos blended per pixel (the nearest by viewing direction), at least 1 (2).
     pub references: usize,
     /// Visibility slack in voxel sizes: a reference sees a surface point when the point's depth
     /// is at most its own render's depth plus this (2).
@@ -47,12 +47,20 @@ pub struct TextureParams {
     pub sweep_step: f64,
     /// Window radius in pixels of the refinement's agreement cost (2).
     pub sweep_window: u32,
+    /// Sigma in pixels of the Gaussian that softens the textured image where the references
+    /// disagree (1.5; 0 = never). Misregistered texture (the model is only voxel-accurate) scores
+    /// worse than its local mean; where the photos agree the texture stays sharp.
+    pub soften_sigma: f64,
+    /// Standard deviation (0..255, mean over channels) of the references' colours at which a
+    /// pixel is fully softened; softening grows linearly up to it (16; 0 = soften everywhere).
+    /// Pixels seen by one photo or none count as disagreeing.
+    pub agree_sd: f64,
 }
 
 impl Default for TextureParams {
     fn default() -> Self {
         Self {
-            references: 3,
+            references: 2,
             depth_tolerance: 2.0,
             eps_deg: 2.0,
             fill_radius: 3,
@@ -60,6 +68,8 @@ impl Default for TextureParams {
             sweep: 4,
             sweep_step: 0.25,
             sweep_window: 2,
+            soften_sigma: 1.5,
+            agree_sd: 16.0,
         }
     }
 }
@@ -284,23 +294,37 @@ pub fn texture_view(
     } else {
         depth.clone()
     };
-    // Per pixel: Some(colour) when some reference sees it.
-    let samples: Vec<Option<[u8; 3]>> = (0..n)
+    // Per pixel: Some((colour, standard deviation across the references)) when some
+    // reference sees it.
+    let samples: Vec<Option<([u8; 3], f64)>> = (0..n)
         .into_par_iter()
         .map(|i| {
             let d = refined[i];
             if !d.is_finite() {
                 return None;
             }
-            let (mut acc, mut wsum) = ([0.0f64; 3], 0.0f64);
+            let (mut acc, mut sq, mut wsum, mut m) = ([0.0f64; 3], [0.0f64; 3], 0.0f64, 0);
             for (k, u, v, wt) in seen(&point(i, d)) {
                 let c = bilinear(refs[k].image, u, v);
                 for ch in 0..3 {
                     acc[ch] += wt * c[ch];
+                    sq[ch] += wt * c[ch] * c[ch];
                 }
                 wsum += wt;
+                m += 1;
             }
-            (wsum > 0.0).then(|| acc.map(|c| (c / wsum).round().clamp(0.0, 255.0) as u8))
+            (wsum > 0.0).then(|| {
+                let mean = acc.map(|c| c / wsum);
+                let sd = if m < 2 {
+                    f64::INFINITY
+                } else {
+                    (0..3)
+                        .map(|ch| (sq[ch] / wsum - mean[ch] * mean[ch]).max(0.0).sqrt())
+                        .sum::<f64>()
+                        / 3.0
+                };
+                (mean.map(|c| c.round().clamp(0.0, 255.0) as u8), sd)
+            })
         })
         .collect();
     let region = if p.fill_radius > 0 {
@@ -314,7 +338,7 @@ pub fn texture_view(
         .iter()
         .enumerate()
         .map(|(i, s)| match s {
-            Some(c) => Some(c.map(|v| v as f64)),
+            Some((c, _)) => Some(c.map(|v| v as f64)),
             None if rough.depth[i].is_finite() => {
                 let c = rough.image.as_raw();
                 Some([c[3 * i] as f64, c[3 * i + 1] as f64, c[3 * i + 2] as f64])
@@ -323,7 +347,7 @@ pub fn texture_view(
         })
         .collect();
     push_pull(&mut known, wu, h as usize);
-    let image = RgbImage::from_fn(w, h, |x, y| {
+    let mut image = RgbImage::from_fn(w, h, |x, y| {
         let i = (y * w + x) as usize;
         if !region.get(x as i64, y as i64) {
             return Rgb([0, 0, 0]);
@@ -332,6 +356,33 @@ pub fn texture_view(
             .unwrap_or([0.0; 3])
             .map(|v| v.round().clamp(0.0, 255.0) as u8))
     });
+    if p.soften_sigma > 0.0 {
+        let ksize = 2 * (3.0 * p.soften_sigma).ceil() as usize + 1;
+        let soft = vt_core::blur::gaussian_blur(
+            &image,
+            &vt_core::blur::GaussianParams {
+                ksize,
+                sigma: p.soften_sigma,
+            },
+        )
+        .map_err(|e| Error::BadParam {
+            name: "soften_sigma".into(),
+            value: p.soften_sigma.to_string(),
+            why: e.to_string(),
+        })?;
+        for (i, (px, sp)) in image.pixels_mut().zip(soft.pixels()).enumerate() {
+            if region.as_slice()[i] == 0 {
+                continue;
+            }
+            let t = match samples[i] {
+                Some((_, sd)) if p.agree_sd > 0.0 => (sd / p.agree_sd).min(1.0),
+                _ => 1.0,
+            };
+            for ch in 0..3 {
+                px.0[ch] = ((1.0 - t) * px.0[ch] as f64 + t * sp.0[ch] as f64).round() as u8;
+            }
+        }
+    }
     Ok(Textured {
         image,
         textured,

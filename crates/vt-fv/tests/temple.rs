@@ -54,7 +54,7 @@ fn load(factor: u32) -> (Vec<Camera>, Vec<RgbImage>, Vec<Mask>) {
 #[test]
 fn temple_cameras_see_the_object_and_bounds_hold_it() {
     let (cams, _, masks) = load(2);
-    assert_eq!(cams.len(), 9);
+    assert_eq!(cams.len(), 16);
     // The data set's tight bounding box (its README).
     let (lo, hi) = (
         Vector3::new(-0.073568, 0.021728, -0.012445),
@@ -84,38 +84,152 @@ fn temple_cameras_see_the_object_and_bounds_hold_it() {
     }
 }
 
-#[test]
-fn temple_leave_one_out_guided_beats_rough() {
-    let slow = std::env::var("VT_SLOW_TESTS").is_ok_and(|v| v == "1");
-    let (cams, imgs, masks) = load(if slow { 1 } else { 2 });
-    let withheld = cams
+/// The full 16-view ring at 640x480: model silhouettes by [`SilhouetteParams::carving`], the
+/// withheld view scored inside the Middlebury recipe's silhouette.
+fn load_full() -> (Vec<Camera>, Vec<RgbImage>, Vec<Mask>, Vec<Mask>) {
+    let text = std::fs::read_to_string(dir().join("templeSR_par.txt")).unwrap();
+    let cams = parse_par(&text).unwrap();
+    let imgs: Vec<RgbImage> = cams
         .iter()
-        .position(|c| c.name == "templeSR0004.png")
+        .map(|c| image::open(dir().join(&c.name)).unwrap().to_rgb8())
+        .collect();
+    let carve = imgs
+        .iter()
+        .map(|i| threshold_silhouette(i, &SilhouetteParams::carving()))
+        .collect();
+    let score = imgs
+        .iter()
+        .map(|i| threshold_silhouette(i, &SilhouetteParams::default()))
+        .collect();
+    (cams, imgs, carve, score)
+}
+
+/// The "done when" on one view (templeSR0005, whose pose no other camera shares): the
+/// default result beats the rough render and its sigma-2 blur by >= 1 dB PSNR and >= 0.03 SSIM
+/// inside the withheld silhouette, and the rough render's silhouette IoU is >= 0.9. Measured:
+/// rough 17.19 dB / 0.339, blur2 18.56 / 0.419, result 19.75 / 0.543, IoU 0.916 (about 2 s in
+/// release). Gated: VT_SLOW_TESTS=1.
+#[test]
+fn temple_default_beats_rough_and_blur_by_a_margin() {
+    if !std::env::var("VT_SLOW_TESTS").is_ok_and(|v| v == "1") {
+        eprintln!("skipped: set VT_SLOW_TESTS=1");
+        return;
+    }
+    let (cams, imgs, carve, score) = load_full();
+    let k = cams
+        .iter()
+        .position(|c| c.name == "templeSR0005.png")
         .unwrap();
-    let t = Instant::now();
+    let mut masks = carve.clone();
+    masks[k] = score[k].clone();
+    let keep: Vec<Mask> = (0..cams.len())
+        .filter(|&i| i != k)
+        .map(|i| carve[i].clone())
+        .collect();
+    let keep_cams: Vec<Camera> = (0..cams.len())
+        .filter(|&i| i != k)
+        .map(|i| cams[i].clone())
+        .collect();
+    let bounds = auto_bounds(&keep_cams, &keep, &HullParams::default()).unwrap();
     let hull = HullParams {
-        dims: if slow { [256; 3] } else { [96; 3] },
+        dims: vt_fv::hull::dims_for(&bounds, 128),
+        bounds: Some(bounds),
         ..Default::default()
     };
-    let synth = if slow {
-        SynthParams::fast()
-    } else {
-        SynthParams {
-            patch: 7,
-            ..Default::default()
-        }
-    };
+    let t = Instant::now();
     let (r, _) = leave_one_out(
         &cams,
         &imgs,
         &masks,
-        withheld,
+        k,
+        &hull,
+        &PhotoParams::default(),
+        &ViewParams::default(),
+    )
+    .unwrap();
+    eprintln!("{r:#?} in {:?}", t.elapsed());
+    let (g, rough, blur) = (r.guided.inside, r.rough.inside, r.rough_blur2.inside);
+    for (name, base) in [("rough", rough), ("rough_blur2", blur)] {
+        assert!(
+            g.psnr >= base.psnr + 1.0,
+            "PSNR {:.2} not 1 dB above {name} {:.2}",
+            g.psnr,
+            base.psnr
+        );
+        assert!(
+            g.ssim >= base.ssim + 0.03,
+            "SSIM {:.3} not 0.03 above {name} {:.3}",
+            g.ssim,
+            base.ssim
+        );
+    }
+    assert!(r.silhouette_iou >= 0.9, "IoU {:.3}", r.silhouette_iou);
+}
+
+/// Always on, small: 16 views at 320x240, 64^3 voxels, view 4 withheld; the default result
+/// beats the sigma-2 blur of the rough render on PSNR and SSIM, the paper's method (patch 7)
+/// beats the rough render on SSIM.
+#[test]
+fn temple_leave_one_out_small() {
+    let (cams, imgs, masks) = load(2);
+    let carve: Vec<Mask> = imgs
+        .iter()
+        .map(|i| {
+            // Downscaled photos: the carving recipe at half the radii.
+            threshold_silhouette(
+                i,
+                &SilhouetteParams {
+                    dilate: 2,
+                    erode: 2,
+                    ..SilhouetteParams::default()
+                },
+            )
+        })
+        .collect();
+    let k = cams
+        .iter()
+        .position(|c| c.name == "templeSR0005.png")
+        .unwrap();
+    let mut mm = carve.clone();
+    mm[k] = masks[k].clone();
+    let hull = HullParams {
+        dims: [64; 3],
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let (r, _) = leave_one_out(
+        &cams,
+        &imgs,
+        &mm,
+        k,
+        &hull,
+        &PhotoParams::default(),
+        &ViewParams::default(),
+    )
+    .unwrap();
+    eprintln!("default: {r:?} in {:?}", t.elapsed());
+    let (g, blur) = (r.guided.inside, r.rough_blur2.inside);
+    assert!(g.psnr > blur.psnr, "PSNR {} <= blur2 {}", g.psnr, blur.psnr);
+    assert!(
+        g.ssim > blur.ssim + 0.03,
+        "SSIM {} not above blur2 {}",
+        g.ssim,
+        blur.ssim
+    );
+    let synth = SynthParams::fast_for(7);
+    let (p, _) = leave_one_out(
+        &cams,
+        &imgs,
+        &mm,
+        k,
         &hull,
         &PhotoParams::default(),
         &ViewParams::paper(synth),
     )
     .unwrap();
-    eprintln!("{r:?} in {:?}", t.elapsed());
-    let (g, rough) = (r.guided.inside.ssim, r.rough.inside.ssim);
-    assert!(g > rough, "guided SSIM {g} <= rough {rough}");
+    eprintln!("paper: {p:?}");
+    assert!(
+        p.guided.inside.ssim > p.rough.inside.ssim,
+        "paper: guided SSIM not above rough"
+    );
 }
