@@ -67,6 +67,10 @@ pub struct AnalyzeArgs {
     /// Dynamic region (pixels that move often, shown from the source frames): on or off.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     dynamic: String,
+    /// Weight of the appearance term (colour change) in eq. (1) and (2), in units of an ordinary
+    /// frame step (0 = masks only, the thesis).
+    #[arg(long, default_value_t = 1.0)]
+    appearance: f32,
 }
 
 impl AnalyzeArgs {
@@ -89,6 +93,7 @@ impl AnalyzeArgs {
             cache_mb: 768,
             noise_k: 3.0,
             dynamic: "on".into(),
+            appearance: 1.0,
         }
     }
 
@@ -104,7 +109,7 @@ impl AnalyzeArgs {
         if !(self.point_sigma.is_finite() && self.point_sigma > 0.0) {
             bail!(
                 "--point-sigma {} must be a positive number of pixels",
-                self.point_sigma
+                vt_io::output::num(self.point_sigma)
             );
         }
         if self.blur_size.is_multiple_of(2) || self.blur_size > MAX_BLUR_SIZE {
@@ -116,7 +121,7 @@ impl AnalyzeArgs {
         if !(self.blur_sigma.is_finite() && self.blur_sigma <= MAX_BLUR_SIGMA) {
             bail!(
                 "--blur-sigma {} must be a finite number of pixels, at most {MAX_BLUR_SIGMA} (<= 0: derived from --blur-size)",
-                self.blur_sigma
+                vt_io::output::num(self.blur_sigma)
             );
         }
         if self.window == 0 || self.min_length == 0 {
@@ -173,6 +178,7 @@ impl AnalyzeArgs {
             },
             alternative_loops: self.alternatives,
             cache_bytes: self.cache_mb << 20,
+            appearance: self.appearance,
             noise: vt_core::noise::NoiseParams {
                 k: self.noise_k,
                 dynamic: self.dynamic == "on",
@@ -292,8 +298,8 @@ fn check_points_in_frame(
                 bail!(
                     "{}: view {p} point {k} ({}, {}) is outside the {}x{} frame (at most {:.0}% beyond its edges)",
                     path.display(),
-                    pt.x,
-                    pt.y,
+                    vt_io::output::num(pt.x),
+                    vt_io::output::num(pt.y),
                     size.0,
                     size.1,
                     100.0 * POINT_MARGIN

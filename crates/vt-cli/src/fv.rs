@@ -8,7 +8,6 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -215,13 +214,35 @@ fn parse_bounds(s: &str) -> Result<Aabb, String> {
             "bounds {s:?} must be six finite numbers x0,y0,z0,x1,y1,z1"
         ));
     }
+    let s = vt_io::output::shorten(s);
     if (0..3).any(|i| v[i + 3] <= v[i]) {
         return Err(format!("bounds {s:?}: x1, y1, z1 must exceed x0, y0, z0"));
+    }
+    // A box too thin for its coordinates (1e-300 wide) has no voxel size that means anything.
+    let scale = v.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+    for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+        let side = v[i + 3] - v[i];
+        if !side.is_finite() || side < 1e-6 * scale {
+            return Err(format!(
+                "bounds {s:?}: the {axis} side is {side:e} wide; vt needs at least {:e} (1e-6 of the coordinates' size)",
+                1e-6 * scale
+            ));
+        }
     }
     Ok(Aabb::new(
         Vector3::new(v[0], v[1], v[2]),
         Vector3::new(v[3], v[4], v[5]),
     ))
+}
+
+impl DataArgs {
+    /// The run's inputs, which no output may replace: the data folder and the masks folder.
+    fn inputs(&self) -> Vec<&Path> {
+        [Some(self.data.as_path()), self.masks.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect()
+    }
 }
 
 /// Photos, cameras and silhouettes of a data folder.
@@ -287,7 +308,7 @@ fn load(a: &DataArgs) -> Result<Data> {
         bail!("{}: not a folder", a.data.display());
     }
     let par = find_par(&a.data)?;
-    let text = std::fs::read_to_string(&par).with_context(|| par.display().to_string())?;
+    let text = vt_io::limits::read_text(&par, vt_io::limits::MAX_TEXT_BYTES, "camera file")?;
     let cams = parse_par(&text).with_context(|| par.display().to_string())?;
     for (i, c) in cams.iter().enumerate() {
         let p = a.data.join(&c.name);
@@ -356,6 +377,22 @@ fn load(a: &DataArgs) -> Result<Data> {
         })
         .collect::<Result<_>>()?;
     let (images, masks): (Vec<RgbImage>, Vec<Mask>) = loaded.into_iter().unzip();
+    // A photo of another size in a calibrated dataset is a mistake, not a view: refuse it.
+    if let Some(k) = images
+        .iter()
+        .position(|i| i.dimensions() != images[0].dimensions())
+    {
+        bail!(
+            "{}: image {} is {}x{}, but {} is {}x{} (every photo of a dataset has the same size)",
+            par.display(),
+            cams[k].name,
+            images[k].width(),
+            images[k].height(),
+            cams[0].name,
+            images[0].width(),
+            images[0].height()
+        );
+    }
     let cams = if a.scale == 1.0 {
         cams
     } else {
@@ -371,13 +408,30 @@ fn load(a: &DataArgs) -> Result<Data> {
 }
 
 /// Refuses a grid whose bit array would exceed the library's limit before loading anything.
+/// Largest `--grid` (voxels per side).
+const MAX_GRID: usize = 1024;
+
 fn check_grid(m: &ModelArgs) -> Result<()> {
     if m.grid < 2 {
         bail!("--grid {} is too small (at least 2)", m.grid);
     }
+    // The bit array's limit alone lets 1600^3 through, whose photo hull then asks for GiBs of
+    // voxel indices: the working memory is bounded by the side too.
+    if m.grid > MAX_GRID {
+        bail!(
+            "--grid {} is more than {MAX_GRID} voxels per side (the photo hull's working memory grows with the cube of it; refused before allocating)",
+            m.grid
+        );
+    }
     let limit = HullParams::default().max_bytes;
     grid_bytes([m.grid; 3], limit)
         .map_err(|e| anyhow!("--grid {}: {e} (refused before allocating)", m.grid))?;
+    if !(m.photo_threshold.is_finite() && (0.0..=255.0).contains(&m.photo_threshold)) {
+        bail!(
+            "--photo-threshold {} must be a number in [0, 255] (grey levels)",
+            vt_io::output::num(m.photo_threshold)
+        );
+    }
     Ok(())
 }
 
@@ -475,6 +529,9 @@ struct HullSummary {
 
 fn hull(a: HullArgs) -> Result<()> {
     check_grid(&a.model)?;
+    // The output is checked before any work: never the data folder, never a foreign path.
+    let dir =
+        vt_io::output::Output::dir(&a.out, vt_io::output::OutputKind::Hull, &a.data.inputs())?;
     let d = load(&a.data)?;
     let (model, s) = build(
         &d.cams,
@@ -483,7 +540,6 @@ fn hull(a: HullArgs) -> Result<()> {
         &a.model,
         &a.data.data.display().to_string(),
     )?;
-    let dir = AtomicDir::create(&a.out)?;
     let ply = dir.path().join("hull.ply");
     {
         let f = std::fs::File::create(&ply).with_context(|| ply.display().to_string())?;
@@ -628,22 +684,7 @@ fn synth_params(s: &SynthArgs, w: u32, h: u32) -> Result<SynthParams> {
     })
 }
 
-/// Writes an image next to `out` under a temporary name, then renames it into place.
-fn save_atomic(img: &RgbImage, out: &Path) -> Result<()> {
-    let format = image::ImageFormat::from_path(out)
-        .map_err(|_| anyhow!("{}: unknown image type (use .png or .jpg)", out.display()))?;
-    let tmp = temp_sibling(out)?;
-    let r = img
-        .save_with_format(&tmp, format)
-        .with_context(|| out.display().to_string())
-        .and_then(|_| std::fs::rename(&tmp, out).with_context(|| out.display().to_string()));
-    if r.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    r
-}
-
-/// A hidden temporary path in `out`'s folder (so the final rename stays on one file system).
+/// Checks that an output folder's parent exists (the output itself is checked by vt-io).
 fn temp_sibling(out: &Path) -> Result<PathBuf> {
     let name = out
         .file_name()
@@ -679,7 +720,12 @@ fn volume(d: &Data, m: &ModelArgs) -> Result<Aabb> {
 fn render(a: RenderArgs) -> Result<()> {
     check_grid(&a.model)?;
     check_image_ext(&a.out)?;
-    temp_sibling(&a.out)?;
+    // Checked before any work (nothing is created yet).
+    drop(vt_io::output::Output::file(
+        &a.out,
+        vt_io::output::OutputKind::Image,
+        &a.data.inputs(),
+    )?);
     let d = load(&a.data)?;
     let (w, h) = d.images[0].dimensions();
     let view = view_params(&a.synth, w, h)?;
@@ -747,7 +793,7 @@ fn render(a: RenderArgs) -> Result<()> {
         (r.image, "rough".to_string())
     };
     let render_secs = t.elapsed().as_secs_f64();
-    save_atomic(&img, &a.out)?;
+    vt_io::writer::write_image(&a.out, &a.data.inputs(), &img)?;
     println!(
         "model: {} surface voxels ({} passes) in {:.2} s; {what} render in {:.2} s",
         s.surface_voxels,
@@ -766,18 +812,21 @@ fn orbit(a: OrbitArgs) -> Result<()> {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let gif = match ext.as_deref() {
-        Some("mp4") => false,
-        Some("gif") => true,
-        _ => bail!("--out {}: use a .mp4 or .gif file name", a.out.display()),
-    };
+    if !matches!(ext.as_deref(), Some("mp4" | "gif")) {
+        bail!("--out {}: use a .mp4 or .gif file name", a.out.display());
+    }
     if a.frames == 0 || a.frames > 10_000 {
         bail!("--frames {} must be in 1..=10000", a.frames);
     }
     if a.fps == 0 || a.fps > 240 {
         bail!("--fps {} must be in 1..=240", a.fps);
     }
-    let tmp = temp_sibling(&a.out)?;
+    // Checked before any work (nothing is created yet).
+    drop(vt_io::output::Output::file(
+        &a.out,
+        vt_io::output::OutputKind::Video,
+        &a.data.inputs(),
+    )?);
     let d = load(&a.data)?;
     let (w, h) = d.images[0].dimensions();
     let view = view_params(&a.synth, w, h)?;
@@ -790,104 +839,25 @@ fn orbit(a: OrbitArgs) -> Result<()> {
         &a.data.data.display().to_string(),
     )?;
     let target = model_centre(&model);
-    let mut args: Vec<String> = [
-        "-hide_banner",
-        "-loglevel",
-        "error",
-        "-y",
-        "-f",
-        "rawvideo",
-        "-pix_fmt",
-        "rgb24",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
-    args.extend([
-        "-s".into(),
-        format!("{w}x{h}"),
-        "-r".into(),
-        a.fps.to_string(),
-        "-i".into(),
-        "-".into(),
-    ]);
-    if gif {
-        args.extend(
-            [
-                "-vf",
-                "split[a][b];[a]palettegen[p];[b][p]paletteuse",
-                "-f",
-                "gif",
-            ]
-            .map(String::from),
-        );
-    } else {
-        args.extend(
-            [
-                "-vf",
-                "pad=ceil(iw/2)*2:ceil(ih/2)*2",
-                "-c:v",
-                "libx264",
-                "-pix_fmt",
-                "yuv420p",
-                "-f",
-                "mp4",
-            ]
-            .map(String::from),
-        );
+    // vt-io's one video writer: H.264 at CRF 18 (or GIF), marked as vt's, atomic.
+    let mut video =
+        vt_io::writer::VideoWriter::create(&a.out, &a.data.inputs(), w, h, a.fps as f64)?;
+    let pb = bar(a.frames as u64, "orbit frames");
+    for i in 0..a.frames {
+        let angle = 360.0 * i as f64 / a.frames as f64;
+        let cam = ring.camera(angle, &target)?;
+        let img = if a.guided {
+            novel_view(&model, &d.cams, &d.images, &cam, w, h, &view)
+                .with_context(|| format!("frame {i} (angle {angle:.1})"))?
+                .guided
+        } else {
+            render_rough(&model, &cam, w, h).image
+        };
+        video.write(&img)?;
+        pb.inc(1);
     }
-    args.push(tmp.display().to_string());
-    let mut child = Command::new("ffmpeg")
-        .args(&args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| {
-            anyhow!(
-                "cannot run ffmpeg (needed to encode {}): {e}",
-                a.out.display()
-            )
-        })?;
-    let result = (|| -> Result<()> {
-        let mut stdin = child.stdin.take().expect("stdin is piped");
-        let pb = bar(a.frames as u64, "orbit frames");
-        for i in 0..a.frames {
-            let angle = 360.0 * i as f64 / a.frames as f64;
-            let cam = ring.camera(angle, &target)?;
-            let img = if a.guided {
-                novel_view(&model, &d.cams, &d.images, &cam, w, h, &view)
-                    .with_context(|| format!("frame {i} (angle {angle:.1})"))?
-                    .guided
-            } else {
-                render_rough(&model, &cam, w, h).image
-            };
-            if stdin.write_all(img.as_raw()).is_err() {
-                // ffmpeg exited early; its error is reported below.
-                break;
-            }
-            pb.inc(1);
-        }
-        pb.finish_and_clear();
-        Ok(())
-    })();
-    let output = child.wait_with_output().context("waiting for ffmpeg")?;
-    let r = result.and_then(|_| {
-        if !output.status.success() {
-            let err = String::from_utf8_lossy(&output.stderr);
-            let first = err.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-            bail!(
-                "ffmpeg failed to encode {} ({}): {first}",
-                a.out.display(),
-                output.status
-            );
-        }
-        std::fs::rename(&tmp, &a.out).with_context(|| a.out.display().to_string())
-    });
-    if r.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    r?;
+    pb.finish_and_clear();
+    video.finish()?;
     println!(
         "wrote {} ({} frames, {w}x{h}, {} fps, {})",
         a.out.display(),

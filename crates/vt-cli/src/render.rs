@@ -103,9 +103,9 @@ pub fn path_qs(
     duration: Option<f64>,
     long: bool,
 ) -> Result<Vec<f64>> {
-    use vt_io::output::shorten;
+    use vt_io::output::{num, shorten};
     if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
-        bail!("--fps {fps} must be in (0, 1000]");
+        bail!("--fps {} must be in (0, 1000]", num(fps));
     }
     let max_secs = if long { MAX_SECONDS_LONG } else { MAX_SECONDS };
     let hint = if long {
@@ -115,10 +115,13 @@ pub fn path_qs(
     };
     if let Some(d) = duration {
         if !(d.is_finite() && d > 0.0) {
-            bail!("--duration {d} must be a positive number of seconds");
+            bail!("--duration {} must be a positive number of seconds", num(d));
         }
         if d > max_secs {
-            bail!("--duration {d} s is longer than {max_secs} s, {hint}");
+            bail!(
+                "--duration {} s is longer than {max_secs} s, {hint}",
+                num(d)
+            );
         }
     }
     let q_max = n_views.saturating_sub(1) as f64;
@@ -129,13 +132,19 @@ pub fn path_qs(
         }
         let n = (secs * fps).round().max(1.0);
         if n > MAX_FRAMES as f64 {
-            bail!("{what} is {n} frames at {fps} fps, more than {MAX_FRAMES}");
+            bail!(
+                "{what} is {n} frames at {} fps, more than {MAX_FRAMES}",
+                num(fps)
+            );
         }
         Ok(n as usize)
     };
     let check_q = |q: f64, what: &str| -> Result<f64> {
         if !q.is_finite() || q < 0.0 || q > q_max {
-            bail!("--path: {what}: viewpoint {q} is outside [0, {q_max}] (the scene has {n_views} views)");
+            bail!(
+                "--path: {what}: viewpoint {} is outside [0, {q_max}] (the scene has {n_views} views)",
+                num(q)
+            );
         }
         Ok(q)
     };
@@ -183,12 +192,15 @@ pub fn path_qs(
             None => bail!("--path '{}': expected sweep or sweep:SPEED", shorten(spec)),
         };
         if !(speed.is_finite() && speed > 0.0) {
-            bail!("--path sweep:{speed}: speed must be positive (views per second)");
+            bail!(
+                "--path sweep:{}: speed must be positive (views per second)",
+                num(speed)
+            );
         }
         let one_way = if q_max > 0.0 { q_max / speed } else { 1.0 };
         let n = match duration {
             Some(d) => frames(d, "--duration")?,
-            None => frames(2.0 * one_way, &format!("--path sweep:{speed}"))?,
+            None => frames(2.0 * one_way, &format!("--path sweep:{}", num(speed)))?,
         };
         return Ok((0..n)
             .map(|i| {

@@ -182,6 +182,17 @@ pub fn shorten(s: &str) -> String {
     format!("{head}... ({n} characters)")
 }
 
+/// Formats a user-supplied number for a message: as Rust prints it when that is short, else in
+/// scientific notation (`1e-300`, not 300 digits).
+pub fn num(x: f64) -> String {
+    let plain = x.to_string();
+    if plain.len() <= 24 {
+        plain
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// An output being written. Dropped without [`Output::commit`], its temporary is removed and the
 /// target is untouched.
 pub struct Output {
@@ -416,7 +427,8 @@ fn check_existing(target: &Path, kind: OutputKind) -> Result<()> {
             return Err(out_err(
                 target,
                 format!(
-                    "exists and is not a vt output (a folder with {n} entries and no {MARKER_FILE} marker); {how}"
+                    "exists and is not a vt output (a folder with {n} {} and no {MARKER_FILE} marker); {how}",
+                    if n == 1 { "entry" } else { "entries" }
                 ),
             ));
         };
@@ -871,6 +883,8 @@ mod tests {
         assert_eq!(&back[..bytes.len() - 1], &bytes[..bytes.len() - 1]);
         assert_eq!(back.last(), Some(&0x3B));
         assert_eq!(shorten("short"), "short");
+        assert_eq!(num(1e-300), "1e-300");
+        assert_eq!(num(2.5), "2.5");
         assert_eq!(
             shorten(&"9".repeat(309)),
             format!("{}... (309 characters)", "9".repeat(32))
