@@ -90,14 +90,13 @@ pub fn threshold_mask(frame: &RgbImage, background: &RgbImage, threshold: u8) ->
             got_h: frame.height(),
         });
     }
-    let (f, b) = (frame.as_raw(), background.as_raw());
-    Ok(Mask::from_index_fn(frame.width(), frame.height(), |i| {
-        let (f, b) = (&f[3 * i..3 * i + 3], &b[3 * i..3 * i + 3]);
-        f[0].abs_diff(b[0])
-            .max(f[1].abs_diff(b[1]))
-            .max(f[2].abs_diff(b[2]))
-            > threshold
-    }))
+    Mask::from_rgb_difference(
+        frame.width(),
+        frame.height(),
+        frame.as_raw(),
+        background.as_raw(),
+        threshold,
+    )
 }
 
 /// [`threshold_mask`] followed by the clean-up of `params`.

@@ -6,6 +6,8 @@
 
 use std::ops::Range;
 
+use rayon::prelude::*;
+
 use crate::{Error, Result};
 
 /// A binary image, one bit per pixel.
@@ -160,6 +162,21 @@ impl Mask {
         self.words.fill(0);
     }
 
+    /// ORs `bits` (bit `i` = pixel index `start + i`) into the mask. The caller keeps every set
+    /// bit below `len()`, so the invariant (nothing set past the last pixel) holds.
+    #[inline]
+    pub(crate) fn or_bits(&mut self, start: usize, bits: u64) {
+        if bits == 0 {
+            return;
+        }
+        debug_assert!(start + 64 - bits.leading_zeros() as usize <= self.len());
+        let (w, s) = (start >> 6, start & 63);
+        self.words[w] |= bits << s;
+        if s != 0 && bits >> (64 - s) != 0 {
+            self.words[w + 1] |= bits >> (64 - s);
+        }
+    }
+
     /// Number of set pixels.
     pub fn count_ones(&self) -> u64 {
         self.words.iter().map(|w| w.count_ones() as u64).sum()
@@ -227,38 +244,153 @@ impl Mask {
         self.dilate(radius).erode(radius)
     }
 
-    /// Separable square min (erode) or max (dilate) on a byte copy.
+    /// Separable square min (erode) or max (dilate) on bits: each row is copied into aligned
+    /// words with the outside filled (set for erosion, clear for dilation), combined with its
+    /// shifts by `-r..=r` (64 pixels per operation), then with the rows `y - r ..= y + r`.
     fn morph(&self, radius: u32, erode: bool) -> Mask {
         if radius == 0 || self.is_empty() {
             return self.clone();
         }
         let (w, h, r) = (self.width as usize, self.height as usize, radius as usize);
-        let src: Vec<bool> = (0..self.len()).map(|i| self.get_index(i)).collect();
-        let combine = |acc: bool, v: bool| if erode { acc && v } else { acc || v };
-        let mut tmp = vec![false; src.len()];
-        for y in 0..h {
-            for x in 0..w {
-                let mut acc = erode;
-                for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
-                    acc = combine(acc, src[y * w + xx]);
+        let wpr = w.div_ceil(64);
+        let fill = if erode { u64::MAX } else { 0 };
+        let combine = |a: u64, b: u64| if erode { a & b } else { a | b };
+        // A row with `pad` fill words on each side, so every shift reads inside the buffer.
+        let pad = r.div_ceil(64) + 1;
+        let mut ext = vec![fill; wpr + 2 * pad];
+        let mut horizontal = vec![0u64; wpr * h];
+        let tail = w - (wpr - 1) * 64; // pixels in a row's last word, 1..=64
+        let tail_mask = if tail == 64 {
+            u64::MAX
+        } else {
+            (1u64 << tail) - 1
+        };
+        for (y, out_row) in horizontal.chunks_exact_mut(wpr).enumerate() {
+            for j in 0..wpr {
+                ext[pad + j] = bits_at(&self.words, y * w + j * 64);
+            }
+            ext[pad + wpr - 1] = (ext[pad + wpr - 1] & tail_mask) | (fill & !tail_mask);
+            for (j, o) in out_row.iter_mut().enumerate() {
+                let at = (pad + j) * 64;
+                let mut acc = ext[pad + j];
+                for d in 1..=r {
+                    acc = combine(acc, bits_at(&ext, at - d));
+                    acc = combine(acc, bits_at(&ext, at + d));
                 }
-                tmp[y * w + x] = acc;
+                *o = acc;
             }
         }
+        // Vertical pass: rows outside the image are the identity of `combine`, so skipped.
         let mut out = Mask::new(self.width, self.height);
+        let mut acc_row = vec![0u64; wpr];
         for y in 0..h {
-            for x in 0..w {
-                let mut acc = erode;
-                for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
-                    acc = combine(acc, tmp[yy * w + x]);
+            let (lo, hi) = (y.saturating_sub(r), (y + r).min(h - 1));
+            acc_row.copy_from_slice(&horizontal[lo * wpr..(lo + 1) * wpr]);
+            for yy in lo + 1..=hi {
+                for (a, &b) in acc_row
+                    .iter_mut()
+                    .zip(&horizontal[yy * wpr..(yy + 1) * wpr])
+                {
+                    *a = combine(*a, b);
                 }
-                if acc {
-                    out.set(x as u32, y as u32, true);
-                }
+            }
+            acc_row[wpr - 1] &= tail_mask;
+            for (j, &bits) in acc_row.iter().enumerate() {
+                out.or_bits(y * w + j * 64, bits);
             }
         }
         out
     }
+
+    /// Background subtraction (SPEC A-1): a `width x height` mask set where
+    /// `max over R, G, B of |frame - background| > threshold`, from two interleaved RGB byte
+    /// buffers of `3 * width * height` bytes. Words in parallel; per word, the 192 channel
+    /// tests in one vectorisable sweep, then the pixels' bits packed 8 at a time.
+    pub fn from_rgb_difference(
+        width: u32,
+        height: u32,
+        frame: &[u8],
+        background: &[u8],
+        threshold: u8,
+    ) -> Result<Mask> {
+        let n = width as usize * height as usize;
+        for (name, buf) in [("frame", frame), ("background", background)] {
+            if buf.len() != 3 * n {
+                return Err(Error::InvalidParameter {
+                    name: "rgb bytes",
+                    value: buf.len().to_string(),
+                    why: format!(
+                        "the {name} of a {width}x{height} mask needs {} bytes",
+                        3 * n
+                    ),
+                });
+            }
+        }
+        let mut m = Self::new(width, height);
+        // 256 words (16,384 pixels) per job.
+        m.words
+            .par_chunks_mut(256)
+            .enumerate()
+            .for_each(|(job, words)| {
+                for (k, word) in words.iter_mut().enumerate() {
+                    let base = (job * 256 + k) * 64;
+                    let len = 64.min(n - base);
+                    let (f, b) = (
+                        &frame[base * 3..(base + len) * 3],
+                        &background[base * 3..(base + len) * 3],
+                    );
+                    *word = if len == 64 {
+                        let f: &[u8; 192] = f.try_into().expect("64 pixels");
+                        let b: &[u8; 192] = b.try_into().expect("64 pixels");
+                        diff_word(f, b, threshold)
+                    } else {
+                        let (mut fb, mut bb) = ([0u8; 192], [0u8; 192]);
+                        fb[..len * 3].copy_from_slice(f);
+                        bb[..len * 3].copy_from_slice(b);
+                        diff_word(&fb, &bb, threshold)
+                    };
+                }
+            });
+        Ok(m)
+    }
+}
+
+/// One word of [`Mask::from_rgb_difference`]: 64 interleaved RGB pixels.
+#[inline(always)]
+fn diff_word(f: &[u8; 192], b: &[u8; 192], threshold: u8) -> u64 {
+    let mut over = [0u8; 192];
+    for j in 0..192 {
+        over[j] = (f[j].abs_diff(b[j]) > threshold) as u8;
+    }
+    let mut px = [0u8; 64];
+    for p in 0..64 {
+        px[p] = over[3 * p] | over[3 * p + 1] | over[3 * p + 2];
+    }
+    pack_bytes(&px)
+}
+
+/// 64 bytes of 0 or 1 into one word, byte `i` to bit `i`: per 8 bytes, one multiplication
+/// moves byte `k`'s bit to bit `56 + k` (no carries, the bits never meet).
+#[inline(always)]
+fn pack_bytes(px: &[u8; 64]) -> u64 {
+    let mut bits = 0u64;
+    for k in 0..8 {
+        let v = u64::from_le_bytes(px[k * 8..k * 8 + 8].try_into().expect("8 bytes"));
+        bits |= (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (k * 8);
+    }
+    bits
+}
+
+/// The 64 bits of `words` starting at bit `at` (bits past the end read as 0).
+#[inline(always)]
+fn bits_at(words: &[u64], at: usize) -> u64 {
+    let (i, s) = (at >> 6, at & 63);
+    let lo = words.get(i).copied().unwrap_or(0);
+    if s == 0 {
+        return lo;
+    }
+    let hi = words.get(i + 1).copied().unwrap_or(0);
+    (lo >> s) | (hi << (64 - s))
 }
 
 /// `XOR(a, b)` of the thesis: the number of pixels set in exactly one of the two masks.
@@ -372,6 +504,78 @@ mod tests {
                 prop_assert!(!a.get(x, y) || c.get(x, y));
             }}
         }
+    }
+
+    /// Morphology by definition: per pixel, the min (erode) or max (dilate) over the square,
+    /// outside pixels set for erosion and clear for dilation.
+    fn brute_morph(m: &Mask, r: u32, erode: bool) -> Mask {
+        let (w, h, r) = (m.width() as i64, m.height() as i64, r as i64);
+        Mask::from_fn(m.width(), m.height(), |x, y| {
+            let mut acc = erode;
+            for yy in y as i64 - r..=y as i64 + r {
+                for xx in x as i64 - r..=x as i64 + r {
+                    let v = if xx < 0 || yy < 0 || xx >= w || yy >= h {
+                        erode
+                    } else {
+                        m.get(xx as u32, yy as u32)
+                    };
+                    acc = if erode { acc && v } else { acc || v };
+                }
+            }
+            acc
+        })
+    }
+
+    proptest! {
+        #[test]
+        fn morphology_matches_its_definition(a in arbitrary_mask(140), r in 1u32..4) {
+            prop_assert_eq!(a.erode(r), brute_morph(&a, r, true));
+            prop_assert_eq!(a.dilate(r), brute_morph(&a, r, false));
+        }
+
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        #[test]
+        fn morphology_across_words(
+            (w, h) in (60u32..200, 1u32..4), r in 60u32..70, seed in any::<u64>()
+        ) {
+            // Radii around 64 on rows of one to four words: shifts that cross word boundaries.
+            let a = Mask::from_fn(w, h, |x, y| (seed >> ((x * 7 + y * 3) % 64)) & 1 == 1);
+            prop_assert_eq!(a.erode(r), brute_morph(&a, r, true));
+            prop_assert_eq!(a.dilate(r), brute_morph(&a, r, false));
+        }
+
+        #[test]
+        fn rgb_difference_matches_per_pixel_rule(
+            (w, h) in (1u32..100, 1u32..9), t in any::<u8>(), seed in any::<u64>()
+        ) {
+            let n = (w * h) as usize * 3;
+            let byte = |i: usize, s: u64| ((seed ^ s).wrapping_mul(i as u64 * 2 + 1) >> 29) as u8;
+            let f: Vec<u8> = (0..n).map(|i| byte(i, 1)).collect();
+            let b: Vec<u8> = (0..n).map(|i| byte(i, 7).wrapping_add(f[i] / 2)).collect();
+            let got = Mask::from_rgb_difference(w, h, &f, &b, t).unwrap();
+            let want = Mask::from_fn(w, h, |x, y| {
+                let i = (y * w + x) as usize * 3;
+                (0..3).any(|c| (f[i + c] as i32 - b[i + c] as i32).abs() > t as i32)
+            });
+            prop_assert_eq!(got, want);
+        }
+    }
+
+    #[test]
+    fn rgb_difference_checks_lengths() {
+        let e = Mask::from_rgb_difference(4, 2, &[0; 24], &[0; 23], 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("background") && e.contains("23") && e.contains("24"),
+            "{e}"
+        );
+        let big = vec![9u8; 3 * 700 * 300];
+        let m = Mask::from_rgb_difference(700, 300, &big, &vec![0u8; big.len()], 8).unwrap();
+        assert_eq!(m.count_ones(), 700 * 300, "a full mask over many jobs");
     }
 
     #[test]

@@ -28,7 +28,7 @@ use rayon::prelude::*;
 
 use crate::model::{fit_model, MotionModel};
 use crate::round_u8;
-use crate::warp::Interpolation;
+use crate::warp::{state, Border, Interpolation, Mapping, Run, Sampler, CHUNK};
 use crate::{Error, Homography, Point, Result};
 
 /// A view as the renderer needs it.
@@ -518,96 +518,77 @@ struct Source<'a> {
 /// sample really falls inside their image (`-0.5 <= x < w - 0.5`), so a strip only one view sees
 /// takes that view alone instead of fading to black. Where no source sees the pixel, all are
 /// blended from their replicated edges.
-fn blend_warps(sources: &[Source], interp: Interpolation, out: &mut RgbImage) {
+///
+/// Sampling is [`crate::warp`]'s sampler (runs of [`CHUNK`] pixels, the renderer's
+/// division mapping, [`Border::Replicate`]); rows in parallel.
+fn blend_warps<'a>(sources: &[Source<'a>], interp: Interpolation, out: &mut RgbImage) {
     let w = out.width() as usize;
+    if w == 0 || sources.is_empty() {
+        return;
+    }
+    let size = out.dimensions();
+    let sampler = |s: &Source<'a>| {
+        let sampler = Sampler::new(s.image, s.h, interp, Border::Replicate, Mapping::Division, size);
+        // weight * gain_inv[k], in the order the per-pixel formula multiplies them.
+        let wg = s.gain_inv.map(|g| s.weight * g);
+        (sampler, wg, s.weight)
+    };
+    let first = sampler(&sources[0]);
+    let second = sources.get(1).map(sampler);
     out.as_mut()
         .par_chunks_mut(w * 3)
         .enumerate()
         .for_each(|(y, row)| {
-            let yf = y as f64;
-            for (x, o) in row.chunks_exact_mut(3).enumerate() {
-                let xf = x as f64;
-                let mut acc = [0f32; 3];
-                let mut acc_all = [0f32; 3];
-                let (mut wsum, mut wsum_all) = (0f32, 0f32);
-                for s in sources {
-                    let inv = s.h.raw().1;
-                    let ww = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
-                    let (sx, sy) = (
-                        (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / ww,
-                        (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / ww,
-                    );
-                    if !(sx.is_finite() && sy.is_finite()) {
-                        continue;
+                // On the stack: rayon's per-job init would allocate once per split.
+                let (r0, r1) = (&mut Run::default(), &mut Run::default());
+                for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
+                    let n = px.len() / 3;
+                    first.0.run(y, c * CHUNK, n, r0);
+                    if let Some(s) = &second {
+                        s.0.run(y, c * CHUNK, n, r1);
                     }
-                    let (iw, ih) = (s.image.width() as f64, s.image.height() as f64);
-                    let inside = sx >= -0.5 && sy >= -0.5 && sx < iw - 0.5 && sy < ih - 0.5;
-                    let c = sample_replicate(s.image, sx, sy, interp);
-                    for k in 0..3 {
-                        let v = s.weight * s.gain_inv[k] * c[k];
-                        acc_all[k] += v;
-                        if inside {
-                            acc[k] += v;
+                    for (i, o) in px.chunks_exact_mut(3).enumerate() {
+                        let mut acc = [0f32; 3];
+                        let mut acc_all = [0f32; 3];
+                        let (mut wsum, mut wsum_all) = (0f32, 0f32);
+                        let mut add = |run: &Run, wg: &[f32; 3], weight: f32| {
+                            let st = run.state[i];
+                            if st == state::NONE {
+                                return;
+                            }
+                            let inside = st == state::INSIDE;
+                            let c = &run.value[i];
+                            for k in 0..3 {
+                                let v = wg[k] * c[k];
+                                acc_all[k] += v;
+                                if inside {
+                                    acc[k] += v;
+                                }
+                            }
+                            wsum_all += weight;
+                            if inside {
+                                wsum += weight;
+                            }
+                        };
+                        add(r0, &first.1, first.2);
+                        if let Some(s) = &second {
+                            add(r1, &s.1, s.2);
+                        }
+                        let (acc, wsum) = if wsum > 0.0 {
+                            (acc, wsum)
+                        } else {
+                            (acc_all, wsum_all)
+                        };
+                        for k in 0..3 {
+                            o[k] = if wsum > 0.0 {
+                                round_u8(acc[k] / wsum)
+                            } else {
+                                0
+                            };
                         }
                     }
-                    wsum_all += s.weight;
-                    if inside {
-                        wsum += s.weight;
-                    }
                 }
-                let (acc, wsum) = if wsum > 0.0 {
-                    (acc, wsum)
-                } else {
-                    (acc_all, wsum_all)
-                };
-                for k in 0..3 {
-                    o[k] = if wsum > 0.0 {
-                        round_u8(acc[k] / wsum)
-                    } else {
-                        0
-                    };
-                }
-            }
-        });
-}
-
-/// One RGB sample with replicated edges.
-#[inline]
-fn sample_replicate(img: &RgbImage, sx: f64, sy: f64, interp: Interpolation) -> [f32; 3] {
-    let (w, h) = (img.width() as i64, img.height() as i64);
-    let raw = img.as_raw();
-    let at =
-        |x: i64, y: i64| (y.clamp(0, h - 1) as usize * w as usize + x.clamp(0, w - 1) as usize) * 3;
-    match interp {
-        Interpolation::Nearest => {
-            let i = at(sx.round_ties_even() as i64, sy.round_ties_even() as i64);
-            [raw[i] as f32, raw[i + 1] as f32, raw[i + 2] as f32]
-        }
-        Interpolation::Bilinear => {
-            let (x0, y0) = (sx.floor(), sy.floor());
-            let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
-            let (x0, y0) = (x0 as i64, y0 as i64);
-            let (i00, i10, i01, i11) = if x0 >= 0 && y0 >= 0 && x0 + 1 < w && y0 + 1 < h {
-                let i = (y0 as usize * w as usize + x0 as usize) * 3;
-                let j = i + w as usize * 3;
-                (i, i + 3, j, j + 3)
-            } else {
-                (
-                    at(x0, y0),
-                    at(x0 + 1, y0),
-                    at(x0, y0 + 1),
-                    at(x0 + 1, y0 + 1),
-                )
-            };
-            let mut c = [0f32; 3];
-            for k in 0..3 {
-                let top = raw[i00 + k] as f32 + (raw[i10 + k] as f32 - raw[i00 + k] as f32) * fx;
-                let bottom = raw[i01 + k] as f32 + (raw[i11 + k] as f32 - raw[i01 + k] as f32) * fx;
-                c[k] = top + (bottom - top) * fy;
-            }
-            c
-        }
-    }
+            });
 }
 
 /// Warps the object patch by `h` (inverse mapping over the forward image of the box) and writes
@@ -697,7 +678,7 @@ fn composite(
                         colour[c] = patch.rgb[i * 3 + c] as f32;
                     }
                 }
-                Interpolation::Bilinear => {
+                Interpolation::Bilinear | Interpolation::BilinearFixed => {
                     let (fx0, fy0) = (sx.floor(), sy.floor());
                     let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
                     let (ix, iy) = (fx0 as i64, fy0 as i64);

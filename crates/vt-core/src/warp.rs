@@ -4,12 +4,48 @@
 //! samples that fall outside the source are clear (OpenCV's constant border 0).
 //! Only the part of the output that the source's set pixels can reach is visited: the source's
 //! bounding box is mapped forward, so the cost follows the moving object, not the frame.
+//!
+//! RGB images have one sampler ([`Sampler`]) for every caller, the plain warps here and the
+//! renderer's background blend: three interpolations ([`Interpolation`]: nearest, exact bilinear,
+//! OpenCV's fixed-point bilinear) and two borders ([`Border`]: constant black, replicated edge).
+//! It works on runs of [`CHUNK`] output pixels: first every source coordinate of the run
+//! (plain `f64` arithmetic over fixed-size arrays, which the compiler vectorises; floor and
+//! rounding by integer conversion instead of `f64::floor`, a library call on baseline x86-64),
+//! then the taps with no bounds checks in the interior. The arithmetic per pixel is exactly the
+//! scalar definition written in each function's doc, so results do not depend on the chunking.
 
 use image::RgbImage;
 use rayon::prelude::*;
 
 use crate::round_u8;
 use crate::{Homography, Mask, Point};
+
+/// Output pixels per run of the sampler (coordinates of a run are computed together).
+pub const CHUNK: usize = 64;
+
+/// `2^52 + 2^51`: adding and subtracting it rounds an `f64` of magnitude below `2^51` to an
+/// integer, half to even (the default rounding mode), without SSE4.1's `roundsd`.
+const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0;
+
+/// Round half to even for `|v| < 2^51` (callers clamp first).
+#[inline(always)]
+fn round_even(v: f64) -> f64 {
+    (v + ROUND_MAGIC) - ROUND_MAGIC
+}
+
+/// `floor(v)` as an integer for `|v| < 2^31` (callers clamp first): truncate, then step down
+/// for negative non-integers. Vectorises, unlike `f64::floor` on baseline x86-64.
+#[inline(always)]
+fn floor_i32(v: f64) -> i32 {
+    let t = v as i32;
+    t - ((t as f64) > v) as i32
+}
+
+/// `H^-1` row-major: `m[3 r + c]`.
+fn inverse_rows(h: &Homography) -> [f64; 9] {
+    let inv = h.raw().1;
+    std::array::from_fn(|i| inv[(i / 3, i % 3)])
+}
 
 /// Warps `src` by `h` into a new `width x height` mask.
 pub fn warp_mask(src: &Mask, h: &Homography, width: u32, height: u32) -> Mask {
@@ -19,34 +55,43 @@ pub fn warp_mask(src: &Mask, h: &Homography, width: u32, height: u32) -> Mask {
 }
 
 /// Warps `src` by `h` into `out` (cleared first), reusing its storage.
+///
+/// Per output pixel: `w = (m7 y + m8) + m6 x`; none where `w = 0`; else the source pixel
+/// `(round_even((m1 y + m2 + m0 x) / w), ...)` with the reciprocal of `w` taken once, clear
+/// outside the source. Runs of [`CHUNK`] pixels are mapped together and written as one word.
 pub fn warp_mask_into(src: &Mask, h: &Homography, out: &mut Mask) {
     out.clear();
-    let Some((x0, y0, x1, y1)) = src.bounding_box() else {
+    let Some(bbox) = src.bounding_box() else {
         return;
     };
     let (ow, oh) = (out.width(), out.height());
-    let region = forward_box(h, (x0, y0, x1, y1), ow, oh).unwrap_or((0, 0, ow, oh));
-    let inv = h.raw().1;
-    let (sw, sh) = (src.width() as f64, src.height() as f64);
-    for y in region.1..region.3 {
-        let yf = y as f64;
-        let (bx, by, bw) = (
-            inv[(0, 1)] * yf + inv[(0, 2)],
-            inv[(1, 1)] * yf + inv[(1, 2)],
-            inv[(2, 1)] * yf + inv[(2, 2)],
-        );
-        for x in region.0..region.2 {
-            let xf = x as f64;
-            let w = bw + inv[(2, 0)] * xf;
-            if w == 0.0 {
-                continue;
+    let region = forward_box(h, bbox, ow, oh).unwrap_or((0, 0, ow, oh));
+    let m = inverse_rows(h);
+    let (sw, sh) = (src.width() as usize, src.height() as usize);
+    let (swf, shf) = (sw as f64, sh as f64);
+    let words = src.words();
+    let (mut sx, mut sy) = ([0f64; CHUNK], [0f64; CHUNK]);
+    let (mut ix, mut iy) = ([0i32; CHUNK], [0i32; CHUNK]);
+    for y in region.1 as usize..region.3 as usize {
+        let mut x0 = region.0 as usize;
+        while x0 < region.2 as usize {
+            let n = (region.2 as usize - x0).min(CHUNK);
+            map_reciprocal(&m, y, x0, &mut sx, &mut sy);
+            // Clamped to [-1, size] (NaN and infinity too): outside stays outside.
+            for i in 0..CHUNK {
+                ix[i] = round_even(clamp_nan_lo(sx[i], -1.0, swf)) as i32;
+                iy[i] = round_even(clamp_nan_lo(sy[i], -1.0, shf)) as i32;
             }
-            let w = 1.0 / w;
-            let sx = ((bx + inv[(0, 0)] * xf) * w).round_ties_even();
-            let sy = ((by + inv[(1, 0)] * xf) * w).round_ties_even();
-            if sx >= 0.0 && sy >= 0.0 && sx < sw && sy < sh && src.get(sx as u32, sy as u32) {
-                out.set(x, y, true);
+            let mut bits = 0u64;
+            for i in 0..n {
+                let (x, y) = (ix[i], iy[i]);
+                if x >= 0 && y >= 0 && (x as usize) < sw && (y as usize) < sh {
+                    let k = y as usize * sw + x as usize;
+                    bits |= ((words[k >> 6] >> (k & 63)) & 1) << i;
+                }
             }
+            out.or_bits(y * ow as usize + x0, bits);
+            x0 += n;
         }
     }
 }
@@ -67,10 +112,7 @@ fn forward_box(
         (x1 as f64, y1 as f64),
     ];
     // w is affine in (x, y): same strict sign at the 4 corners means the same sign on the box.
-    let ws: Vec<f64> = corners
-        .iter()
-        .map(|&(x, y)| m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)])
-        .collect();
+    let ws = corners.map(|(x, y)| m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)]);
     if !(ws.iter().all(|&w| w > 0.0) || ws.iter().all(|&w| w < 0.0)) {
         return None;
     }
@@ -96,15 +138,384 @@ fn forward_box(
     ))
 }
 
+/// `iota[i] = i`, so `x as f64` of a run is `x0 as f64 + iota[i]` (exact, and vectorises).
+const IOTA: [f64; CHUNK] = {
+    let mut a = [0.0; CHUNK];
+    let mut i = 0;
+    while i < CHUNK {
+        a[i] = i as f64;
+        i += 1;
+    }
+    a
+};
+
+/// `v` clamped to `[lo, hi]`, NaN to `lo`.
+#[inline(always)]
+fn clamp_nan_lo(v: f64, lo: f64, hi: f64) -> f64 {
+    let v = if v >= lo { v } else { lo };
+    if v <= hi {
+        v
+    } else {
+        hi
+    }
+}
+
+/// Source coordinates of output pixels `x0 .. x0 + CHUNK` of row `y`, in [`warp_rgb`]'s and
+/// [`warp_mask`]'s order: `w = (m7 y + m8) + m6 x`, then `(m1 y + m2 + m0 x) * (1 / w)` (the
+/// reciprocal once, as OpenCV does).
+#[inline(always)]
+fn map_reciprocal(m: &[f64; 9], y: usize, x0: usize, sx: &mut [f64; CHUNK], sy: &mut [f64; CHUNK]) {
+    let (yf, x0f) = (y as f64, x0 as f64);
+    let (bx, by, bw) = (m[1] * yf + m[2], m[4] * yf + m[5], m[7] * yf + m[8]);
+    for i in 0..CHUNK {
+        let xf = x0f + IOTA[i];
+        let r = 1.0 / (bw + m[6] * xf);
+        sx[i] = (bx + m[0] * xf) * r;
+        sy[i] = (by + m[3] * xf) * r;
+    }
+}
+
+/// The same coordinates in the renderer's order: `(m0 x + m1 y + m2) / (m6 x + m7 y + m8)`.
+#[inline(always)]
+fn map_division(m: &[f64; 9], y: usize, x0: usize, sx: &mut [f64; CHUNK], sy: &mut [f64; CHUNK]) {
+    let (yf, x0f) = (y as f64, x0 as f64);
+    let (cx, cy, cw) = (m[1] * yf, m[4] * yf, m[7] * yf);
+    for i in 0..CHUNK {
+        let xf = x0f + IOTA[i];
+        let ww = m[6] * xf + cw + m[8];
+        sx[i] = (m[0] * xf + cx + m[2]) / ww;
+        sy[i] = (m[3] * xf + cy + m[5]) / ww;
+    }
+}
+
+/// OpenCV's `warpPerspective` coordinates in 1/32 pixel (`INTER_BITS = 5`): per block of
+/// `block_w` columns starting at `xb`, `X0 = m0 xb + m1 y + m2` (and `Y0`, `W0`), then per column
+/// `x1` of the block `W = 32 / (W0 + m6 x1)` (0 where the denominator is 0) and
+/// `X = cvRound(clamp((X0 + m0 x1) W, INT_MIN, INT_MAX))`.
+#[inline(always)]
+fn map_fixed(
+    m: &[f64; 9],
+    y: usize,
+    x0: usize,
+    block_w: usize,
+    qx: &mut [i32; CHUNK],
+    qy: &mut [i32; CHUNK],
+) {
+    let yf = y as f64;
+    let (cx, cy, cw) = (m[1] * yf, m[4] * yf, m[7] * yf);
+    let (mut xb_f, mut x1_f) = ([0f64; CHUNK], [0f64; CHUNK]);
+    let (mut xb, mut x1) = (x0 / block_w * block_w, x0 % block_w);
+    for i in 0..CHUNK {
+        xb_f[i] = xb as f64;
+        x1_f[i] = x1 as f64;
+        x1 += 1;
+        if x1 == block_w {
+            xb += block_w;
+            x1 = 0;
+        }
+    }
+    let (lo, hi) = (i32::MIN as f64, i32::MAX as f64);
+    for i in 0..CHUNK {
+        let (xb, x1) = (xb_f[i], x1_f[i]);
+        let (bx, by, bw) = (
+            m[0] * xb + cx + m[2],
+            m[3] * xb + cy + m[5],
+            m[6] * xb + cw + m[8],
+        );
+        let w = bw + m[6] * x1;
+        let w = if w != 0.0 { 32.0 / w } else { 0.0 };
+        qx[i] = round_even(clamp_nan_lo((bx + m[0] * x1) * w, lo, hi)) as i32;
+        qy[i] = round_even(clamp_nan_lo((by + m[3] * x1) * w, lo, hi)) as i32;
+    }
+}
+
+/// OpenCV's `warpPerspective` block width for a `width x height` output (`BLOCK_SZ = 32`).
+fn opencv_block_width(width: usize, height: usize) -> usize {
+    let block_h = 16.min(height).max(1);
+    (1024 / block_h).min(width).max(1)
+}
+
 /// How colour images are sampled when warped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Interpolation {
     /// Nearest neighbour, round half to even (OpenCV `INTER_NEAREST`).
     Nearest,
-    /// Bilinear (OpenCV `INTER_LINEAR`), the default.
+    /// Bilinear (OpenCV `INTER_LINEAR`) at the exact `f64` coordinate, interpolated in `f32`:
+    /// the default.
     #[default]
     Bilinear,
+    /// Bilinear in OpenCV's fixed point: the coordinate rounded to 1/32 pixel (`INTER_BITS = 5`)
+    /// and integer weights `(32 - ay)(32 - ax)` etc., rounded once, `(sum + 512) >> 10`. With
+    /// the constant border it reproduces OpenCV's `warpPerspective(INTER_LINEAR)` bit for bit;
+    /// against [`Interpolation::Bilinear`] it differs by up to `R/32 + 1` levels, `R` the local
+    /// value range (a speed/accuracy knob, measured in `crates/vt-cv/README.md`).
+    BilinearFixed,
+}
+
+/// What a sample reads outside the source image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Border {
+    /// Black (OpenCV `BORDER_CONSTANT`, value 0), also inside the partial weights at the edge.
+    #[default]
+    Constant,
+    /// The nearest edge pixel (OpenCV `BORDER_REPLICATE`).
+    Replicate,
+}
+
+/// Per-pixel outcome of [`Sampler::run`].
+pub(crate) mod state {
+    /// No sample: the coordinate is not finite (or beyond 1e9 px for the plain warp).
+    pub const NONE: u8 = 0;
+    /// A sample, from a coordinate outside the source's pixel area.
+    pub const OUTSIDE: u8 = 1;
+    /// A sample from inside `-0.5 <= x < w - 0.5`, `-0.5 <= y < h - 0.5`.
+    pub const INSIDE: u8 = 2;
+}
+
+/// Which formula maps output pixels to source coordinates (they differ in the last bit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Mapping {
+    /// [`warp_rgb`]'s, OpenCV's order (reciprocal of `w`), with samples beyond 1e9 px dropped.
+    Reciprocal,
+    /// The renderer's (a division per coordinate), every finite coordinate sampled.
+    Division,
+}
+
+/// Samples of one run of output pixels: the value before rounding (`f32`, unrounded for the
+/// bilinear modes) and the [`state`] of each.
+pub(crate) struct Run {
+    /// Per pixel, RGB.
+    pub value: [[f32; 3]; CHUNK],
+    /// Per pixel, one of [`state`].
+    pub state: [u8; CHUNK],
+    sx: [f64; CHUNK],
+    sy: [f64; CHUNK],
+    ix: [i32; CHUNK],
+    iy: [i32; CHUNK],
+    fx: [f32; CHUNK],
+    fy: [f32; CHUNK],
+}
+
+impl Default for Run {
+    fn default() -> Self {
+        Self {
+            value: [[0.0; 3]; CHUNK],
+            state: [0; CHUNK],
+            sx: [0.0; CHUNK],
+            sy: [0.0; CHUNK],
+            ix: [0; CHUNK],
+            iy: [0; CHUNK],
+            fx: [0.0; CHUNK],
+            fy: [0.0; CHUNK],
+        }
+    }
+}
+
+/// The one RGB sampler: a source, `H^-1`, an interpolation, a border and a mapping.
+pub(crate) struct Sampler<'a> {
+    raw: &'a [u8],
+    sw: usize,
+    sh: usize,
+    m: [f64; 9],
+    interp: Interpolation,
+    border: Border,
+    mapping: Mapping,
+    block_w: usize,
+}
+
+impl<'a> Sampler<'a> {
+    /// A sampler of `src` through `h` (output pixel -> `h^-1` -> source) for an output of
+    /// `out_w x out_h` (which fixes OpenCV's coordinate blocks in [`Interpolation::BilinearFixed`]).
+    pub fn new(
+        src: &'a RgbImage,
+        h: &Homography,
+        interp: Interpolation,
+        border: Border,
+        mapping: Mapping,
+        (out_w, out_h): (u32, u32),
+    ) -> Self {
+        Self {
+            raw: src.as_raw(),
+            sw: src.width() as usize,
+            sh: src.height() as usize,
+            m: inverse_rows(h),
+            interp,
+            border,
+            mapping,
+            block_w: opencv_block_width(out_w as usize, out_h as usize),
+        }
+    }
+
+    /// Samples output pixels `x0 .. x0 + n` of row `y` (`n <= CHUNK`) into `run`.
+    ///
+    /// Per pixel, with `(sx, sy)` the mapped coordinate: [`Interpolation::Nearest`] reads pixel
+    /// `(round_even(sx), round_even(sy))`; [`Interpolation::Bilinear`] takes `x0 = floor(sx)`,
+    /// `fx = (sx - x0) as f32` (same for y) and the four taps `a b / c d` as `f32`, and gives
+    /// `top + (bottom - top) * fy` with `top = a + (b - a) * fx`, `bottom = c + (d - c) * fx`;
+    /// [`Interpolation::BilinearFixed`] gives `sum / 1024` of OpenCV's integer sum (see there).
+    /// Taps outside read 0 ([`Border::Constant`]) or the clamped pixel ([`Border::Replicate`]).
+    #[inline]
+    pub fn run(&self, y: usize, x0: usize, n: usize, run: &mut Run) {
+        debug_assert!(n <= CHUNK);
+        if self.sw == 0 || self.sh == 0 {
+            run.state[..n].fill(state::NONE);
+            return;
+        }
+        match self.interp {
+            Interpolation::BilinearFixed => self.run_fixed(y, x0, n, run),
+            Interpolation::Nearest | Interpolation::Bilinear => self.run_float(y, x0, n, run),
+        }
+    }
+
+    fn run_float(&self, y: usize, x0: usize, n: usize, run: &mut Run) {
+        match self.mapping {
+            Mapping::Reciprocal => map_reciprocal(&self.m, y, x0, &mut run.sx, &mut run.sy),
+            Mapping::Division => map_division(&self.m, y, x0, &mut run.sx, &mut run.sy),
+        }
+        let (swf, shf) = (self.sw as f64, self.sh as f64);
+        let limit = match self.mapping {
+            Mapping::Reciprocal => 1e9,
+            Mapping::Division => f64::MAX,
+        };
+        // States, then coordinates clamped to [-1, w] (which changes no sample: beyond it every
+        // tap is outside, or the same clamped edge pixel), so they fit an i32.
+        for i in 0..CHUNK {
+            let (sx, sy) = (run.sx[i], run.sy[i]);
+            let valid = sx.abs() <= limit && sy.abs() <= limit;
+            let inside = sx >= -0.5 && sy >= -0.5 && sx < swf - 0.5 && sy < shf - 0.5;
+            run.state[i] = if !valid {
+                state::NONE
+            } else if inside {
+                state::INSIDE
+            } else {
+                state::OUTSIDE
+            };
+            run.sx[i] = clamp_nan_lo(sx, -1.0, swf);
+            run.sy[i] = clamp_nan_lo(sy, -1.0, shf);
+        }
+        if self.interp == Interpolation::Nearest {
+            for i in 0..CHUNK {
+                run.ix[i] = round_even(run.sx[i]) as i32;
+                run.iy[i] = round_even(run.sy[i]) as i32;
+            }
+            for i in 0..n {
+                run.value[i] = self.tap(run.ix[i], run.iy[i]);
+            }
+            return;
+        }
+        for i in 0..CHUNK {
+            let (sx, sy) = (run.sx[i], run.sy[i]);
+            let (fx, fy) = (floor_i32(sx), floor_i32(sy));
+            run.ix[i] = fx;
+            run.iy[i] = fy;
+            run.fx[i] = (sx - fx as f64) as f32;
+            run.fy[i] = (sy - fy as f64) as f32;
+        }
+        let stride = self.sw * 3;
+        let (wi, hi) = (self.sw as u32 - 1, self.sh as u32 - 1);
+        for i in 0..n {
+            let (x, y, fx, fy) = (run.ix[i], run.iy[i], run.fx[i], run.fy[i]);
+            let lerp = |a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]| -> [f32; 3] {
+                std::array::from_fn(|k| {
+                    let top = a[k] + (b[k] - a[k]) * fx;
+                    let bottom = c[k] + (d[k] - c[k]) * fx;
+                    top + (bottom - top) * fy
+                })
+            };
+            run.value[i] = if (x as u32) < wi && (y as u32) < hi {
+                // Interior: both rows' six bytes with one bounds check each.
+                let a = y as usize * stride + x as usize * 3;
+                let t: &[u8; 6] = self.raw[a..a + 6].try_into().expect("6 bytes");
+                let u: &[u8; 6] = self.raw[a + stride..a + stride + 6]
+                    .try_into()
+                    .expect("6 bytes");
+                let f = |s: &[u8; 6], o: usize| [s[o] as f32, s[o + 1] as f32, s[o + 2] as f32];
+                lerp(f(t, 0), f(t, 3), f(u, 0), f(u, 3))
+            } else {
+                lerp(
+                    self.tap(x, y),
+                    self.tap(x + 1, y),
+                    self.tap(x, y + 1),
+                    self.tap(x + 1, y + 1),
+                )
+            };
+        }
+    }
+
+    fn run_fixed(&self, y: usize, x0: usize, n: usize, run: &mut Run) {
+        map_fixed(&self.m, y, x0, self.block_w, &mut run.ix, &mut run.iy);
+        let (swq, shq) = (self.sw as i64 * 32 - 16, self.sh as i64 * 32 - 16);
+        let stride = self.sw * 3;
+        let (wi, hi) = (self.sw as u32 - 1, self.sh as u32 - 1);
+        for i in 0..n {
+            let (qx, qy) = (run.ix[i], run.iy[i]);
+            let inside = qx >= -16 && qy >= -16 && (qx as i64) < swq && (qy as i64) < shq;
+            run.state[i] = if inside {
+                state::INSIDE
+            } else {
+                state::OUTSIDE
+            };
+            // saturate_cast<short>(X >> INTER_BITS), and the fraction X & 31.
+            let (x, y) = (
+                (qx >> 5).clamp(-32768, 32767),
+                (qy >> 5).clamp(-32768, 32767),
+            );
+            let (ax, ay) = (qx & 31, qy & 31);
+            let w = [
+                (32 - ay) * (32 - ax),
+                (32 - ay) * ax,
+                ay * (32 - ax),
+                ay * ax,
+            ];
+            let sum: [i32; 3] = if (x as u32) < wi && (y as u32) < hi {
+                let a = y as usize * stride + x as usize * 3;
+                let t: &[u8; 6] = self.raw[a..a + 6].try_into().expect("6 bytes");
+                let u: &[u8; 6] = self.raw[a + stride..a + stride + 6]
+                    .try_into()
+                    .expect("6 bytes");
+                std::array::from_fn(|k| {
+                    t[k] as i32 * w[0]
+                        + t[k + 3] as i32 * w[1]
+                        + u[k] as i32 * w[2]
+                        + u[k + 3] as i32 * w[3]
+                })
+            } else {
+                let taps = [
+                    self.tap(x, y),
+                    self.tap(x + 1, y),
+                    self.tap(x, y + 1),
+                    self.tap(x + 1, y + 1),
+                ];
+                std::array::from_fn(|k| (0..4).map(|j| taps[j][k] as i32 * w[j]).sum::<i32>())
+            };
+            // Exact in f32 (sum < 2^18); rounding it half up gives OpenCV's (sum + 512) >> 10.
+            run.value[i] = sum.map(|s| s as f32 * (1.0 / 1024.0));
+        }
+    }
+
+    /// One source pixel with the border rule.
+    #[inline(always)]
+    fn tap(&self, x: i32, y: i32) -> [f32; 3] {
+        let (x, y) = match self.border {
+            Border::Constant => {
+                if x < 0 || y < 0 || x as usize >= self.sw || y as usize >= self.sh {
+                    return [0.0; 3];
+                }
+                (x as usize, y as usize)
+            }
+            Border::Replicate => (
+                x.clamp(0, self.sw as i32 - 1) as usize,
+                y.clamp(0, self.sh as i32 - 1) as usize,
+            ),
+        };
+        let i = (y * self.sw + x) * 3;
+        [
+            self.raw[i] as f32,
+            self.raw[i + 1] as f32,
+            self.raw[i + 2] as f32,
+        ]
+    }
 }
 
 /// Warps an RGB image by `h` into a new `width x height` image; outside the source is black
@@ -117,83 +528,46 @@ pub fn warp_rgb(
     interp: Interpolation,
 ) -> RgbImage {
     let mut out = RgbImage::new(width, height);
-    warp_rgb_into(src, h, interp, &mut out);
+    warp_rgb_into(src, h, interp, Border::Constant, &mut out);
     out
 }
 
-/// [`warp_rgb`] into an existing image (every pixel is written).
-pub fn warp_rgb_into(src: &RgbImage, h: &Homography, interp: Interpolation, out: &mut RgbImage) {
-    let inv = *h.raw().1;
-    let (sw, sh) = (src.width() as i64, src.height() as i64);
-    let sraw = src.as_raw();
+/// [`warp_rgb`] into an existing image (every pixel is written), with a choice of border.
+/// A pixel whose source coordinate is not finite or beyond 1e9 px is black with either border.
+pub fn warp_rgb_into(
+    src: &RgbImage,
+    h: &Homography,
+    interp: Interpolation,
+    border: Border,
+    out: &mut RgbImage,
+) {
     let ow = out.width() as usize;
-    let px = |x: i64, y: i64| -> [f32; 3] {
-        if x < 0 || y < 0 || x >= sw || y >= sh {
-            return [0.0; 3];
-        }
-        let i = (y as usize * sw as usize + x as usize) * 3;
-        [sraw[i] as f32, sraw[i + 1] as f32, sraw[i + 2] as f32]
-    };
+    if ow == 0 {
+        return;
+    }
+    let sampler = Sampler::new(
+        src,
+        h,
+        interp,
+        border,
+        Mapping::Reciprocal,
+        out.dimensions(),
+    );
     out.as_mut()
         .par_chunks_mut(ow * 3)
         .enumerate()
         .for_each(|(y, row)| {
-            let yf = y as f64;
-            let (bx, by, bw) = (
-                inv[(0, 1)] * yf + inv[(0, 2)],
-                inv[(1, 1)] * yf + inv[(1, 2)],
-                inv[(2, 1)] * yf + inv[(2, 2)],
-            );
-            for x in 0..ow {
-                let xf = x as f64;
-                let w = bw + inv[(2, 0)] * xf;
-                let o = &mut row[x * 3..x * 3 + 3];
-                let (sx, sy) = if w == 0.0 {
-                    (f64::NAN, f64::NAN)
-                } else {
-                    let w = 1.0 / w;
-                    ((bx + inv[(0, 0)] * xf) * w, (by + inv[(1, 0)] * xf) * w)
-                };
-                if !(sx.is_finite() && sy.is_finite()) || sx.abs() > 1e9 || sy.abs() > 1e9 {
-                    o.fill(0);
-                    continue;
-                }
-                match interp {
-                    Interpolation::Nearest => {
-                        let c = px(sx.round_ties_even() as i64, sy.round_ties_even() as i64);
-                        for k in 0..3 {
-                            o[k] = c[k] as u8;
-                        }
-                    }
-                    Interpolation::Bilinear => {
-                        let (x0, y0) = (sx.floor(), sy.floor());
-                        let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
-                        let (x0, y0) = (x0 as i64, y0 as i64);
-                        if x0 >= 0 && y0 >= 0 && x0 + 1 < sw && y0 + 1 < sh {
-                            // Interior: the four taps directly, no border logic.
-                            let i = (y0 as usize * sw as usize + x0 as usize) * 3;
-                            let j = i + sw as usize * 3;
-                            for k in 0..3 {
-                                let (a, b) = (sraw[i + k] as f32, sraw[i + 3 + k] as f32);
-                                let (c, d) = (sraw[j + k] as f32, sraw[j + 3 + k] as f32);
-                                let top = a + (b - a) * fx;
-                                let bottom = c + (d - c) * fx;
-                                o[k] = round_u8(top + (bottom - top) * fy);
-                            }
-                            continue;
-                        }
-                        let (a, b, c, d) = (
-                            px(x0, y0),
-                            px(x0 + 1, y0),
-                            px(x0, y0 + 1),
-                            px(x0 + 1, y0 + 1),
-                        );
-                        for k in 0..3 {
-                            let top = a[k] + (b[k] - a[k]) * fx;
-                            let bottom = c[k] + (d[k] - c[k]) * fx;
-                            o[k] = round_u8(top + (bottom - top) * fy);
-                        }
-                    }
+            // On the stack: rayon's per-job init would allocate once per split.
+            let run = &mut Run::default();
+            for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
+                let n = px.len() / 3;
+                sampler.run(y, c * CHUNK, n, run);
+                for (i, o) in px.chunks_exact_mut(3).enumerate() {
+                    let keep = (run.state[i] != state::NONE) as u8 as f32;
+                    let v = run.value[i];
+                    o[0] = round_u8(v[0] * keep);
+                    o[1] = round_u8(v[1] * keep);
+                    o[2] = round_u8(v[2] * keep);
                 }
             }
         });
@@ -205,7 +579,7 @@ mod tests {
     use nalgebra::Matrix3;
     use proptest::prelude::*;
 
-    /// Brute force over every output pixel, no bounding box.
+    /// Brute force over every output pixel, no bounding box, no runs.
     fn reference(src: &Mask, h: &Homography, w: u32, hgt: u32) -> Mask {
         Mask::from_fn(w, hgt, |x, y| {
             let inv = h.raw().1;
@@ -225,6 +599,148 @@ mod tests {
         })
     }
 
+    /// The scalar warp as it was before the run-based sampler (one pixel at a time, `f64::floor`,
+    /// `round_ties_even`): the bytes [`Interpolation::Nearest`] and [`Interpolation::Bilinear`]
+    /// must keep.
+    fn reference_rgb(
+        src: &RgbImage,
+        h: &Homography,
+        interp: Interpolation,
+        w: u32,
+        hgt: u32,
+    ) -> RgbImage {
+        let inv = *h.raw().1;
+        let (sw, sh) = (src.width() as i64, src.height() as i64);
+        let px = |x: i64, y: i64| -> [f32; 3] {
+            if x < 0 || y < 0 || x >= sw || y >= sh {
+                return [0.0; 3];
+            }
+            let p = src.get_pixel(x as u32, y as u32).0;
+            [p[0] as f32, p[1] as f32, p[2] as f32]
+        };
+        RgbImage::from_fn(w, hgt, |x, y| {
+            let (xf, yf) = (x as f64, y as f64);
+            let (bx, by, bw) = (
+                inv[(0, 1)] * yf + inv[(0, 2)],
+                inv[(1, 1)] * yf + inv[(1, 2)],
+                inv[(2, 1)] * yf + inv[(2, 2)],
+            );
+            let w = bw + inv[(2, 0)] * xf;
+            let (sx, sy) = if w == 0.0 {
+                (f64::NAN, f64::NAN)
+            } else {
+                let w = 1.0 / w;
+                ((bx + inv[(0, 0)] * xf) * w, (by + inv[(1, 0)] * xf) * w)
+            };
+            if !(sx.is_finite() && sy.is_finite()) || sx.abs() > 1e9 || sy.abs() > 1e9 {
+                return image::Rgb([0; 3]);
+            }
+            let c = match interp {
+                Interpolation::Nearest => {
+                    px(sx.round_ties_even() as i64, sy.round_ties_even() as i64)
+                }
+                _ => {
+                    let (x0, y0) = (sx.floor(), sy.floor());
+                    let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
+                    let (x0, y0) = (x0 as i64, y0 as i64);
+                    let (a, b, c, d) = (
+                        px(x0, y0),
+                        px(x0 + 1, y0),
+                        px(x0, y0 + 1),
+                        px(x0 + 1, y0 + 1),
+                    );
+                    std::array::from_fn(|k| {
+                        let top = a[k] + (b[k] - a[k]) * fx;
+                        let bottom = c[k] + (d[k] - c[k]) * fx;
+                        top + (bottom - top) * fy
+                    })
+                }
+            };
+            image::Rgb(c.map(round_u8))
+        })
+    }
+
+    /// OpenCV's bilinear `warpPerspective` written out per pixel in `i64` (independently of the
+    /// sampler: blocks by division, `round_ties_even`, the `(sum + 2^14) >> 15` of 15-bit weights).
+    fn reference_fixed(
+        src: &RgbImage,
+        h: &Homography,
+        w: u32,
+        hgt: u32,
+        border: Border,
+    ) -> RgbImage {
+        let inv = h.raw().1;
+        let mm = |r: usize, c: usize| inv[(r, c)];
+        let (sw, sh) = (src.width() as i64, src.height() as i64);
+        let block_h = 16.min(hgt as usize);
+        let block_w = (1024 / block_h).min(w as usize);
+        RgbImage::from_fn(w, hgt, |x, y| {
+            let yf = y as f64;
+            let xb = (x as usize / block_w * block_w) as f64;
+            let x1 = (x as usize % block_w) as f64;
+            let x0 = mm(0, 0) * xb + mm(0, 1) * yf + mm(0, 2);
+            let y0 = mm(1, 0) * xb + mm(1, 1) * yf + mm(1, 2);
+            let w0 = mm(2, 0) * xb + mm(2, 1) * yf + mm(2, 2);
+            let ww = w0 + mm(2, 0) * x1;
+            let ww = if ww != 0.0 { 32.0 / ww } else { 0.0 };
+            let fx = ((x0 + mm(0, 0) * x1) * ww).clamp(i32::MIN as f64, i32::MAX as f64);
+            let fy = ((y0 + mm(1, 0) * x1) * ww).clamp(i32::MIN as f64, i32::MAX as f64);
+            let (qx, qy) = (fx.round_ties_even() as i64, fy.round_ties_even() as i64);
+            let (sx, sy) = (
+                (qx >> 5).clamp(-32768, 32767),
+                (qy >> 5).clamp(-32768, 32767),
+            );
+            let (ax, ay) = (qx & 31, qy & 31);
+            let at = |xx: i64, yy: i64, c: usize| -> i64 {
+                let (xx, yy) = match border {
+                    Border::Constant if xx < 0 || yy < 0 || xx >= sw || yy >= sh => return 0,
+                    Border::Constant => (xx, yy),
+                    Border::Replicate => (xx.clamp(0, sw - 1), yy.clamp(0, sh - 1)),
+                };
+                src.get_pixel(xx as u32, yy as u32).0[c] as i64
+            };
+            image::Rgb(std::array::from_fn(|c| {
+                let sum = at(sx, sy, c) * (32 - ay) * (32 - ax) * 32
+                    + at(sx + 1, sy, c) * (32 - ay) * ax * 32
+                    + at(sx, sy + 1, c) * ay * (32 - ax) * 32
+                    + at(sx + 1, sy + 1, c) * ay * ax * 32;
+                ((sum + (1 << 14)) >> 15).clamp(0, 255) as u8
+            }))
+        })
+    }
+
+    fn texture(w: u32, h: u32, seed: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let t = (x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503) ^ seed) >> 7;
+            image::Rgb([t as u8, (t >> 8) as u8, (x * 13 + y * 7) as u8])
+        })
+    }
+
+    fn arbitrary_homography() -> impl Strategy<Value = Homography> {
+        (
+            -3e-3f64..3e-3,
+            -3e-3f64..3e-3,
+            -0.6f64..0.6,
+            0.5f64..2.0,
+            -40f64..40.0,
+            -30f64..30.0,
+        )
+            .prop_map(|(p0, p1, r, s, tx, ty)| {
+                Homography::from_matrix(Matrix3::new(
+                    s * r.cos(),
+                    -s * r.sin(),
+                    tx,
+                    s * r.sin(),
+                    s * r.cos(),
+                    ty,
+                    p0,
+                    p1,
+                    1.0,
+                ))
+                .unwrap()
+            })
+    }
+
     #[test]
     fn identity_and_integer_translation_are_exact() {
         let m = Mask::from_fn(50, 40, |x, y| (x * 7 + y * 3) % 5 == 0 && x > 10 && y < 30);
@@ -241,21 +757,45 @@ mod tests {
     #[test]
     fn rgb_identity_translation_and_half_pixel() {
         let img = RgbImage::from_fn(20, 10, |x, y| image::Rgb([x as u8 * 10, y as u8 * 20, 7]));
-        for interp in [Interpolation::Nearest, Interpolation::Bilinear] {
+        for interp in [
+            Interpolation::Nearest,
+            Interpolation::Bilinear,
+            Interpolation::BilinearFixed,
+        ] {
             assert_eq!(warp_rgb(&img, &Homography::identity(), 20, 10, interp), img);
             let t = warp_rgb(&img, &Homography::translation(2.0, 1.0), 20, 10, interp);
             assert_eq!(t.get_pixel(5, 5), img.get_pixel(3, 4));
             assert_eq!(t.get_pixel(1, 5).0, [0, 0, 0], "outside is black");
+            // Replicated border: the edge pixel instead of black.
+            let mut r = RgbImage::new(20, 10);
+            warp_rgb_into(
+                &img,
+                &Homography::translation(2.0, 1.0),
+                interp,
+                Border::Replicate,
+                &mut r,
+            );
+            assert_eq!(r.get_pixel(1, 5), img.get_pixel(0, 4), "{interp:?}");
+            assert_eq!(r.get_pixel(0, 0), img.get_pixel(0, 0), "{interp:?}");
         }
         // Half a pixel right: bilinear averages neighbours (x*10 -> x*10 - 5).
-        let t = warp_rgb(
-            &img,
-            &Homography::translation(0.5, 0.0),
-            20,
-            10,
-            Interpolation::Bilinear,
-        );
-        assert_eq!(t.get_pixel(6, 3).0[0], 55);
+        for interp in [Interpolation::Bilinear, Interpolation::BilinearFixed] {
+            let t = warp_rgb(&img, &Homography::translation(0.5, 0.0), 20, 10, interp);
+            assert_eq!(t.get_pixel(6, 3).0[0], 55);
+        }
+    }
+
+    #[test]
+    fn fixed_point_quantises_to_a_32nd_of_a_pixel() {
+        // A ramp of 8 levels per pixel: shifted by 1/64 px, the exact warp moves by 1/8 of a
+        // level (rounds back), 3/64 px by 3/8; OpenCV's fixed point rounds 3/64 to 2/32 = 1/16 px,
+        // i.e. half a level: 0.5 rounds up.
+        let img = RgbImage::from_fn(40, 4, |x, _| image::Rgb([(x * 8) as u8, 0, 0]));
+        let t = Homography::translation(-3.0 / 64.0, 0.0);
+        let exact = warp_rgb(&img, &t, 40, 4, Interpolation::Bilinear);
+        let fixed = warp_rgb(&img, &t, 40, 4, Interpolation::BilinearFixed);
+        assert_eq!(exact.get_pixel(10, 1).0[0], 80); // 80.375
+        assert_eq!(fixed.get_pixel(10, 1).0[0], 81); // 80.5
     }
 
     proptest! {
@@ -267,6 +807,127 @@ mod tests {
             let src = Mask::from_fn(64, 48, |x, y| x >= bx && x < bx + 15 && y >= by && y < by + 10 && (x + y) % 3 != 0);
             let h = Homography::from_matrix(Matrix3::new(r.cos(), -r.sin(), tx, r.sin(), r.cos(), 5.0, p0, p1, 1.0)).unwrap();
             prop_assert_eq!(warp_mask(&src, &h, 70, 50), reference(&src, &h, 70, 50));
+        }
+
+        #[test]
+        fn runs_keep_the_scalar_warps_bytes(
+            h in arbitrary_homography(), (sw, sh) in (1u32..90, 1u32..40), (w, hgt) in (1u32..150, 1u32..40),
+            seed in any::<u32>(),
+        ) {
+            let src = texture(sw, sh, seed);
+            for interp in [Interpolation::Nearest, Interpolation::Bilinear] {
+                prop_assert_eq!(
+                    warp_rgb(&src, &h, w, hgt, interp),
+                    reference_rgb(&src, &h, interp, w, hgt),
+                    "{:?}", interp
+                );
+            }
+        }
+
+        #[test]
+        fn fixed_point_is_opencvs_arithmetic(
+            h in arbitrary_homography(), (sw, sh) in (1u32..90, 1u32..40), (w, hgt) in (1u32..150, 1u32..40),
+            seed in any::<u32>(),
+        ) {
+            let src = texture(sw, sh, seed);
+            for border in [Border::Constant, Border::Replicate] {
+                let mut out = RgbImage::new(w, hgt);
+                warp_rgb_into(&src, &h, Interpolation::BilinearFixed, border, &mut out);
+                prop_assert_eq!(out, reference_fixed(&src, &h, w, hgt, border), "{:?}", border);
+            }
+        }
+    }
+
+    /// The renderer's sampling as it was before the sampler (per pixel, division mapping,
+    /// replicated edges): the value before rounding, and whether the sample is inside.
+    fn reference_division(
+        src: &RgbImage,
+        h: &Homography,
+        interp: Interpolation,
+        x: u32,
+        y: u32,
+    ) -> Option<([f32; 3], bool)> {
+        let inv = h.raw().1;
+        let (xf, yf) = (x as f64, y as f64);
+        let ww = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
+        let (sx, sy) = (
+            (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / ww,
+            (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / ww,
+        );
+        if !(sx.is_finite() && sy.is_finite()) {
+            return None;
+        }
+        let (w, h) = (src.width() as i64, src.height() as i64);
+        let inside = sx >= -0.5 && sy >= -0.5 && sx < w as f64 - 0.5 && sy < h as f64 - 0.5;
+        let at = |x: i64, y: i64| {
+            let p = src
+                .get_pixel(x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32)
+                .0;
+            [p[0] as f32, p[1] as f32, p[2] as f32]
+        };
+        let c = match interp {
+            Interpolation::Nearest => at(sx.round_ties_even() as i64, sy.round_ties_even() as i64),
+            _ => {
+                let (x0, y0) = (sx.floor(), sy.floor());
+                let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
+                let (x0, y0) = (x0 as i64, y0 as i64);
+                let (a, b, c, d) = (
+                    at(x0, y0),
+                    at(x0 + 1, y0),
+                    at(x0, y0 + 1),
+                    at(x0 + 1, y0 + 1),
+                );
+                std::array::from_fn(|k| {
+                    let top = a[k] + (b[k] - a[k]) * fx;
+                    let bottom = c[k] + (d[k] - c[k]) * fx;
+                    top + (bottom - top) * fy
+                })
+            }
+        };
+        Some((c, inside))
+    }
+
+    proptest! {
+        #[test]
+        fn renderer_sampling_keeps_its_values(
+            h in arbitrary_homography(), (sw, sh) in (1u32..90, 1u32..40), (w, hgt) in (1u32..150, 1u32..20),
+            seed in any::<u32>(),
+        ) {
+            let src = texture(sw, sh, seed);
+            let mut run = Run::default();
+            for interp in [Interpolation::Nearest, Interpolation::Bilinear] {
+                let sampler = Sampler::new(&src, &h, interp, Border::Replicate, Mapping::Division, (w, hgt));
+                for y in 0..hgt {
+                    for x0 in (0..w).step_by(CHUNK) {
+                        let n = (w - x0).min(CHUNK as u32) as usize;
+                        sampler.run(y as usize, x0 as usize, n, &mut run);
+                        for i in 0..n {
+                            let got = (run.state[i] != state::NONE)
+                                .then(|| (run.value[i], run.state[i] == state::INSIDE));
+                            let want = reference_division(&src, &h, interp, x0 + i as u32, y);
+                            // Bit-identical f32 values (to_bits: exact, -0 vs 0 included).
+                            prop_assert_eq!(
+                                got.map(|(v, i)| (v.map(f32::to_bits), i)),
+                                want.map(|(v, i)| (v.map(f32::to_bits), i)),
+                                "{:?} at ({}, {})", interp, x0 + i as u32, y
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn line_at_infinity_and_far_samples_are_black() {
+        // w = 0 on column 8 of the output (H^-1 has -1/8 in its last row).
+        let m = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.125, 0.0, 1.0);
+        let h = Homography::from_matrix(m).unwrap();
+        let img = texture(16, 8, 3);
+        for interp in [Interpolation::Nearest, Interpolation::Bilinear] {
+            let out = warp_rgb(&img, &h, 16, 8, interp);
+            assert_eq!(out, reference_rgb(&img, &h, interp, 16, 8));
+            assert_eq!(out.get_pixel(8, 3).0, [0, 0, 0]);
         }
     }
 }

@@ -22,7 +22,9 @@ use crate::homography::matrix3_to_mat;
 fn flags(interp: Interpolation) -> i32 {
     let base = match interp {
         Interpolation::Nearest => imgproc::INTER_NEAREST,
-        Interpolation::Bilinear => imgproc::INTER_LINEAR,
+        // OpenCV's bilinear is the fixed-point one; vt-core's exact mode differs from it by
+        // the 1/32-pixel quantisation, its fixed-point mode not at all.
+        Interpolation::Bilinear | Interpolation::BilinearFixed => imgproc::INTER_LINEAR,
     };
     base | imgproc::WARP_INVERSE_MAP
 }
