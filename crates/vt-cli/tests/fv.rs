@@ -186,7 +186,18 @@ fn synth_object_hull_render_eval() {
         );
         assert!(p > 8.0 && p < 60.0 && q > 0.0 && q <= 1.0, "{k}: {j}");
     }
-    assert_eq!(j.as_object().unwrap().len(), 2, "{j}");
+    for k in ["rough_blur2", "nearest_photo", "silhouette_iou", "views"] {
+        assert!(j.get(k).is_some(), "key {k} missing: {j}");
+    }
+    // The default result beats the rough render against the ray-cast photo of the view.
+    assert!(
+        j["guided"]["psnr"].as_f64() > j["rough"]["psnr"].as_f64(),
+        "{j}"
+    );
+    assert!(
+        j["guided"]["ssim"].as_f64() > j["rough"]["ssim"].as_f64(),
+        "{j}"
+    );
 }
 
 #[test]
@@ -325,8 +336,7 @@ fn bad_input_gives_one_clear_line() {
     );
 }
 
-/// A data folder with the templeSparseRing views present in testdata/ (9 of the 16 cameras
-/// in its par file) and their cameras.
+/// A data folder with the templeSparseRing views in testdata/ (all 16) and their cameras.
 fn temple(root: &Path) -> PathBuf {
     let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../testdata/templeSparseRing");
     let dir = root.join("temple");
@@ -355,42 +365,86 @@ fn temple(root: &Path) -> PathBuf {
 
 #[test]
 fn temple_leave_one_out_guided_beats_rough() {
-    let slow = std::env::var("VT_SLOW_TESTS").is_ok_and(|v| v == "1");
     let root = scratch("temple");
     let data = temple(&root);
-    // templeSR0004.png is the third camera present.
-    let (scale, grid) = if slow { ("1", "128") } else { ("0.5", "64") };
+    // View 4 (templeSR0005.png) and view 8, at half size on a 64^3 grid; --save writes the
+    // images and error maps.
+    let save = root.join("saved");
     let out = vt_ok(&[
         "fv",
         "eval",
         s(&data),
         "--leave-out",
-        "2",
+        "4,8",
         "--scale",
-        scale,
+        "0.5",
+        "--carve-dilate",
+        "2",
+        "--carve-erode",
+        "2",
         "--grid",
-        grid,
+        "64",
         "--json",
+        "--save",
+        s(&save),
     ]);
     let j: Value = serde_json::from_str(out.trim()).unwrap();
     eprintln!("temple leave-one-out: {j}");
-    let (r, g) = (
-        j["rough"]["ssim"].as_f64().unwrap(),
-        j["guided"]["ssim"].as_f64().unwrap(),
+    for k in ["rough", "rough_blur2", "nearest_photo", "guided"] {
+        assert!(
+            j[k]["psnr"].is_f64() && j[k]["ssim"].is_f64(),
+            "key {k} in {j}"
+        );
+    }
+    assert!(j["silhouette_iou"].as_f64().unwrap() > 0.8, "{j}");
+    assert_eq!(j["views"].as_array().unwrap().len(), 2);
+    let (b, g) = (&j["rough_blur2"], &j["guided"]);
+    assert!(
+        g["psnr"].as_f64().unwrap() > b["psnr"].as_f64().unwrap(),
+        "guided PSNR not above the blurred rough render: {j}"
     );
-    assert!(g > r, "guided SSIM {g} <= rough {r}");
+    assert!(
+        g["ssim"].as_f64().unwrap() > b["ssim"].as_f64().unwrap() + 0.03,
+        "guided SSIM not above the blurred rough render: {j}"
+    );
+    for v in ["view_04", "view_08"] {
+        for f in [
+            "truth.png",
+            "rough.png",
+            "rough_blur2.png",
+            "guided.png",
+            "guided_error.png",
+        ] {
+            assert!(save.join(v).join(f).is_file(), "{v}/{f} not saved");
+        }
+    }
+    // The saved result is the scored one: its PSNR inside the saved silhouette matches.
+    let saved = psnr_in_mask(
+        &save.join("view_04/guided.png"),
+        &save.join("view_04/truth.png"),
+        &save.join("view_04/silhouette.png"),
+    );
+    let reported = j["views"][0]["guided"]["psnr"].as_f64().unwrap();
+    assert!(
+        (saved - reported).abs() < 1e-6,
+        "saved {saved} vs reported {reported}"
+    );
 
-    // The full par file names 7 images that are not in testdata: a clear error.
+    // A par file naming an image that is not there: a clear error.
     let full = root.join("full");
     copy_dir(&data, &full);
-    std::fs::copy(
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../../testdata/templeSparseRing/templeSR_par.txt"),
-        full.join("templeSR_par.txt"),
-    )
-    .unwrap();
+    let par = std::fs::read_to_string(data.join("templeSR_par.txt")).unwrap();
+    let mut lines: Vec<String> = par.lines().map(String::from).collect();
+    let extra = lines[1].replacen("templeSR0001.png", "templeSR0099.png", 1);
+    lines.push(extra);
+    lines[0] = (lines.len() - 1).to_string();
+    std::fs::write(full.join("templeSR_par.txt"), lines.join("\n") + "\n").unwrap();
     vt_err(
         &["fv", "hull", s(&full), "--out", s(&root.join("h"))],
-        &["templeSR0002.png", "missing"],
+        &["templeSR0099.png", "missing"],
+    );
+    vt_err(
+        &["fv", "eval", s(&data), "--leave-out", "3,16"],
+        &["--leave-out 16", "16 views"],
     );
 }
