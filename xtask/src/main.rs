@@ -1,6 +1,8 @@
 //! `cargo xtask`: project chores (lint, benchmarks, the OpenCV cross-check), in Rust so they run
 //! wherever cargo does. Few dependencies, so it compiles in seconds.
 
+mod report;
+
 use std::process::Command;
 
 use anyhow::{bail, Context, Result};
@@ -13,6 +15,10 @@ tasks:
   cross-check   run vt-core and vt-cv (OpenCV) on the same inputs and assert they agree
   bench         thesis-scale System A benchmark (decode vs analysis time, peak memory),
                 then the criterion benches; pass --quick for a smaller scene
+  report        [--quick] [--out DIR]: measure every knob's speed/accuracy trade, stability,
+                model choice, real-data accuracy and performance against OpenCV; writes
+                DIR/index.html (plots beside it), report.json and README.md
+                (default DIR: target/report; --quick: under 3 minutes on 2 cores)
 ";
 
 fn cargo() -> Command {
@@ -68,15 +74,8 @@ fn main() -> Result<()> {
         }
         "bench" => {
             let mut c = cargo();
-            c.args([
-                "run",
-                "--release",
-                "--quiet",
-                "-p",
-                "vt-bench",
-                "--",
-            ])
-            .args(rest);
+            c.args(["run", "--release", "--quiet", "-p", "vt-bench", "--"])
+                .args(rest);
             run(c)?;
             if !rest.iter().any(|a| a == "--quick") {
                 let mut b = cargo();
@@ -84,6 +83,17 @@ fn main() -> Result<()> {
                 run(b)?;
             }
             Ok(())
+        }
+        "report" => {
+            // Measurements need optimised code: a debug build re-runs itself in release.
+            if cfg!(debug_assertions) {
+                let mut c = cargo();
+                c.args(["run", "--release", "--quiet", "-p", "xtask", "--", "report"])
+                    .args(rest);
+                run(c)
+            } else {
+                report::run(rest)
+            }
         }
         other => {
             print!("{HELP}");

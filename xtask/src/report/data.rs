@@ -1,0 +1,416 @@
+//! Inputs shared by several sections, built once per run on first use: the synthetic System A
+//! scene (vt demo's scene) with its truth, analysed and written as a real scene directory; the
+//! synthetic System B object; the templeSparseRing photos; tree.avi's frames.
+
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use image::RgbImage;
+use vt_core::analysis::{analyze, AnalyzeParams, MemorySource, Observer, SceneAnalysis};
+use vt_core::{Mask, Point};
+use vt_io::objects::ObjectWriter;
+use vt_io::scene::{background_name, objects_name, LoadedScene, SceneFile};
+use vt_synth::{TextureParams, TextureScene};
+
+use super::Ctx;
+
+/// Writes each view's moving-object store as its masks arrive (what `vt analyze` does).
+struct StoreWriter {
+    dir: PathBuf,
+    writer: Option<(usize, ObjectWriter)>,
+}
+
+impl StoreWriter {
+    fn close(&mut self) -> vt_core::Result<()> {
+        if let Some((p, w)) = self.writer.take() {
+            w.finish().map_err(|e| vt_core::Error::Source {
+                view: format!("view {p}"),
+                message: e.to_string(),
+            })?;
+        }
+        Ok(())
+    }
+}
+
+impl Observer for StoreWriter {
+    fn object_frame(
+        &mut self,
+        view: usize,
+        _frame: usize,
+        mask: &Mask,
+        raw: &RgbImage,
+    ) -> vt_core::Result<()> {
+        let to_core = |e: vt_io::Error| vt_core::Error::Source {
+            view: format!("view {view}"),
+            message: e.to_string(),
+        };
+        if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
+            self.close()?;
+            let path = self.dir.join(objects_name(view));
+            self.writer = Some((
+                view,
+                ObjectWriter::create(&path, raw.width(), raw.height()).map_err(to_core)?,
+            ));
+        }
+        let (_, w) = self.writer.as_mut().expect("set above");
+        w.push(mask, raw).map_err(to_core)
+    }
+}
+
+/// Analyses in-memory views into a scene directory `dir` (created) exactly as `vt analyze` would
+/// write it, and loads it back for rendering. Returns the analysis, its seconds and the scene.
+pub fn build_scene(
+    frames: &[Vec<RgbImage>],
+    points: &[Vec<Point>],
+    params: &AnalyzeParams,
+    dir: &Path,
+) -> Result<(SceneAnalysis, f64, LoadedScene)> {
+    std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+    let mut sources: Vec<MemorySource> = frames
+        .iter()
+        .enumerate()
+        .map(|(p, f)| MemorySource {
+            name: format!("view {p}"),
+            frames: f.clone(),
+        })
+        .collect();
+    let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> = sources
+        .iter_mut()
+        .map(|s| s as &mut dyn vt_core::analysis::FrameSource)
+        .collect();
+    let mut store = StoreWriter {
+        dir: dir.to_path_buf(),
+        writer: None,
+    };
+    let t = Instant::now();
+    let analysis = analyze(&mut refs, points, params, &mut store)?;
+    let secs = t.elapsed().as_secs_f64();
+    store.close()?;
+    for (p, v) in analysis.views.iter().enumerate() {
+        vt_io::frames::write_png(&dir.join(background_name(p)), &v.background)?;
+    }
+    vt_io::scene::write_dynamic(dir, &analysis)?;
+    SceneFile::from_analysis(&analysis, points, params).write(dir)?;
+    let loaded = LoadedScene::open(dir)?;
+    Ok((analysis, secs, loaded))
+}
+
+/// System A's synthetic scene with truth.
+pub struct SynthA {
+    /// The generator (truth renders, phases, true homographies).
+    pub scene: TextureScene,
+    /// Every frame of every view, as the cameras recorded them.
+    pub frames: Vec<Vec<RgbImage>>,
+    /// Exact marked points per view.
+    pub points: Vec<Vec<Point>>,
+    /// Analysis parameters used (vt's defaults, minimum loop length scaled to the clip).
+    pub params: AnalyzeParams,
+    /// The analysis with `params`.
+    pub analysis: SceneAnalysis,
+    /// Seconds of that analysis.
+    pub analysis_secs: f64,
+    /// The scene as written and loaded back.
+    pub loaded: LoadedScene,
+    /// True backgrounds per view (no object, no noise, gain 1).
+    pub background_truth: Vec<RgbImage>,
+    /// True object masks per view and motion phase: pixels where the noise-free render with the
+    /// object differs from the background by more than [`TRUTH_MASK_LEVELS`] in some channel.
+    pub truth_masks: Vec<Vec<Mask>>,
+}
+
+/// Grey levels a noise-free pixel must change by to count as object in the truth masks (an edge
+/// pixel half covered by the object changes by about half the object/background contrast).
+pub const TRUTH_MASK_LEVELS: u8 = 12;
+
+impl SynthA {
+    /// The true object mask of frame `frame` of view `view`.
+    pub fn truth_mask(&self, view: usize, frame: usize) -> &Mask {
+        &self.truth_masks[view][self.scene.phase_of(view, frame)]
+    }
+
+    /// The true background as view `view` records it (its exposure gain applied).
+    pub fn background_as_recorded(&self, view: usize) -> RgbImage {
+        let g = self.scene.gains()[view];
+        let mut out = self.background_truth[view].clone();
+        out.pixels_mut()
+            .for_each(|p| p.0 = p.0.map(|v| (v as f64 * g).round().clamp(0.0, 255.0) as u8));
+        out
+    }
+}
+
+fn to_rgb(w: u32, h: u32, px: &[[f64; 3]]) -> RgbImage {
+    let raw = px
+        .iter()
+        .flat_map(|p| p.map(|v| v.round().clamp(0.0, 255.0) as u8))
+        .collect();
+    RgbImage::from_raw(w, h, raw).expect("w*h*3 values")
+}
+
+/// The scene's background alone at view `q`: the ray caster with the object's phase NaN, which
+/// puts its pose at NaN so that no ray hits it (vt-synth's `shade` tests `e < 1.0`, false for
+/// NaN). Checked below against a frame: it must equal the truth render away from the object.
+fn background_only(scene: &TextureScene, q: f64) -> RgbImage {
+    let p = scene.params();
+    to_rgb(p.width, p.height, &scene.render(&scene.camera(q), f64::NAN))
+}
+
+/// The parameters of the synthetic System A scene: `vt demo`'s scene (3 views, 320x180, period
+/// 24), with fewer frames in a quick run.
+pub fn synth_a_params(quick: bool) -> TextureParams {
+    TextureParams {
+        views: 3,
+        frames: if quick { 96 } else { 150 },
+        ..Default::default()
+    }
+}
+
+fn build_synth_a(ctx: &mut Ctx) -> Result<SynthA> {
+    let tp = synth_a_params(ctx.quick);
+    let scene = TextureScene::new(tp).map_err(anyhow::Error::msg)?;
+    let frames: Vec<Vec<RgbImage>> = (0..tp.views)
+        .map(|p| (0..tp.frames).map(|s| scene.frame(p, s)).collect())
+        .collect();
+    let points: Vec<Vec<Point>> = (0..tp.views)
+        .map(|p| {
+            scene
+                .points(p)
+                .into_iter()
+                .map(|(x, y)| Point::new(x, y))
+                .collect()
+        })
+        .collect();
+    let mut params = AnalyzeParams::default();
+    // Three periods: short enough for the clip, long enough that loops are multiples of it.
+    params.loops.min_length = 3 * tp.period;
+    let dir = ctx.work.path().join("synth-a-scene");
+    let (analysis, analysis_secs, loaded) = build_scene(&frames, &points, &params, &dir)?;
+    let background_truth: Vec<RgbImage> = (0..tp.views)
+        .map(|p| background_only(&scene, p as f64))
+        .collect();
+    let truth_masks: Vec<Vec<Mask>> = (0..tp.views)
+        .map(|p| {
+            (0..tp.period)
+                .map(|phase| {
+                    let with = scene.truth(p as f64, phase);
+                    let bg = &background_truth[p];
+                    Mask::from_index_fn(tp.width, tp.height, |i| {
+                        let (a, b) = (
+                            &with.as_raw()[3 * i..3 * i + 3],
+                            &bg.as_raw()[3 * i..3 * i + 3],
+                        );
+                        (0..3).any(|c| a[c].abs_diff(b[c]) > TRUTH_MASK_LEVELS)
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    // The NaN-phase background must really be the background: a truth render agrees with it on
+    // most pixels (the object covers a minority of the image at every phase).
+    let covered = truth_masks[0][0].count_ones() as f64 / (tp.width * tp.height) as f64;
+    anyhow::ensure!(
+        covered > 0.005 && covered < 0.5,
+        "background-only render is not the background: the object would cover {:.1} % of view 0",
+        100.0 * covered
+    );
+    Ok(SynthA {
+        scene,
+        frames,
+        points,
+        params,
+        analysis,
+        analysis_secs,
+        loaded,
+        background_truth,
+        truth_masks,
+    })
+}
+
+/// System B's synthetic object (vt-fv's ray-cast sphere + box) with truth at extra angles.
+pub struct SynthB {
+    /// Photos, cameras, masks, and truth for extra viewpoints.
+    pub data: vt_fv::synth::SynthData,
+    /// Angles (degrees from camera 0) of the extra viewpoints.
+    pub angles: Vec<f64>,
+}
+
+fn build_synth_b(ctx: &mut Ctx) -> Result<SynthB> {
+    let size = ctx.pick(200, 400);
+    let angles = vec![5.0, 10.0];
+    let data = vt_fv::synth::generate(&vt_fv::synth::SceneParams {
+        width: size,
+        height: size,
+        extra_angles_deg: angles.clone(),
+        ..Default::default()
+    })?;
+    Ok(SynthB { data, angles })
+}
+
+/// System B's default model of the synthetic object and its rough renders at the extra angles,
+/// the input of the synthesis knobs.
+pub struct SynthBModel {
+    /// Grid side used.
+    pub grid: usize,
+    /// Visual hull + photo hull at the default photo-consistency threshold.
+    pub model: vt_fv::VoxelModel,
+    /// Rough render at each extra angle.
+    pub rough: Vec<RgbImage>,
+    /// The reference photo nearest each extra angle.
+    pub reference: Vec<usize>,
+}
+
+fn build_synth_b_model(ctx: &mut Ctx) -> Result<SynthBModel> {
+    let sb = synth_b(ctx)?;
+    let d = &sb.data;
+    let grid = ctx.pick(128, 256);
+    let model = vt_fv::build_model(
+        &d.cameras,
+        &d.photos,
+        &d.masks,
+        &vt_fv::hull::HullParams {
+            dims: [grid; 3],
+            ..Default::default()
+        },
+        &vt_fv::PhotoParams::default(),
+        &mut |_, _, _| {},
+    )?;
+    let (w, h) = d.photos[0].dimensions();
+    let rough = d
+        .extra_cameras
+        .iter()
+        .map(|c| vt_fv::render_rough(&model, c, w, h).image)
+        .collect();
+    let reference = d
+        .extra_cameras
+        .iter()
+        .map(|c| vt_fv::pipeline::nearest_reference(&d.cameras, c).expect("8 cameras"))
+        .collect();
+    Ok(SynthBModel {
+        grid,
+        model,
+        rough,
+        reference,
+    })
+}
+
+/// templeSparseRing as shipped in testdata (9 photos, the par file lists 16 views), silhouettes
+/// by the Middlebury threshold recipe, optionally downscaled.
+pub struct Temple {
+    /// Cameras of the photos present, in par order.
+    pub cams: Vec<vt_fv::camera::Camera>,
+    /// Photos.
+    pub images: Vec<RgbImage>,
+    /// Silhouettes.
+    pub masks: Vec<vt_fv::silhouette::Mask>,
+    /// Scale applied to the 640x480 photos.
+    pub scale: f64,
+}
+
+fn build_temple(ctx: &mut Ctx) -> Result<Temple> {
+    use vt_fv::silhouette::{threshold_silhouette, SilhouetteParams};
+    let dir = super::testdata().join("templeSparseRing");
+    let par = dir.join("templeSR_par.txt");
+    let text = std::fs::read_to_string(&par).with_context(|| par.display().to_string())?;
+    let all = vt_fv::camera::parse_par(&text).with_context(|| par.display().to_string())?;
+    let scale = ctx.pick(0.5, 1.0);
+    let (mut cams, mut images, mut masks) = (Vec::new(), Vec::new(), Vec::new());
+    for c in all {
+        let path = dir.join(&c.name);
+        if !path.is_file() {
+            continue;
+        }
+        let img = vt_io::frames::read_rgb(&path)?;
+        let mask = threshold_silhouette(&img, &SilhouetteParams::default());
+        if scale == 1.0 {
+            cams.push(c);
+            images.push(img);
+            masks.push(mask);
+            continue;
+        }
+        let (w, h) = (
+            (img.width() as f64 * scale).round() as u32,
+            (img.height() as f64 * scale).round() as u32,
+        );
+        images.push(image::imageops::resize(
+            &img,
+            w,
+            h,
+            image::imageops::FilterType::Triangle,
+        ));
+        // Silhouettes are thresholded at full size, then sampled at the small pixel centres.
+        let small = vt_fv::silhouette::Mask::from_fn(w, h, |x, y| {
+            let sx = ((x as f64 + 0.5) / scale - 0.5).round() as i64;
+            let sy = ((y as f64 + 0.5) / scale - 0.5).round() as i64;
+            mask.get(sx, sy)
+        });
+        masks.push(small);
+        cams.push(c.scaled(scale));
+    }
+    Ok(Temple {
+        cams,
+        images,
+        masks,
+        scale,
+    })
+}
+
+/// tree.avi's frames (a real 320x240 video of a tree in wind, static camera).
+pub struct Tree {
+    /// Every decoded frame.
+    pub frames: Vec<RgbImage>,
+    /// Seconds to decode them (ffmpeg through vt-io).
+    pub decode_secs: f64,
+}
+
+fn build_tree() -> Result<Tree> {
+    use vt_core::analysis::FrameSource;
+    let path = super::testdata().join("tree.avi");
+    let mut src = vt_io::frames::VideoSource::open(&path)?;
+    let mut frames = Vec::new();
+    let t = Instant::now();
+    src.for_each_frame(&mut |_, f| {
+        frames.push(f.clone());
+        Ok(())
+    })?;
+    Ok(Tree {
+        frames,
+        decode_secs: t.elapsed().as_secs_f64(),
+    })
+}
+
+/// The lazily built inputs.
+#[derive(Default)]
+pub struct Cache {
+    synth_a: Option<Rc<SynthA>>,
+    synth_b: Option<Rc<SynthB>>,
+    temple: Option<Rc<Temple>>,
+    tree: Option<Rc<Tree>>,
+    synth_b_model: Option<Rc<SynthBModel>>,
+}
+
+/// Builds (once) and returns an input.
+macro_rules! getter {
+    ($name:ident, $ty:ty, $build:expr) => {
+        /// The shared input, built on first use.
+        pub fn $name(ctx: &mut Ctx) -> Result<Rc<$ty>> {
+            if ctx.data.$name.is_none() {
+                let t = Instant::now();
+                let built = $build(ctx).context(stringify!($name))?;
+                eprintln!(
+                    "report:   built {} in {:.1} s",
+                    stringify!($name),
+                    t.elapsed().as_secs_f64()
+                );
+                ctx.data.$name = Some(Rc::new(built));
+            }
+            Ok(ctx.data.$name.clone().expect("built above"))
+        }
+    };
+}
+
+getter!(synth_a, SynthA, build_synth_a);
+getter!(synth_b, SynthB, build_synth_b);
+getter!(temple, Temple, build_temple);
+getter!(tree, Tree, |_: &mut Ctx| build_tree());
+getter!(synth_b_model, SynthBModel, build_synth_b_model);

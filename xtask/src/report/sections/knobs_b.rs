@@ -1,0 +1,388 @@
+//! System B's knobs on vt-fv's synthetic object (8 ring photos, truth ray cast at 5 and 10
+//! degrees from camera 0): grid size and photo-consistency threshold scored by the rough render,
+//! the synthesis settings by the guided result. To add a knob, write a function and list it in
+//! [`knobs`].
+
+use anyhow::Result;
+use image::RgbImage;
+use vt_fv::eval::{psnr, ssim};
+use vt_fv::hull::{visual_hull, HullParams};
+use vt_fv::{guided_synthesis, photo_hull, render_rough, PhotoParams, SynthParams};
+
+use super::Knob;
+use crate::report::data::{synth_b, synth_b_model};
+use crate::report::model::{Axis, Better, Curve, Setting};
+use crate::report::{timed, Ctx};
+
+/// System B's knobs, in page order.
+pub fn knobs() -> Vec<Knob> {
+    vec![
+        Knob::new("Voxel grid size", grid_size),
+        Knob::new("Photo-consistency threshold", photo_threshold),
+        Knob::new("Patch size", patch_size),
+        Knob::new("Patch subsampling step", patch_step),
+        Knob::new("Pyramid levels", pyramid_levels),
+        Knob::new("Iteration cap M and stop threshold T", iterations),
+    ]
+}
+
+fn object(ctx: &Ctx) -> String {
+    let s = ctx.pick(200, 400);
+    format!(
+        "vt-fv's synthetic object (8 ring photos, {s}x{s}), scored inside the true silhouette \
+         at 5 and 10 degrees from camera 0 (mean of the two)"
+    )
+}
+
+/// Intersection over union of a render's coverage and the true silhouette.
+fn iou(a: &vt_fv::Mask, b: &vt_fv::Mask) -> f64 {
+    let (mut inter, mut union) = (0u64, 0u64);
+    for y in 0..a.height() as i64 {
+        for x in 0..a.width() as i64 {
+            let (p, q) = (a.get(x, y), b.get(x, y));
+            inter += (p && q) as u64;
+            union += (p || q) as u64;
+        }
+    }
+    if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    }
+}
+
+/// Mean PSNR, SSIM and IoU of rough renders of `model` at the extra viewpoints.
+fn rough_scores(d: &vt_fv::synth::SynthData, model: &vt_fv::VoxelModel) -> Result<(f64, f64, f64)> {
+    let (w, h) = d.photos[0].dimensions();
+    let (mut p, mut s, mut i) = (0.0, 0.0, 0.0);
+    for (k, cam) in d.extra_cameras.iter().enumerate() {
+        let r = render_rough(model, cam, w, h);
+        let m = Some(&d.extra_masks[k]);
+        p += psnr(&r.image, &d.extra_truth[k], m)?;
+        s += ssim(&r.image, &d.extra_truth[k], m)?;
+        i += iou(&r.coverage, &d.extra_masks[k]);
+    }
+    let n = d.extra_cameras.len() as f64;
+    Ok((p / n, s / n, i / n))
+}
+
+fn grid_size(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let sb = synth_b(ctx)?;
+    let d = &sb.data;
+    let sizes: Vec<usize> = ctx.pick(
+        vec![32, 64, 128, 256],
+        vec![32, 48, 64, 96, 128, 192, 256, 384],
+    );
+    let mut pts = Vec::new();
+    for &n in &sizes {
+        let hull = HullParams {
+            dims: [n; 3],
+            ..Default::default()
+        };
+        let (secs, model) = timed(1, || {
+            vt_fv::build_model(
+                &d.cameras,
+                &d.photos,
+                &d.masks,
+                &hull,
+                &PhotoParams::default(),
+                &mut |_, _, _| {},
+            )
+        });
+        let model = model?;
+        let (p, s, i) = rough_scores(d, &model)?;
+        pts.push(
+            Setting::new(
+                format!("{n}^3"),
+                secs,
+                p,
+                n == HullParams::default().dims[0],
+            )
+            .with("SSIM", s)
+            .with("silhouette IoU", i)
+            .with("surface voxels", model.surface.len() as f64),
+        );
+    }
+    Ok(vec![Curve::new(
+        "b-grid",
+        "Voxel grid size",
+        format!(
+            "Visual hull + photo hull (threshold 20, to convergence) at n^3 voxels, then the rough \
+             render (flat voxel colours), on {}. x: model build time; y: PSNR of the rough render. \
+             The paper and vt's default: 256^3.",
+            object(ctx)
+        ),
+        Axis::log("model build time (s)", Better::Lower),
+        Axis::new("rough render PSNR (dB)", Better::Higher),
+        pts,
+    )])
+}
+
+fn photo_threshold(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let sb = synth_b(ctx)?;
+    let d = &sb.data;
+    let n = ctx.pick(128, 256);
+    let thresholds: Vec<f64> = ctx.pick(
+        vec![5.0, 10.0, 20.0, 40.0, 1e9],
+        vec![3.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0, 1e9],
+    );
+    let vh = visual_hull(
+        &d.cameras,
+        &d.masks,
+        &HullParams {
+            dims: [n; 3],
+            ..Default::default()
+        },
+    )?;
+    let (mut psnr_pts, mut iou_pts) = (Vec::new(), Vec::new());
+    for &th in &thresholds {
+        let params = PhotoParams {
+            threshold: th,
+            ..Default::default()
+        };
+        let (secs, model) = timed(1, || {
+            photo_hull(
+                vh.clone(),
+                &d.cameras,
+                &d.photos,
+                &params,
+                &mut |_, _, _| {},
+            )
+        });
+        let model = model?;
+        let (p, s, i) = rough_scores(d, &model)?;
+        let label = if th >= 1e8 {
+            "off (visual hull)".to_string()
+        } else {
+            format!("{th}")
+        };
+        let default = th == PhotoParams::default().threshold;
+        psnr_pts.push(
+            Setting::new(label.clone(), secs, p, default)
+                .with("SSIM", s)
+                .with("voxels removed", model.removed as f64),
+        );
+        iou_pts.push(Setting::new(label, secs, i, default).with("PSNR (dB)", p));
+    }
+    let caption = |what: &str| {
+        format!(
+            "Photo hull (voxel colouring) at {n}^3 from the same visual hull, with the \
+             photo-consistency threshold (standard deviation per channel, 0..255; 'off' keeps the \
+             visual hull), on {}. x: photo hull time; y: {what}. Default 20.",
+            object(ctx)
+        )
+    };
+    Ok(vec![
+        Curve::new(
+            "b-photo-threshold-psnr",
+            "Photo-consistency threshold: rough render PSNR",
+            caption("PSNR of the rough render"),
+            Axis::new("photo hull time (s)", Better::Lower),
+            Axis::new("rough render PSNR (dB)", Better::Higher),
+            psnr_pts,
+        ),
+        Curve::new(
+            "b-photo-threshold-iou",
+            "Photo-consistency threshold: silhouette IoU",
+            caption(
+                "intersection over union of the rough render's coverage and the true silhouette",
+            ),
+            Axis::new("photo hull time (s)", Better::Lower),
+            Axis::new("silhouette IoU", Better::Higher),
+            iou_pts,
+        ),
+    ])
+}
+
+/// Guided synthesis of every extra view with `params`: mean seconds, PSNR and SSIM.
+fn synth_scores(ctx: &mut Ctx, params: &SynthParams) -> Result<(f64, f64, f64)> {
+    let sb = synth_b(ctx)?;
+    let m = synth_b_model(ctx)?;
+    let d = &sb.data;
+    let (mut t, mut p, mut s) = (0.0, 0.0, 0.0);
+    for k in 0..d.extra_cameras.len() {
+        let (secs, out) = timed(1, || {
+            guided_synthesis(&d.photos[m.reference[k]], &m.rough[k], params)
+        });
+        let out: RgbImage = out?;
+        let mask = Some(&d.extra_masks[k]);
+        t += secs;
+        p += psnr(&out, &d.extra_truth[k], mask)?;
+        s += ssim(&out, &d.extra_truth[k], mask)?;
+    }
+    let n = d.extra_cameras.len() as f64;
+    Ok((t / n, p / n, s / n))
+}
+
+fn synth_caption(ctx: &mut Ctx, what: &str) -> Result<String> {
+    let m = synth_b_model(ctx)?;
+    Ok(format!(
+        "Guided texture synthesis (SPEC B.6, PatchMatch) of the rough render from the nearest \
+         reference photo, {what}, on {} (model {}^3). x: synthesis time per view; y: PSNR of the \
+         result. The rough render itself scores {:.2} dB here: a setting below that line makes \
+         the image worse than its guide.",
+        object(ctx),
+        m.grid,
+        {
+            let sb = synth_b(ctx)?;
+            let d = &sb.data;
+            let mut p = 0.0;
+            for k in 0..d.extra_cameras.len() {
+                p += psnr(&m.rough[k], &d.extra_truth[k], Some(&d.extra_masks[k]))?;
+            }
+            p / d.extra_cameras.len() as f64
+        }
+    ))
+}
+
+fn patch_size(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let patches: Vec<usize> = ctx.pick(vec![5, 7, 13, 21, 41], vec![5, 7, 9, 13, 21, 31, 41]);
+    let mut pts = Vec::new();
+    for &patch in &patches {
+        let (t, p, s) = synth_scores(ctx, &SynthParams::fast_for(patch))?;
+        pts.push(
+            Setting::new(
+                format!("{patch}"),
+                t,
+                p,
+                patch == SynthParams::default().patch,
+            )
+            .with("SSIM", s),
+        );
+    }
+    Ok(vec![Curve::new(
+        "b-patch",
+        "Patch size",
+        synth_caption(
+            ctx,
+            "patch side p with SynthParams::fast_for(p) (up to 9: full resolution, parallel \
+             strips, black skipped; above: 3 pyramid levels and step 2 as well); default: the \
+             paper's 41",
+        )?,
+        Axis::log("synthesis time (s)", Better::Lower),
+        Axis::new("guided PSNR (dB)", Better::Higher),
+        pts,
+    )])
+}
+
+fn patch_step(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let patch = ctx.pick(13, 21);
+    let mut pts = Vec::new();
+    for step in [1, 2, 3, 4] {
+        let params = SynthParams {
+            patch,
+            step,
+            ..SynthParams::fast()
+        };
+        let (t, p, s) = synth_scores(ctx, &params)?;
+        pts.push(
+            Setting::new(
+                format!("step {step}"),
+                t,
+                p,
+                step == SynthParams::default().step,
+            )
+            .with("SSIM", s),
+        );
+    }
+    Ok(vec![Curve::new(
+        "b-step",
+        "Patch subsampling step",
+        synth_caption(
+            ctx,
+            &format!(
+                "patch {patch} compared on every step-th pixel (SynthParams::fast() otherwise: 3 \
+                 levels, strips, black skipped); default step 1"
+            ),
+        )?,
+        Axis::new("synthesis time (s)", Better::Lower),
+        Axis::new("guided PSNR (dB)", Better::Higher),
+        pts,
+    )])
+}
+
+fn pyramid_levels(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let patch = ctx.pick(13, 21);
+    let mut pts = Vec::new();
+    for levels in [1, 2, 3, 4] {
+        let params = SynthParams {
+            patch,
+            levels,
+            ..SynthParams::fast()
+        };
+        let (t, p, s) = synth_scores(ctx, &params)?;
+        pts.push(
+            Setting::new(
+                format!("{levels} level{}", if levels > 1 { "s" } else { "" }),
+                t,
+                p,
+                levels == SynthParams::default().levels,
+            )
+            .with("SSIM", s),
+        );
+    }
+    Ok(vec![Curve::new(
+        "b-levels",
+        "Pyramid levels",
+        synth_caption(
+            ctx,
+            &format!(
+                "patch {patch}, coarse-to-fine over this many levels (SynthParams::fast() \
+                 otherwise: step 2, strips, black skipped); default 1 (the paper)"
+            ),
+        )?,
+        Axis::new("synthesis time (s)", Better::Lower),
+        Axis::new("guided PSNR (dB)", Better::Higher),
+        pts,
+    )])
+}
+
+fn iterations(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let combos: Vec<(usize, f64)> = ctx.pick(
+        vec![(1, 0.06), (3, 0.06), (10, 0.06), (10, 0.3), (10, 0.01)],
+        vec![
+            (1, 0.06),
+            (2, 0.06),
+            (3, 0.06),
+            (5, 0.06),
+            (10, 0.06),
+            (10, 0.3),
+            (10, 0.15),
+            (10, 0.02),
+            (20, 0.01),
+        ],
+    );
+    let base = SynthParams::fast_for(7);
+    let mut pts = Vec::new();
+    for &(m, t) in &combos {
+        let params = SynthParams {
+            max_init_iters: m,
+            stop_ratio: t,
+            ..base
+        };
+        let (secs, p, s) = synth_scores(ctx, &params)?;
+        let d = SynthParams::default();
+        pts.push(
+            Setting::new(
+                format!("M {m}, T {t}"),
+                secs,
+                p,
+                m == d.max_init_iters && t == d.stop_ratio,
+            )
+            .with("SSIM", s),
+        );
+    }
+    Ok(vec![Curve::new(
+        "b-iterations",
+        "Iteration cap M and stop threshold T",
+        synth_caption(
+            ctx,
+            "patch 7 (SynthParams::fast_for(7)) with at most M initialisation-correction \
+             iterations and a stage stopping when the update ratio falls to T; default M 10, \
+             T 0.06 (the paper)",
+        )?,
+        Axis::new("synthesis time (s)", Better::Lower),
+        Axis::new("guided PSNR (dB)", Better::Higher),
+        pts,
+    )])
+}

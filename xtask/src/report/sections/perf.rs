@@ -1,0 +1,394 @@
+//! Section 6: performance, measured side by side in this run: analysis against plain decoding,
+//! render frames per second at 640x360 and 1280x720, vt-core against OpenCV per operation,
+//! guided synthesis time per setting, peak memory. Ratios first.
+
+use anyhow::Result;
+use image::RgbImage;
+use serde_json::json;
+use vt_core::analysis::{analyze, threshold_mask, AnalyzeParams, MemorySource, Quiet};
+use vt_core::blur::GaussianParams;
+use vt_core::render::{Player, RenderParams, Renderer};
+use vt_core::warp::Interpolation;
+use vt_core::{Homography, Point};
+use vt_fv::eval::psnr as fv_psnr;
+use vt_fv::{guided_synthesis, SynthParams};
+
+use crate::report::data::{build_scene, synth_a, synth_b, synth_b_model, tree};
+use crate::report::model::{Item, Table};
+use crate::report::{peak_rss_mib, timed, Ctx};
+
+fn analysis_table(ctx: &mut Ctx) -> Result<Table> {
+    let tr = tree(ctx)?;
+    let mut params = AnalyzeParams::default();
+    params.loops.min_length = 20;
+    let mut src = MemorySource {
+        name: "tree.avi".into(),
+        frames: tr.frames.clone(),
+    };
+    let (secs, a) = timed(ctx.pick(1, 3), || {
+        analyze(&mut [&mut src], &[], &params, &mut Quiet)
+    });
+    let a = a?;
+    let tm = a.timings;
+    let mut t = Table::new(
+        "perf-analysis",
+        "Analysis against plain decoding (tree.avi)",
+        format!(
+            "tree.avi ({} frames of {}x{}): decoding every frame with ffmpeg through vt-io, against \
+             the whole single-view analysis (median, masks, loop) of the decoded frames held in \
+             memory. A ratio below 1 means the analysis costs less than reading the video once. \
+             Thesis scale (15 views x 500 frames x 640x360) is measured by `cargo xtask bench`.",
+            tr.frames.len(),
+            tr.frames[0].width(),
+            tr.frames[0].height()
+        ),
+        &["what", "seconds", "ratio to decode"],
+    );
+    let d = tr.decode_secs;
+    for (what, s) in [
+        ("decode (ffmpeg)", d),
+        ("analysis, all stages", secs),
+        ("  median", tm.median.as_secs_f64()),
+        ("  blur + masks", tm.masks.as_secs_f64()),
+        ("  loop search", tm.loops.as_secs_f64()),
+    ] {
+        t.row(vec![json!(what), json!(s), json!(s / d)]);
+    }
+    Ok(t)
+}
+
+fn render_table(ctx: &mut Ctx) -> Result<Table> {
+    let sa = synth_a(ctx)?;
+    let frames_per_view = ctx.pick(40, 72);
+    let sweep = ctx.pick(60, 240);
+    let mut t = Table::new(
+        "perf-render",
+        "Render speed at 640x360 and 1280x720",
+        format!(
+            "The demo scene's first {frames_per_view} frames per view scaled up (bilinear) to each \
+             size, analysed and written as a scene, then rendered over a {sweep}-frame sweep across \
+             all views (the viewpoint moves every frame, so the background blend is recomputed \
+             each time): frames per second, one renderer, this machine's cores. Ratio: nearest's \
+             speed over bilinear's."
+        ),
+        &["size", "bilinear fps", "nearest fps", "nearest / bilinear", "bilinear ms per frame"],
+    );
+    for (w, h) in [(640u32, 360u32), (1280, 720)] {
+        let frames: Vec<Vec<RgbImage>> = sa
+            .frames
+            .iter()
+            .map(|v| {
+                v[..frames_per_view.min(v.len())]
+                    .iter()
+                    .map(|f| {
+                        image::imageops::resize(f, w, h, image::imageops::FilterType::Triangle)
+                    })
+                    .collect()
+            })
+            .collect();
+        let sx = w as f64 / sa.scene.params().width as f64;
+        let points: Vec<Vec<Point>> = sa
+            .points
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .map(|p| Point::new((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5))
+                    .collect()
+            })
+            .collect();
+        let mut params = sa.params;
+        params.loops.min_length = frames_per_view / 2;
+        let dir = ctx.work.path().join(format!("perf-{w}x{h}"));
+        let (_, _, scene) = build_scene(&frames, &points, &params, &dir)?;
+        let q_max = scene.render.q_max();
+        let mut fps = Vec::new();
+        for interpolation in [Interpolation::Bilinear, Interpolation::Nearest] {
+            let mut r = Renderer::new(
+                scene.render.clone(),
+                RenderParams {
+                    interpolation,
+                    ..Default::default()
+                },
+            )?;
+            let mut out = RgbImage::new(w, h);
+            let mut player = Player::new();
+            let (secs, res) = timed(1, || -> Result<()> {
+                for i in 0..sweep {
+                    let q = q_max
+                        * (0.5 - 0.5 * (i as f64 / sweep as f64 * std::f64::consts::TAU).cos());
+                    let c = player.advance(&scene.render, q)?;
+                    r.render_into(&scene.objects, q, &c, &mut out)?;
+                }
+                Ok(())
+            });
+            res?;
+            fps.push(sweep as f64 / secs);
+        }
+        t.row(vec![
+            json!(format!("{w}x{h}")),
+            json!(fps[0]),
+            json!(fps[1]),
+            json!(fps[1] / fps[0]),
+            json!(1e3 / fps[0]),
+        ]);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+    Ok(t)
+}
+
+fn opencv_table(ctx: &mut Ctx) -> Result<Table> {
+    let sa = synth_a(ctx)?;
+    let reps = ctx.pick(5, 21);
+    let mut t = Table::new(
+        "perf-opencv",
+        "vt-core against OpenCV, per operation",
+        format!(
+            "The same operation on the same input through vt-core (pure Rust) and through OpenCV \
+             4.6 (vt-cv, including its conversion to and from cv::Mat, which a caller of OpenCV \
+             from Rust pays too); median of {reps} runs. Input: the demo scene (320x180 frames; \
+             640x360 = a frame scaled up). Ratio = vt-core time / OpenCV time: below 1 vt-core \
+             is faster."
+        ),
+        &[
+            "operation",
+            "input",
+            "vt-core (ms)",
+            "OpenCV (ms)",
+            "ratio vt-core / OpenCV",
+        ],
+    );
+    let f0 = &sa.frames[0][0];
+    let big = image::imageops::resize(f0, 640, 360, image::imageops::FilterType::Triangle);
+    let bg = &sa.analysis.views[0].background;
+    let masks = &sa.analysis.views[0].masks;
+    let h = sa.analysis.links[0].homography;
+    let gp = GaussianParams::default();
+    let n_med = 31.min(sa.frames[0].len());
+    let pts: Vec<Point> = sa.points[0].clone();
+    let dst: Vec<Point> = sa.points[1].clone();
+    let tilt = Homography::from_matrix(nalgebra::Matrix3::new(
+        1.02, 0.03, -4.0, -0.02, 0.99, 3.0, 2e-5, -1e-5, 1.0,
+    ))?;
+    type Pair<'a> = (
+        &'a str,
+        String,
+        Box<dyn FnMut() -> Result<()> + 'a>,
+        Box<dyn FnMut() -> Result<()> + 'a>,
+    );
+    let ops: Vec<Pair> = vec![
+        (
+            "Gaussian blur 3x3",
+            "640x360 RGB".into(),
+            Box::new(|| {
+                vt_core::blur::gaussian_blur(&big, &gp)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+            Box::new(|| {
+                vt_cv::blur::gaussian_blur(&big, &gp)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "temporal median",
+            format!("{n_med} frames 320x180"),
+            Box::new(|| {
+                vt_core::median::temporal_median(&sa.frames[0][..n_med])
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+            Box::new(|| {
+                vt_cv::median::temporal_median(&sa.frames[0][..n_med])
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "threshold mask",
+            "320x180".into(),
+            Box::new(|| threshold_mask(f0, bg, 25).map(|_| ()).map_err(Into::into)),
+            Box::new(|| {
+                vt_cv::mask::threshold_mask(f0, bg, 25)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "warp RGB, bilinear",
+            "640x360".into(),
+            Box::new(|| {
+                vt_core::warp::warp_rgb(&big, &tilt, 640, 360, Interpolation::Bilinear);
+                Ok(())
+            }),
+            Box::new(|| {
+                vt_cv::warp::warp_rgb(&big, &tilt, 640, 360, Interpolation::Bilinear)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "warp RGB, nearest",
+            "640x360".into(),
+            Box::new(|| {
+                vt_core::warp::warp_rgb(&big, &tilt, 640, 360, Interpolation::Nearest);
+                Ok(())
+            }),
+            Box::new(|| {
+                vt_cv::warp::warp_rgb(&big, &tilt, 640, 360, Interpolation::Nearest)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "warp mask",
+            "320x180".into(),
+            Box::new(|| {
+                vt_core::warp::warp_mask(&masks[0], &h, 320, 180);
+                Ok(())
+            }),
+            Box::new(|| {
+                vt_cv::warp::warp_mask(&masks[0], &h, 320, 180)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "XOR count",
+            "two 320x180 masks".into(),
+            Box::new(|| {
+                std::hint::black_box(vt_core::mask::xor_count(&masks[0], &masks[5]));
+                Ok(())
+            }),
+            Box::new(|| {
+                vt_cv::mask::xor_count(&masks[0], &masks[5])
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "homography from points",
+            format!("{} point pairs", pts.len()),
+            Box::new(|| {
+                Homography::from_correspondences(&pts, &dst)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+            Box::new(|| {
+                vt_cv::homography::from_correspondences(&pts, &dst)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "loop search (eq. 1)",
+            format!("{} masks 320x180", masks.len()),
+            Box::new(|| {
+                vt_core::loops::find_loop(masks, &sa.params.loops, "view 0")
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+            Box::new(|| {
+                vt_cv::loops::find_loop(masks, &sa.params.loops, "view 0")
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+    ];
+    for (op, input, mut vt, mut cv) in ops {
+        let (tv, r) = timed(reps, &mut vt);
+        r?;
+        let (tc, r) = timed(reps, &mut cv);
+        r?;
+        t.row(vec![
+            json!(op),
+            json!(input),
+            json!(tv * 1e3),
+            json!(tc * 1e3),
+            json!(tv / tc),
+        ]);
+    }
+    Ok(t)
+}
+
+fn synthesis_table(ctx: &mut Ctx) -> Result<Table> {
+    let sb = synth_b(ctx)?;
+    let m = synth_b_model(ctx)?;
+    let d = &sb.data;
+    let k = 0;
+    let mut t = Table::new(
+        "perf-synthesis",
+        "Guided synthesis time per setting",
+        format!(
+            "One new view of the synthetic object ({}x{}, {} degrees from camera 0) synthesised \
+             from its nearest reference photo; PSNR inside the true silhouette. Ratio: time over \
+             the recommended patch-7 setting's. Section 1 has every knob's full curve.",
+            d.photos[0].width(),
+            d.photos[0].height(),
+            sb.angles[k]
+        ),
+        &[
+            "setting",
+            "seconds",
+            "ratio to patch 7 fast_for",
+            "PSNR (dB)",
+        ],
+    );
+    let mut settings: Vec<(&str, SynthParams)> = vec![
+        (
+            "patch 7, fast_for(7) (strips, skip black)",
+            SynthParams::fast_for(7),
+        ),
+        (
+            "patch 7, exact order (sequential, every pixel)",
+            SynthParams {
+                patch: 7,
+                ..Default::default()
+            },
+        ),
+        (
+            "patch 41, fast() (3 levels, step 2, strips)",
+            SynthParams::fast(),
+        ),
+    ];
+    if !ctx.quick {
+        settings.push((
+            "patch 41, paper-exact (SynthParams::default())",
+            SynthParams::default(),
+        ));
+    }
+    let mut base = None;
+    for (name, p) in settings {
+        let (secs, out) = timed(1, || {
+            guided_synthesis(&d.photos[m.reference[k]], &m.rough[k], &p)
+        });
+        let out = out?;
+        let b = *base.get_or_insert(secs);
+        t.row(vec![
+            json!(name),
+            json!(secs),
+            json!(secs / b),
+            json!(fv_psnr(&out, &d.extra_truth[k], Some(&d.extra_masks[k]))?),
+        ]);
+    }
+    Ok(t)
+}
+
+/// Builds the section.
+pub fn build(ctx: &mut Ctx) -> Result<Vec<Item>> {
+    let mut items = vec![
+        Item::Table(analysis_table(ctx)?),
+        Item::Table(render_table(ctx)?),
+        Item::Table(opencv_table(ctx)?),
+        Item::Table(synthesis_table(ctx)?),
+    ];
+    items.push(Item::Note {
+        text: format!(
+            "Peak resident memory of the report process after these measurements: {:.0} MiB \
+             (it holds the synthetic scenes' frames in memory; `vt analyze` streams frames \
+             instead, see `cargo xtask bench` for its peak at thesis scale).",
+            peak_rss_mib()
+        ),
+    });
+    Ok(items)
+}
