@@ -16,12 +16,7 @@ use vt_core::blur::GaussianParams;
 use vt_core::warp::Interpolation;
 use vt_core::{Homography, Mask};
 
-fn mix(seed: u64, i: u64) -> u64 {
-    let mut z = seed.wrapping_add(i.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+use vt_core::rng::mix_at as mix;
 
 /// A textured frame with a blob at `shift`, plus noise: real-looking enough for timing.
 fn frame(w: u32, h: u32, seed: u64, shift: f64) -> RgbImage {

@@ -5,7 +5,7 @@
 //! Every function takes and returns vt-core's types (`image::RgbImage`, [`vt_core::Mask`],
 //! [`vt_core::Homography`], [`vt_core::Point`], the parameter structs) and converts to and from
 //! OpenCV `Mat`s at the boundary ([`convert`]). Where vt-core's rules are not OpenCV's
-//! (frame-count and size checks, tie-breaking in the searches) vt-cv applies vt-core's, returning
+//! (frame-count and size checks) vt-cv applies vt-core's, returning
 //! vt-core's errors wrapped in [`Error::Core`].
 //!
 //! | vt-cv | OpenCV | mirrors |
@@ -17,8 +17,8 @@
 //! | [`mask::xor_count`] | `bitwise_xor`, `countNonZero` | `vt_core::mask::xor_count` |
 //! | [`homography::from_correspondences`] | `getPerspectiveTransform` (4 points), `findHomography` (method 0) | `Homography::from_correspondences` |
 //! | [`warp::warp_rgb`], [`warp::warp_mask`] | `warpPerspective` | `vt_core::warp::{warp_rgb, warp_mask}` |
-//! | [`loops::find_loop`], [`loops::find_loops`] | XOR costs above | `vt_core::loops::{find_loop, find_loops}` (eq. 1) |
-//! | [`transition::warp_masks`], [`transition::transition_table`] | warps and XOR costs above | `vt_core::transition` (eq. 2) |
+//! | [`loops::find_loop`], [`loops::find_loops`] | XOR costs above, `add` + `minMaxLoc` ([`search`]) | `vt_core::loops::{find_loop, find_loops}` (eq. 1) |
+//! | [`transition::warp_masks`], [`transition::transition_table`] | warps and XOR costs above, `add` + `minMaxLoc` ([`search`]) | `vt_core::transition` (eq. 2) |
 #![deny(missing_docs)]
 
 pub mod blur;
@@ -28,6 +28,7 @@ pub mod homography;
 pub mod loops;
 pub mod mask;
 pub mod median;
+pub mod search;
 pub mod transition;
 pub mod warp;
 

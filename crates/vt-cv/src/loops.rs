@@ -1,7 +1,8 @@
 //! Loop search, eq. (1) of the seed thesis, on OpenCV XOR costs; mirrors
 //! [`vt_core::loops::find_loop`] and [`vt_core::loops::find_loops`] with the same checks,
 //! the same candidate set (`n - m >= k`, `n + w - 1 < N`) and the same tie-breaking (smallest
-//! cost, then smallest `m`, then smallest `n`).
+//! cost, then smallest `m`, then smallest `n`). Only the input checks are shared with vt-core;
+//! the costs and the search ([`crate::search`]) are OpenCV's.
 
 use opencv::core::Mat;
 use rayon::prelude::*;
@@ -50,11 +51,5 @@ pub fn find_loops(
     vt_core::loops::check_loop_input(masks.len(), params, what)?;
     let mats = masks_to_mats(masks, what)?;
     let d = pair_costs(&mats, params.min_length)?;
-    Ok(vt_core::loops::loops_from_pair_costs(
-        &d,
-        masks.len(),
-        params,
-        count,
-        min_separation,
-    ))
+    crate::search::loops_from_pair_costs(&d, masks.len(), params, count, min_separation)
 }

@@ -46,7 +46,7 @@ pub fn transition_table(
         },
     )?;
     Ok(
-        vt_core::transition::transitions_from_pair_costs(&d, ns, t_frames, t_max, window)
+        crate::search::transitions_from_pair_costs(&d, ns, t_frames, t_max, window)?
             .into_iter()
             .map(|e| e.map(|(t, _)| t))
             .collect(),

@@ -13,13 +13,7 @@ use vt_cv::mask::Morph;
 const W: u32 = 64;
 const H: u32 = 48;
 
-/// splitmix64 step, for deterministic pseudo-random inputs.
-fn mix(seed: u64, i: u64) -> u64 {
-    let mut z = seed.wrapping_add(i.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+use vt_core::rng::mix_at as mix;
 
 /// A smooth pattern plus noise of amplitude `noise`, with a bright moving blob at `shift`.
 fn image(seed: u64, noise: u64, shift: u32) -> RgbImage {

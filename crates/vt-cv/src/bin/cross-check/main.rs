@@ -1,0 +1,118 @@
+//! `cargo xtask cross-check`: runs vt-core and vt-cv (OpenCV) on the same inputs and asserts
+//! that they agree within documented tolerances; prints one table and exits non-zero on any
+//! failure.
+//!
+//! Inputs: synthetic texture scenes from `vt-synth` (several sizes and seeds), real data from
+//! `testdata/` (tree.avi, the graf pair with its true homography, temple photos), and extremes
+//! (far, near-collinear and tiny point sets, nearly singular homographies, 1x1 and 8K images,
+//! all-empty and all-full masks).
+//!
+//! Tolerances, and why:
+//! - median, masks from the same blurred frames, morphology, XOR costs, loops, transition tables,
+//!   nearest-neighbour warps: **identical** (integer or exact operations on both sides).
+//! - Gaussian blur: **within 1 grey level**. OpenCV's 8-bit `GaussianBlur` is fixed point
+//!   (taps rounded to 8-bit fractions per pass, integer sums), vt-core's is `f32`; a value whose
+//!   exact result lies near `k + 0.5` can round either way.
+//! - masks where each side uses its own blur: **<= 0.1% of pixels**, since a one-level blur
+//!   difference flips pixels whose difference from the background sits right at the threshold.
+//! - bilinear warps: **>= 99.9% of pixels within 1 grey level**. OpenCV quantises the mapped
+//!   coordinate to 1/32 pixel (`INTER_BITS = 5`) and uses 15-bit integer weights; vt-core
+//!   interpolates with the exact fraction. A 1/64-pixel coordinate error times a local gradient of
+//!   up to 255 levels per pixel gives up to ~4 levels at the sharpest edges, on few pixels.
+//! - homographies on well-conditioned points: **relative difference <= 1e-6** (matrices scaled
+//!   to unit norm). OpenCV converts points to `f32`, so both sides get the same `f32`-rounded
+//!   points there, and the figure measures the algorithms, not the input rounding.
+//! - stability: vt-core's RMS transfer error on the original `f64` points is never worse than
+//!   OpenCV's (slack `1e-9` relative plus `1e-12` px absolute, the floor of `f64` arithmetic on
+//!   exact data), and vt-core never returns a non-finite homography (an error is fine).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use image::RgbImage;
+use nalgebra::Matrix3;
+use vt_core::analysis::{foreground_mask, FrameSource, MaskParams};
+use vt_core::blur::GaussianParams;
+use vt_core::homography::HomographyFit;
+use vt_core::loops::{Loop, LoopParams};
+use vt_core::warp::Interpolation;
+use vt_core::{Homography, Mask, Point};
+use vt_synth::{Rig, TextureParams, TextureScene};
+
+mod extremes;
+mod homography_rows;
+mod measures;
+mod real;
+mod scenes;
+mod searches;
+mod table;
+
+use extremes::*;
+use homography_rows::*;
+use measures::*;
+use real::*;
+use scenes::*;
+use searches::*;
+use table::*;
+
+fn main() {
+    let start = Instant::now();
+    let mut t = Table::default();
+    type Section = Box<dyn Fn(&mut Table) -> Result<()>>;
+    let sections: Vec<(&str, Section)> = vec![
+        (
+            "synthetic 160x90 seed 1",
+            Box::new(|t| synthetic(t, 160, 90, 1, 48, 12, Rig::Parallel)),
+        ),
+        (
+            "synthetic 320x180 seed 2",
+            Box::new(|t| synthetic(t, 320, 180, 2, 60, 16, Rig::Converging)),
+        ),
+        (
+            "synthetic 640x360 seed 3",
+            Box::new(|t| synthetic(t, 640, 360, 3, 40, 10, Rig::Converging)),
+        ),
+        ("searches", Box::new(searches)),
+        ("tree.avi", Box::new(tree)),
+        ("graf", Box::new(graf)),
+        ("temple", Box::new(temple)),
+        ("extreme points", Box::new(extreme_points)),
+        ("extreme images", Box::new(extreme_images)),
+        ("extreme masks", Box::new(extreme_masks)),
+        ("line at infinity", Box::new(line_at_infinity)),
+    ];
+    // Arguments, if any, pick sections by name (substring match), e.g. `cross-check searches`.
+    let only: Vec<String> = std::env::args().skip(1).collect();
+    let picked: Vec<_> = sections
+        .into_iter()
+        .filter(|(name, _)| only.is_empty() || only.iter().any(|o| name.contains(o.as_str())))
+        .collect();
+    if picked.is_empty() {
+        eprintln!("cross-check: no section matches {only:?}");
+        std::process::exit(2);
+    }
+    for (name, section) in picked {
+        let t0 = Instant::now();
+        eprintln!("{name}...");
+        if let Err(e) = section(&mut t) {
+            t.error(name, "(section aborted)", format!("{e:#}"));
+        }
+        eprintln!("{name}: {:.1?}", t0.elapsed());
+    }
+    println!();
+    println!(
+        "vt-core vs vt-cv (OpenCV {}) cross-check",
+        opencv::core::CV_VERSION
+    );
+    t.print();
+    let failed = t.rows.iter().filter(|r| !r.pass).count();
+    println!(
+        "\n{} checks, {failed} failed, {:.1} s",
+        t.rows.len(),
+        start.elapsed().as_secs_f64()
+    );
+    if failed > 0 {
+        std::process::exit(1);
+    }
+}
