@@ -138,4 +138,7 @@ pub enum Error {
         /// The valid range.
         why: String,
     },
+    /// An error from vt-core's primitives (metrics, masks, images).
+    #[error(transparent)]
+    Core(#[from] vt_core::Error),
 }
