@@ -50,20 +50,40 @@ enum Command {
     },
 }
 
+/// Every command and subcommand takes negative numbers as values (`--point-sigma -1` is a bad
+/// value of `--point-sigma`, not an unknown flag `-1`).
+fn negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.allow_negative_numbers(true)
+        .mut_subcommands(negative_numbers)
+}
+
 fn main() {
-    let cli = match Cli::try_parse() {
+    use clap::{CommandFactory, FromArgMatches};
+    let parsed = negative_numbers(Cli::command())
+        .try_get_matches()
+        .and_then(|m| Cli::from_arg_matches(&m));
+    let cli = match parsed {
         Ok(cli) => cli,
         Err(e) => {
             use clap::error::ErrorKind;
-            if matches!(
-                e.kind(),
-                ErrorKind::DisplayHelp
-                    | ErrorKind::DisplayVersion
-                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
-            ) {
+            let bare = std::env::args_os().len() <= 1;
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion)
+                || (bare && e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand)
+            {
                 e.exit();
             }
-            eprintln!("error: {}", usage_error_line(&e.to_string()));
+            let text = e.to_string();
+            let line = if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                // `vt synth`: one line, not the whole help.
+                let usage = text
+                    .lines()
+                    .find_map(|l| l.trim().strip_prefix("Usage: "))
+                    .unwrap_or("vt <COMMAND>");
+                format!("a subcommand is needed (usage: {usage}; see --help)")
+            } else {
+                usage_error_line(&text)
+            };
+            eprintln!("error: {line}");
             std::process::exit(2);
         }
     };

@@ -158,6 +158,12 @@ impl ObjectStore {
     pub fn load(path: &Path) -> Result<Self> {
         let data =
             crate::limits::read_bytes(path, crate::limits::MAX_OBJECT_STORE_BYTES, "object store")?;
+        Self::from_bytes(data, path)
+    }
+
+    /// Validates a store's bytes (every offset, box and pixel count checked, so no later access
+    /// can fail); `path` names it in errors.
+    pub fn from_bytes(data: Vec<u8>, path: &Path) -> Result<Self> {
         let bad = |m: String| Error::Scene {
             path: path.to_path_buf(),
             message: m,

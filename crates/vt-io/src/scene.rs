@@ -296,11 +296,18 @@ impl SceneFile {
         let path = dir.join("scene.json");
         let text =
             crate::limits::read_text(&path, crate::limits::MAX_SCENE_JSON_BYTES, "scene.json")?;
+        Self::parse(&text, &path)
+    }
+
+    /// Parses and validates scene.json's text (format, version, limits, internal consistency);
+    /// `path` names it in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self> {
+        let path = path.to_path_buf();
         let bad = |message: String| Error::Scene {
             path: path.clone(),
             message,
         };
-        let value: serde_json::Value = serde_json::from_str(&text)
+        let value: serde_json::Value = serde_json::from_str(text)
             .map_err(|e| bad(format!("corrupted: not valid JSON ({e})")))?;
         if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
             return Err(bad(format!("not a vt scene (format is not \"{FORMAT}\")")));

@@ -1,0 +1,490 @@
+//! The bad-input catalogue (`tests/bad_inputs.txt`): every hostile or careless command in it runs
+//! the real `vt` binary and must fail with the stated exit code and a one-line message naming the
+//! file or flag with the numbers, without a panic, leaving nothing behind and damaging nothing
+//! that existed. Also here: interruption (SIGTERM) and stale-temporary cleanup, and the viewer
+//! under hostile HTTP (loopback only).
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::hash::{Hash, Hasher};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::*;
+
+fn scratch(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("bad-inputs-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn copy_dir(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let e = e.unwrap();
+        let to = dst.join(e.file_name());
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &to);
+        } else {
+            std::fs::copy(e.path(), &to).unwrap();
+        }
+    }
+}
+
+fn write(p: &Path, bytes: impl AsRef<[u8]>) {
+    std::fs::write(p, bytes).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+}
+
+/// Edits a text file in place.
+fn edit(p: &Path, f: impl FnOnce(String) -> String) {
+    let t = std::fs::read_to_string(p).unwrap();
+    write(p, f(t));
+}
+
+/// A PNG of `w x h` whose header is then patched to claim `cw x ch` (an image bomb's header).
+fn png_claiming(w: u32, h: u32, cw: u32, ch: u32) -> Vec<u8> {
+    let img = image::RgbImage::from_pixel(w, h, image::Rgb([9, 9, 9]));
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .unwrap();
+    bytes[16..20].copy_from_slice(&cw.to_be_bytes());
+    bytes[20..24].copy_from_slice(&ch.to_be_bytes());
+    // The IHDR CRC covers type and data (bytes 12..29).
+    let crc = crc32(&bytes[12..29]);
+    bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+    bytes
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in data {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+fn save_png(p: &Path, w: u32, h: u32) {
+    image::RgbImage::from_fn(w, h, |x, y| image::Rgb([x as u8, y as u8, 7]))
+        .save(p)
+        .unwrap();
+}
+
+/// The fixture folder of the catalogue (see the `$F` names in bad_inputs.txt).
+fn build_fixtures(f: &Path) {
+    let tex = f.join("tex");
+    vt_ok(&[
+        "synth",
+        "textures",
+        "--out",
+        s(&tex),
+        "--frames",
+        "40",
+        "--size",
+        "64x48",
+        "--period",
+        "8",
+    ]);
+    let scene = f.join("scene");
+    vt_ok(&[
+        "analyze",
+        s(&tex.join("view_00")),
+        s(&tex.join("view_01")),
+        s(&tex.join("view_02")),
+        "--points",
+        s(&tex.join("points.txt")),
+        "--out",
+        s(&scene),
+        "--min-length",
+        "8",
+    ]);
+    let obj = f.join("obj");
+    vt_ok(&[
+        "synth",
+        "object",
+        "--out",
+        s(&obj),
+        "--views",
+        "4",
+        "--size",
+        "48",
+    ]);
+
+    // A user's things.
+    std::fs::create_dir(f.join("photos")).unwrap();
+    write(&f.join("photos/p.jpg"), b"\xFF\xD8\xFF\xE0 a user's photo");
+    write(&f.join("note.txt"), "a user's note\n");
+    write(
+        &f.join("user.mp4"),
+        b"\0\0\0\x18ftypisom\0\0\x02\0isomiso2 a user's video",
+    );
+    write(&f.join("user.gif"), b"GIF89a\x01\x00\x01\x00\x80\x00\x00\xff\xff\xff\x00\x00\x00,\x00\x00\x00\x00\x01\x00\x01\x00\x00\x02\x02D\x01\x00;");
+    save_png(&f.join("photo.png"), 8, 8);
+    std::os::unix::fs::symlink(&scene, f.join("link")).unwrap();
+    std::os::unix::fs::symlink(f.join("photos"), f.join("link_photos")).unwrap();
+    let suf = f.join("scene_user_file");
+    copy_dir(&scene, &suf);
+    write(&suf.join("photo.jpg"), b"\xFF\xD8 mine");
+
+    // Points files.
+    let pts = std::fs::read_to_string(tex.join("points.txt")).unwrap();
+    let lines: Vec<&str> = pts.lines().filter(|l| !l.starts_with('#')).collect();
+    let far: Vec<String> = lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            if i != 1 {
+                return l.to_string();
+            }
+            let mut v: Vec<&str> = l.split_whitespace().collect();
+            v[4] = "5000";
+            v[5] = "20";
+            v.join(" ")
+        })
+        .collect();
+    write(&f.join("points_far.txt"), far.join("\n"));
+    let mut huge = "7".repeat(2_000_000);
+    huge.push_str("x 1 2 3 4 5 6 7\n");
+    write(&f.join("points_huge_token.txt"), huge);
+    write(&f.join("points_nan.txt"), "1 2 3 4 5 6 7 nan\n");
+    write(&f.join("points_3pts.txt"), "1 2 3 4 5 6\n");
+    write(&f.join("points_odd.txt"), "1 2 3 4 5 6 7\n");
+    write(&f.join("points_empty.txt"), "# nothing here\n");
+    write(&f.join("points_binary.txt"), b"\xFF\xFE\x00\x01 1 2");
+    write(
+        &f.join("points_2lines.txt"),
+        format!("{}\n{}\n", lines[0], lines[1]),
+    );
+    write(
+        &f.join("points_mismatch.txt"),
+        "1 2 3 4 5 6 7 8\n1 2 3 4 5 6 7 8 9 10\n1 2 3 4 5 6 7 8\n",
+    );
+    write(
+        &f.join("points_degenerate.txt"),
+        "5 5 5 5 5 5 5 5\n5 5 5 5 5 5 5 5\n5 5 5 5 5 5 5 5\n",
+    );
+    write(
+        &f.join("points_2views.txt"),
+        "1 1 20 1 20 20 1 20\n1 1 20 1 20 20 1 20\n",
+    );
+    write(&f.join("qs_bad.txt"), "0.5\nabc\n");
+    write(&f.join("qs_out.txt"), "99\n");
+    write(&f.join("qs_many.txt"), "0\n".repeat(18_001));
+
+    // Frame folders.
+    std::fs::create_dir(f.join("frames_empty")).unwrap();
+    let mixed = f.join("frames_mixed");
+    std::fs::create_dir(&mixed).unwrap();
+    save_png(&mixed.join("frame_00000.png"), 64, 48);
+    save_png(&mixed.join("frame_00001.png"), 64, 48);
+    save_png(&mixed.join("frame_00002.png"), 32, 24);
+    let small = f.join("frames_small");
+    std::fs::create_dir(&small).unwrap();
+    for i in 0..3 {
+        save_png(&small.join(format!("frame_{i:05}.png")), 32, 24);
+    }
+    let trunc = f.join("frames_trunc");
+    std::fs::create_dir(&trunc).unwrap();
+    write(&trunc.join("frame_00000.png"), b"\x89PNG\r\n\x1a\n\0\0");
+    let later = f.join("frames_trunc_later");
+    std::fs::create_dir(&later).unwrap();
+    save_png(&later.join("frame_00000.png"), 64, 48);
+    let good = std::fs::read(later.join("frame_00000.png")).unwrap();
+    write(&later.join("frame_00001.png"), &good[..good.len() / 2]);
+    let bomb = f.join("frames_bomb");
+    std::fs::create_dir(&bomb).unwrap();
+    write(&bomb.join("bomb.png"), png_claiming(8, 8, 100_000, 100_000));
+    write(&f.join("garbage.mp4"), [0x5Au8; 4096]);
+
+    // Broken scenes.
+    let variant = |name: &str, json: &dyn Fn(String) -> String| {
+        let d = f.join(name);
+        copy_dir(&scene, &d);
+        edit(&d.join("scene.json"), |t| json(t));
+        d
+    };
+    variant("scene_v0", &|t| {
+        t.replace("\"version\": 1", "\"version\": 0")
+    });
+    variant("scene_badjson", &|t| t[..t.len() / 2].to_string());
+    variant("scene_notvt", &|t| {
+        t.replace("\"format\": \"vt-scene\"", "\"format\": \"other\"")
+    });
+    variant("scene_abs", &|t| {
+        t.replacen("\"background_000.png\"", "\"/etc/passwd\"", 1)
+    });
+    variant("scene_dotdot", &|t| {
+        t.replacen("\"objects_000.bin\"", "\"../../objects_000.bin\"", 1)
+    });
+    variant("scene_bigdims", &|t| {
+        t.replacen("\"width\": 64", "\"width\": 100000", 1)
+            .replacen("\"height\": 48", "\"height\": 100000", 1)
+    });
+    variant("scene_bigframes", &|t| {
+        t.replacen("\"frames\": 40", "\"frames\": 100000000", 1)
+    });
+    variant("scene_noviews", &|t| {
+        let mut v: serde_json::Value = serde_json::from_str(&t).unwrap();
+        v["views"] = serde_json::json!([]);
+        v.to_string()
+    });
+    let d = variant("scene_trunc_obj", &|t| t);
+    let obj1 = std::fs::read(d.join("objects_001.bin")).unwrap();
+    write(&d.join("objects_001.bin"), &obj1[..obj1.len() - 7]);
+    let d = variant("scene_badobj_dims", &|t| t);
+    let mut obj0 = std::fs::read(d.join("objects_000.bin")).unwrap();
+    obj0[8..16].copy_from_slice(&[0xFF; 8]);
+    write(&d.join("objects_000.bin"), obj0);
+    let d = variant("scene_bad_bg", &|t| t);
+    write(&d.join("background_000.png"), b"\x89PNG\r\n\x1a\n garbage");
+
+    // Broken System B data folders (copies of obj/ with the par file renamed after the folder).
+    let par_of = |d: &Path| {
+        d.join(format!(
+            "{}_par.txt",
+            d.file_name().unwrap().to_string_lossy()
+        ))
+    };
+    let fv_variant = |name: &str, par: &dyn Fn(Vec<String>) -> Vec<String>| {
+        let d = f.join(name);
+        copy_dir(&obj, &d);
+        let text = std::fs::read_to_string(d.join("object_par.txt")).unwrap();
+        std::fs::remove_file(d.join("object_par.txt")).unwrap();
+        let lines: Vec<String> = text.lines().map(String::from).collect();
+        write(&par_of(&d), par(lines).join("\n") + "\n");
+        d
+    };
+    fv_variant("obj_count", &|mut l| {
+        l[0] = "1000000000000".into();
+        l
+    });
+    fv_variant("obj_count_e", &|mut l| {
+        l[0] = "1e12".into();
+        l
+    });
+    fv_variant("obj_few", &|mut l| {
+        l[0] = "9".into();
+        l
+    });
+    fv_variant("obj_rot", &|mut l| {
+        // Scale R of the first camera by 1.05: det 1.05^3 = 1.157625.
+        let mut f: Vec<String> = l[1].split_whitespace().map(String::from).collect();
+        for v in &mut f[10..19] {
+            *v = (v.parse::<f64>().unwrap() * 1.05).to_string();
+        }
+        l[1] = f.join(" ");
+        l
+    });
+    fv_variant("obj_dotdot", &|mut l| {
+        l[1] = l[1].replacen("view_00.png", "../../view_00.png", 1);
+        l
+    });
+    fv_variant("obj_abs", &|mut l| {
+        l[1] = l[1].replacen("view_00.png", "/etc/passwd", 1);
+        l
+    });
+    fv_variant("obj_bad_field", &|mut l| {
+        let mut f: Vec<String> = l[2].split_whitespace().map(String::from).collect();
+        f[5] = "abc".into();
+        l[2] = f.join(" ");
+        l
+    });
+    fv_variant("obj_short_line", &|mut l| {
+        l[1] = l[1]
+            .split_whitespace()
+            .take(10)
+            .collect::<Vec<_>>()
+            .join(" ");
+        l
+    });
+    let d = fv_variant("obj_two_par", &|l| l);
+    std::fs::copy(par_of(&d), d.join("other_par.txt")).unwrap();
+    let d = fv_variant("obj_no_par", &|l| l);
+    std::fs::remove_file(par_of(&d)).unwrap();
+    let d = fv_variant("obj_missing_img", &|l| l);
+    std::fs::remove_file(d.join("view_02.png")).unwrap();
+    let d = fv_variant("obj_trunc_img", &|l| l);
+    let img = std::fs::read(d.join("view_01.png")).unwrap();
+    write(&d.join("view_01.png"), &img[..img.len() / 3]);
+    let d = fv_variant("obj_mixed", &|l| l);
+    std::fs::remove_dir_all(d.join("masks")).unwrap();
+    save_png(&d.join("view_01.png"), 24, 24);
+}
+
+/// Every path under `root` with its kind, size and a hash of its bytes (links not followed).
+fn snapshot(root: &Path) -> BTreeMap<PathBuf, (char, u64, u64)> {
+    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, (char, u64, u64)>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let e = e.unwrap();
+            let p = e.path();
+            let meta = std::fs::symlink_metadata(&p).unwrap();
+            let rel = p.strip_prefix(root).unwrap().to_path_buf();
+            if meta.file_type().is_symlink() {
+                out.insert(rel, ('l', 0, 0));
+            } else if meta.is_dir() {
+                out.insert(rel, ('d', 0, 0));
+                walk(root, &p, out);
+            } else {
+                let mut h = std::collections::hash_map::DefaultHasher::new();
+                std::fs::read(&p).unwrap().hash(&mut h);
+                out.insert(rel, ('f', meta.len(), h.finish()));
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(root, root, &mut out);
+    out
+}
+
+/// Runs vt with a time limit (a case that wrongly succeeds must not hang the suite).
+fn run_limited(args: &[String], limit: Duration) -> (Option<i32>, String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vt"))
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run vt");
+    let mut out = child.stdout.take().unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let t_out = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let t_err = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        let _ = err.read_to_end(&mut s);
+        String::from_utf8_lossy(&s).to_string()
+    });
+    let start = Instant::now();
+    let code = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break st.code();
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    (code, t_out.join().unwrap(), t_err.join().unwrap())
+}
+
+#[test]
+fn bad_input_catalogue() {
+    let root = scratch("catalogue");
+    let f = root.join("F");
+    std::fs::create_dir(&f).unwrap();
+    build_fixtures(&f);
+    let work = f.join("work");
+    std::fs::create_dir(&work).unwrap();
+    let text = include_str!("bad_inputs.txt");
+    let mut failures = Vec::new();
+    let mut n = 0;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        n += 1;
+        let parts: Vec<&str> = line.splitn(3, " | ").collect();
+        assert_eq!(
+            parts.len(),
+            3,
+            "bad_inputs.txt:{}: not EXIT | ARGS | WANTED",
+            i + 1
+        );
+        let want_code: i32 = parts[0].trim().parse().unwrap();
+        let w = work.join(format!("case_{:03}", i + 1));
+        std::fs::create_dir(&w).unwrap();
+        let fill = |t: &str| t.replace("$F", s(&f)).replace("$W", s(&w));
+        let args: Vec<String> = parts[1].split_whitespace().map(fill).collect();
+        let wants: Vec<String> = parts[2]
+            .split(';')
+            .map(|x| fill(x.trim()))
+            .filter(|x| !x.is_empty())
+            .collect();
+        let before = snapshot(&f);
+        let (code, stdout, stderr) = run_limited(&args, Duration::from_secs(120));
+        let after = snapshot(&f);
+        let mut problems = Vec::new();
+        if code != Some(want_code) {
+            problems.push(format!("exit {code:?}, want {want_code}"));
+        }
+        if stderr.contains("panicked") || stderr.contains("RUST_BACKTRACE") {
+            problems.push("panicked".into());
+        }
+        let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+        if lines.len() != 1 {
+            problems.push(format!("{} lines on stderr", lines.len()));
+        }
+        let msg = lines.first().copied().unwrap_or("");
+        if !msg.starts_with("error: ") {
+            problems.push("message does not start with 'error: '".into());
+        }
+        if msg.len() > 400 {
+            problems.push(format!("message is {} characters long", msg.len()));
+        }
+        let segs: Vec<&str> = msg.split(": ").collect();
+        if segs.windows(2).any(|p| p[0] == p[1]) {
+            problems.push("a cause is repeated".into());
+        }
+        for want in &wants {
+            match want.strip_prefix('!') {
+                Some(not) if msg.contains(not) => problems.push(format!("contains {not:?}")),
+                Some(_) => {}
+                None if !msg.contains(want.as_str()) => {
+                    problems.push(format!("does not mention {want:?}"))
+                }
+                None => {}
+            }
+        }
+        if before != after {
+            let changed: Vec<String> = before
+                .iter()
+                .filter(|(k, v)| after.get(*k) != Some(v))
+                .map(|(k, _)| format!("changed or removed {}", k.display()))
+                .chain(
+                    after
+                        .keys()
+                        .filter(|k| !before.contains_key(*k))
+                        .map(|k| format!("left {}", k.display())),
+                )
+                .take(5)
+                .collect();
+            problems.push(changed.join(", "));
+        }
+        if !problems.is_empty() {
+            failures.push(format!(
+                "bad_inputs.txt:{}: vt {}\n  {}\n  stderr: {}\n  stdout: {}",
+                i + 1,
+                parts[1],
+                problems.join("; "),
+                stderr.trim().chars().take(600).collect::<String>(),
+                stdout.trim().chars().take(200).collect::<String>()
+            ));
+        }
+    }
+    assert!(n >= 100, "the catalogue has {n} cases, fewer than 100");
+    assert!(
+        failures.is_empty(),
+        "{} of {n} catalogue cases failed:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
