@@ -53,10 +53,8 @@ impl AnalysisObserver {
     /// Closes the last object store.
     pub fn finish_objects(&mut self) -> vt_core::Result<()> {
         if let Some((p, w)) = self.writer.take() {
-            w.finish().map_err(|e| vt_core::Error::Source {
-                view: format!("view {p}"),
-                message: e.to_string(),
-            })?;
+            w.finish()
+                .map_err(|e| vt_core::Error::external(format!("view {p}"), e))?;
         }
         Ok(())
     }
@@ -100,10 +98,7 @@ impl Observer for AnalysisObserver {
         mask: &Mask,
         raw: &RgbImage,
     ) -> vt_core::Result<()> {
-        let to_core = |e: vt_io::Error| vt_core::Error::Source {
-            view: format!("view {view}"),
-            message: e.to_string(),
-        };
+        let to_core = |e: vt_io::Error| vt_core::Error::external(format!("view {view}"), e);
         if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
             self.finish_objects()?;
             let path = self.dir.join(vt_io::scene::objects_name(view));

@@ -91,4 +91,58 @@ pub enum Error {
         /// What the source reported.
         message: String,
     },
+    /// A typed error from outside vt-core (a file, a decoder, an object sink behind one of
+    /// vt-core's traits), kept whole as the [`std::error::Error::source`] so callers can print
+    /// the chain once and downcast it; the message itself only names the view.
+    #[error("{view}")]
+    External {
+        /// Which view or stage.
+        view: String,
+        /// The error as its crate raised it.
+        #[source]
+        source: ExternalError,
+    },
+}
+
+impl Error {
+    /// Wraps another crate's error for a view, keeping its type ([`Error::External`]).
+    pub fn external(
+        view: impl Into<String>,
+        e: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        Error::External {
+            view: view.into(),
+            source: ExternalError(std::sync::Arc::new(e)),
+        }
+    }
+}
+
+/// Another crate's error inside [`Error::External`]: shared so [`Error`] stays `Clone`, compared
+/// by message so it stays `PartialEq`.
+#[derive(Debug, Clone)]
+pub struct ExternalError(pub std::sync::Arc<dyn std::error::Error + Send + Sync>);
+
+impl ExternalError {
+    /// The wrapped error, for downcasting (`e.inner().downcast_ref::<vt_io::Error>()`).
+    pub fn inner(&self) -> &(dyn std::error::Error + Send + Sync + 'static) {
+        &*self.0
+    }
+}
+
+impl std::fmt::Display for ExternalError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for ExternalError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.0.source()
+    }
+}
+
+impl PartialEq for ExternalError {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.to_string() == other.0.to_string()
+    }
 }

@@ -24,7 +24,7 @@ pub mod rng;
 pub mod transition;
 pub mod warp;
 
-pub use error::{Error, Result};
+pub use error::{Error, ExternalError, Result};
 pub use homography::{Homography, Point};
 pub use mask::Mask;
 

@@ -9,14 +9,14 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// Everything that can go wrong in vt-cv.
 #[derive(Debug, Error)]
 pub enum Error {
-    /// An OpenCV call failed; `op` names the call and its input.
-    #[error("OpenCV {op}: {source}")]
+    /// An OpenCV call failed; `op` names the call and its input. OpenCV's error is part of the
+    /// message and not also exposed as `source()`, so error chains print it once.
+    #[error("OpenCV {op}: {cause}")]
     OpenCv {
         /// The OpenCV function and what it was given (e.g. "warpPerspective 640x360 -> 320x180").
         op: String,
         /// OpenCV's own error (code and message).
-        #[source]
-        source: opencv::Error,
+        cause: opencv::Error,
     },
     /// OpenCV returned an empty or malformed result where one was expected.
     #[error("OpenCV {op} returned no usable result: {why}")]
@@ -41,13 +41,13 @@ pub(crate) trait Context<T> {
 
 impl<T> Context<T> for opencv::Result<T> {
     fn ctx(self, op: &str) -> Result<T> {
-        self.map_err(|source| Error::OpenCv {
+        self.map_err(|cause| Error::OpenCv {
             op: op.to_string(),
-            source,
+            cause,
         })
     }
 
     fn with_ctx(self, op: impl FnOnce() -> String) -> Result<T> {
-        self.map_err(|source| Error::OpenCv { op: op(), source })
+        self.map_err(|cause| Error::OpenCv { op: op(), cause })
     }
 }

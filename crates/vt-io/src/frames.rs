@@ -371,10 +371,7 @@ impl FrameSource for FolderSource {
         for files in self.files.chunks(chunk) {
             let frames: Vec<Result<RgbImage>> = files.par_iter().map(|p| read_rgb(p)).collect();
             for (fr, file) in frames.into_iter().zip(files) {
-                let fr = fr.map_err(|e| vt_core::Error::Source {
-                    view: self.name.clone(),
-                    message: e.to_string(),
-                })?;
+                let fr = fr.map_err(|e| vt_core::Error::external(self.name.clone(), e))?;
                 if fr.dimensions() != self.size {
                     return Err(vt_core::Error::Source {
                         view: self.name.clone(),
