@@ -33,7 +33,7 @@ pub fn knobs() -> Vec<Knob> {
         Knob::new("Window w of eq. (1) and (2)", window),
         Knob::new("Loop search at reduced mask resolution", mask_resolution),
         Knob::new(
-            "Rendering: nearest vs bilinear, gain compensation",
+            "Rendering: interpolation and gain compensation",
             render_modes,
         ),
         Knob::new("Crossfade length", crossfade),
@@ -445,6 +445,7 @@ fn render_modes(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         ("bilinear", Interpolation::Bilinear, false),
         ("nearest + gain", Interpolation::Nearest, true),
         ("bilinear + gain", Interpolation::Bilinear, true),
+        ("fixed-point bilinear", Interpolation::BilinearFixed, false),
     ] {
         let params = RenderParams {
             interpolation,
@@ -461,14 +462,15 @@ fn render_modes(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     }
     Ok(vec![Curve::new(
         "a-render",
-        "Rendering: nearest vs bilinear, gain compensation",
+        "Rendering: interpolation and gain compensation",
         format!(
             "Eq. (3)-(6) rendered from the analysed scene of {SCENE} (written and loaded as a \
              scene directory). x: frames per second over a {sweep}-frame sweep across all views \
              (320x180); y: mean PSNR against the ray-cast truth at q in {qs:?}, the truth showing \
              the motion phase of the source frame the player chose. The background has real \
              depth, so one plane cannot explain it: absolute PSNR is limited by parallax, the \
-             differences are what the options buy. Default: bilinear, no gain compensation."
+             differences are what the options buy. Fixed-point bilinear is OpenCV's 1/32-pixel \
+             integer interpolation. Default: bilinear, no gain compensation."
         ),
         Axis::new("frames per second", Better::Higher),
         Axis::new("PSNR vs truth (dB)", Better::Higher),

@@ -23,6 +23,7 @@ pub fn knobs() -> Vec<Knob> {
         Knob::new("Patch subsampling step", patch_step),
         Knob::new("Pyramid levels", pyramid_levels),
         Knob::new("Iteration cap M and stop threshold T", iterations),
+        Knob::new("New-view method and number of reference photos", references),
     ]
 }
 
@@ -383,6 +384,76 @@ fn iterations(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         )?,
         Axis::new("synthesis time (s)", Better::Lower),
         Axis::new("guided PSNR (dB)", Better::Higher),
+        pts,
+    )])
+}
+
+fn references(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    use vt_fv::pipeline::{novel_view, Method, ViewParams};
+    use vt_fv::texture::TextureParams;
+    let sb = synth_b(ctx)?;
+    let m = synth_b_model(ctx)?;
+    let d = &sb.data;
+    let (w, h) = d.photos[0].dimensions();
+    let counts: Vec<usize> = ctx.pick(vec![1, 2, 3, 4], vec![1, 2, 3, 4, 6, 8]);
+    let mut settings: Vec<(String, ViewParams)> = vec![(
+        "paper (rough guide, 1 photo)".into(),
+        ViewParams::paper(SynthParams::fast_for(7)),
+    )];
+    for &n in &counts {
+        settings.push((
+            format!("textured, {n} photo{}", if n > 1 { "s" } else { "" }),
+            ViewParams {
+                method: Method::Textured,
+                texture: TextureParams {
+                    references: n,
+                    ..Default::default()
+                },
+                refine: false,
+                ..Default::default()
+            },
+        ));
+    }
+    settings.push((
+        "textured, 2 photos + synthesis".into(),
+        ViewParams {
+            refine: true,
+            ..Default::default()
+        },
+    ));
+    let mut pts = Vec::new();
+    for (label, vp) in &settings {
+        let (mut t, mut p, mut s) = (0.0, 0.0, 0.0);
+        for (k, cam) in d.extra_cameras.iter().enumerate() {
+            let (secs, v) = timed(1, || {
+                novel_view(&m.model, &d.cameras, &d.photos, cam, w, h, vp)
+            });
+            let v = v?;
+            let mask = Some(&d.extra_masks[k]);
+            t += secs;
+            p += psnr(&v.guided, &d.extra_truth[k], mask)?;
+            s += ssim(&v.guided, &d.extra_truth[k], mask)?;
+        }
+        let n = d.extra_cameras.len() as f64;
+        pts.push(
+            Setting::new(label.clone(), t / n, p / n, *vp == ViewParams::default())
+                .with("SSIM", s / n),
+        );
+    }
+    Ok(vec![Curve::new(
+        "b-references",
+        "New-view method and number of reference photos",
+        format!(
+            "The new view made from the model ({}^3) by the paper's method (rough render re-textured \
+             by guided synthesis, patch 7, from the one nearest photo) or by vt-fv's view-dependent \
+             texturing from the n nearest photos (optionally refined by synthesis), on {}. x: time \
+             per view (rough render, texturing, synthesis); y: PSNR of the result. Default: \
+             vt-fv's ViewParams::default().",
+            m.grid,
+            object(ctx)
+        ),
+        Axis::log("time per view (s)", Better::Lower),
+        Axis::new("PSNR (dB)", Better::Higher),
         pts,
     )])
 }
