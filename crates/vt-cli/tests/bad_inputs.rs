@@ -8,7 +8,8 @@ mod common;
 
 use std::collections::BTreeMap;
 use std::hash::{Hash, Hasher};
-use std::io::Read;
+use std::io::{Read, Write};
+use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -487,4 +488,286 @@ fn bad_input_catalogue() {
         failures.len(),
         failures.join("\n")
     );
+}
+
+/// A small analysed scene of its own, for the tests below.
+fn small_scene(root: &Path) -> PathBuf {
+    let tex = root.join("tex");
+    vt_ok(&[
+        "synth",
+        "textures",
+        "--out",
+        s(&tex),
+        "--frames",
+        "40",
+        "--size",
+        "64x48",
+        "--period",
+        "8",
+    ]);
+    let scene = root.join("scene");
+    vt_ok(&[
+        "analyze",
+        s(&tex.join("view_00")),
+        s(&tex.join("view_01")),
+        s(&tex.join("view_02")),
+        "--points",
+        s(&tex.join("points.txt")),
+        "--out",
+        s(&scene),
+        "--min-length",
+        "8",
+    ]);
+    scene
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Waits until `dir` holds an entry whose name contains `part`.
+fn wait_for_entry(dir: &Path, part: &str, child: &mut std::process::Child) {
+    let start = Instant::now();
+    while !names(dir).iter().any(|n| n.contains(part)) {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "vt exited before writing its temporary"
+        );
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no temporary appeared"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn sigterm_removes_temporaries_and_stale_ones_are_cleaned() {
+    let root = scratch("signals");
+    let scene = small_scene(&root);
+    for out in ["long.mp4", "long_frames"] {
+        let w = root.join(format!("w_{out}"));
+        std::fs::create_dir(&w).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_vt"))
+            .args([
+                "render",
+                s(&scene),
+                "--path",
+                "sweep",
+                "--duration",
+                "600",
+                "--out",
+                s(&w.join(out)),
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        wait_for_entry(&w, ".tmp-", &mut child);
+        std::thread::sleep(Duration::from_millis(300));
+        let killed = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let out_put = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out_put.stderr);
+        assert_eq!(out_put.status.code(), Some(130), "{out}: {stderr}");
+        assert!(stderr.contains("interrupted"), "{out}: {stderr}");
+        // Nothing left, also after a moment (a killed encoder must not write on).
+        std::thread::sleep(Duration::from_millis(500));
+        assert!(names(&w).is_empty(), "{out}: left {:?}", names(&w));
+    }
+
+    // Temporaries of processes that no longer exist are removed by the next run beside them;
+    // a live process's and a user's look-alike are not.
+    let w = root.join("stale");
+    std::fs::create_dir(&w).unwrap();
+    std::fs::create_dir(w.join(".scene.tmp-4194305")).unwrap();
+    write(&w.join(".scene.tmp-4194305/half.png"), b"x");
+    write(&w.join(".a.mp4.tmp-4194304"), b"x");
+    write(&w.join(".scene.old-4194303"), b"x");
+    std::fs::create_dir(w.join(".scene.tmp-1")).unwrap();
+    write(&w.join("tmp-notes.txt"), b"mine");
+    let out = w.join("a.mp4");
+    for _ in 0..2 {
+        // Twice: the second run replaces vt's own earlier output.
+        vt_ok(&["render", s(&scene), "--path", "sweep", "--out", s(&out)]);
+    }
+    assert_eq!(
+        names(&w),
+        vec![".scene.tmp-1", "a.mp4", "tmp-notes.txt"],
+        "stale temporaries of dead processes removed, the rest kept"
+    );
+    // The scene, analysed again into the same place, is replaced (it is vt's).
+    let tex = root.join("tex");
+    vt_ok(&[
+        "analyze",
+        s(&tex.join("view_00")),
+        "--out",
+        s(&scene),
+        "--min-length",
+        "8",
+    ]);
+    assert_eq!(
+        read_json(&scene.join("scene.json"))["views"]
+            .as_array()
+            .unwrap()
+            .len(),
+        1
+    );
+}
+
+/// Sends a raw request and reads the whole answer (requests say `Connection: close`).
+fn http(port: u16, raw: &[u8]) -> String {
+    let mut c = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    c.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    let _ = c.write_all(raw);
+    let mut buf = Vec::new();
+    let _ = c.read_to_end(&mut buf);
+    String::from_utf8_lossy(&buf).to_string()
+}
+
+fn get(port: u16, target: &str) -> String {
+    http(
+        port,
+        format!("GET {target} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").as_bytes(),
+    )
+}
+
+/// Reads from an MJPEG stream until `parts` JPEG parts arrived; false on timeout.
+fn stream_parts(port: u16, parts: usize, limit: Duration) -> bool {
+    let mut c = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    c.set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    c.write_all(b"GET /stream.mjpg HTTP/1.1\r\nHost: x\r\n\r\n")
+        .unwrap();
+    let start = Instant::now();
+    let mut seen = Vec::new();
+    let mut buf = [0u8; 65536];
+    while start.elapsed() < limit {
+        if let Ok(n) = c.read(&mut buf) {
+            if n == 0 {
+                return false;
+            }
+            seen.extend_from_slice(&buf[..n]);
+            let count = seen
+                .windows(b"Content-Type: image/jpeg".len())
+                .filter(|w| *w == b"Content-Type: image/jpeg")
+                .count();
+            if count >= parts {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+#[test]
+fn viewer_survives_hostile_http() {
+    let root = scratch("viewer");
+    let scene = small_scene(&root);
+    let mut server = Command::new(env!("CARGO_BIN_EXE_vt"))
+        .args(["view", s(&scene), "--port", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    struct Kill(std::process::Child);
+    impl Drop for Kill {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let mut line = String::new();
+    std::io::BufRead::read_line(
+        &mut std::io::BufReader::new(server.stdout.take().unwrap()),
+        &mut line,
+    )
+    .unwrap();
+    let mut server = Kill(server);
+    let port: u16 = line
+        .split("http://127.0.0.1:")
+        .nth(1)
+        .and_then(|r| r.split('/').next())
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("no URL in {line:?}"));
+
+    // 200 idle connections held open for the whole test.
+    let idle: Vec<TcpStream> = (0..200)
+        .map(|_| TcpStream::connect(("127.0.0.1", port)).unwrap())
+        .collect();
+    // A huge declared body is refused unread; so are other methods, huge heads, many headers.
+    let r = http(
+        port,
+        b"POST /control HTTP/1.1\r\nContent-Length: 99999999999999\r\n\r\nabc",
+    );
+    assert!(r.starts_with("HTTP/1.1 413"), "{r}");
+    let r = http(
+        port,
+        b"GET / HTTP/1.1\r\nContent-Length: 99999999999999\r\n\r\n",
+    );
+    assert!(r.starts_with("HTTP/1.1 413"), "{r}");
+    let r = http(port, b"DELETE / HTTP/1.1\r\nConnection: close\r\n\r\n");
+    assert!(r.starts_with("HTTP/1.1 405"), "{r}");
+    let long = format!("GET /state?{} HTTP/1.1\r\n\r\n", "a".repeat(100_000));
+    assert!(http(port, long.as_bytes()).starts_with("HTTP/1.1 431"));
+    let many: String = (0..100).map(|i| format!("X-{i}: y\r\n")).collect();
+    let r = http(port, format!("GET / HTTP/1.1\r\n{many}\r\n").as_bytes());
+    assert!(r.starts_with("HTTP/1.1 431"), "{r}");
+    assert!(http(port, b"\x00\x01garbage\r\n\r\n").starts_with("HTTP/1.1 400"));
+    // Absurd parameter values get 400 with the value shortened; the render thread lives on.
+    for (q, want) in [
+        (
+            "speed=1e-300",
+            "speed 1e-300 must be 0 (paused) or in [0.01, 8]",
+        ),
+        ("speed=NaN", "speed NaN"),
+        ("speed=1e308", "speed 1e308"),
+        ("q=1e400", "q inf is outside [0, 2]"),
+        ("q=-1", "q -1 is outside"),
+        ("zoom=2", "unknown parameter 'zoom'"),
+    ] {
+        let r = get(port, &format!("/control?{q}"));
+        assert!(
+            r.starts_with("HTTP/1.1 400") && r.contains(want),
+            "{q}: {r}"
+        );
+    }
+    let r = get(port, &format!("/control?speed={}", "x".repeat(5000)));
+    assert!(
+        r.starts_with("HTTP/1.1 400") && r.contains("(5000 characters)"),
+        "{r}"
+    );
+    assert!(get(port, "/etc/passwd").starts_with("HTTP/1.1 404"));
+    assert!(get(port, "/control?speed=8").starts_with("HTTP/1.1 200"));
+    // The video keeps playing: the frame counter grows.
+    let frames = |r: String| -> u64 {
+        let body = r.split("\r\n\r\n").nth(1).unwrap_or("").to_string();
+        serde_json::from_str::<serde_json::Value>(&body).unwrap()["frames"]
+            .as_u64()
+            .unwrap()
+    };
+    let f0 = frames(get(port, "/state"));
+    std::thread::sleep(Duration::from_millis(700));
+    let f1 = frames(get(port, "/state"));
+    assert!(f1 > f0, "the renderer stopped: frames {f0} -> {f1}");
+    // New streams are answered while the idle connections are held, also 30 at once.
+    let streams: Vec<_> = (0..30)
+        .map(|_| std::thread::spawn(move || stream_parts(port, 3, Duration::from_secs(20))))
+        .collect();
+    let ok = streams
+        .into_iter()
+        .map(|t| t.join())
+        .filter(|r| matches!(r, Ok(true)))
+        .count();
+    assert_eq!(ok, 30, "only {ok} of 30 concurrent streams got frames");
+    assert!(server.0.try_wait().unwrap().is_none(), "vt view exited");
+    drop(idle);
 }
