@@ -23,6 +23,8 @@ pub fn num(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
         "0".into()
+    } else if v.fract() == 0.0 && a < 1e6 {
+        format!("{v:.0}")
     } else if !(1e-3..1e6).contains(&a) {
         format!("{v:.3e}")
     } else if a >= 1000.0 {

@@ -299,8 +299,8 @@ fn sweep_items(
 ) -> Result<Vec<Item>> {
     let mut t = Table::new(
         id,
-        title,
-        caption,
+        &format!("{title}: the figures"),
+        "The points of the plot above, with the model GRIC chose at each step.",
         &[
             x.label.as_str(),
             "chosen model",
