@@ -278,3 +278,35 @@ pub fn run(args: &[String]) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn out_dir_is_replaced_only_when_it_holds_a_report() {
+        let tmp = tempfile::tempdir().unwrap();
+        let fresh = tmp.path().join("new");
+        assert!(check_replaceable(&fresh).is_ok());
+        let foreign = tmp.path().join("foreign");
+        std::fs::create_dir(&foreign).unwrap();
+        std::fs::write(foreign.join("thesis.tex"), "mine").unwrap();
+        let err = check_replaceable(&foreign).unwrap_err().to_string();
+        assert!(err.contains("not an earlier vt report"), "{err}");
+        std::fs::write(
+            foreign.join("report.json"),
+            "{\"format\": \"something else\"}",
+        )
+        .unwrap();
+        assert!(check_replaceable(&foreign).is_err());
+        std::fs::write(
+            foreign.join("report.json"),
+            format!("{{\"format\": \"{FORMAT}\"}}"),
+        )
+        .unwrap();
+        assert!(check_replaceable(&foreign).is_ok());
+        let file = tmp.path().join("file");
+        std::fs::write(&file, "x").unwrap();
+        assert!(check_replaceable(&file).is_err());
+    }
+}

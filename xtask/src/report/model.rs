@@ -292,3 +292,35 @@ pub struct Report {
     /// The sections.
     pub sections: Vec<Section>,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pts(v: &[(f64, f64)]) -> Vec<Setting> {
+        v.iter()
+            .enumerate()
+            .map(|(i, &(x, y))| Setting::new(format!("{i}"), x, y, false))
+            .collect()
+    }
+
+    #[test]
+    fn pareto_front_keeps_exactly_the_undominated_points() {
+        // Lower is better on both: (1, 5), (2, 3), (4, 1) trade; (3, 4) is beaten by (2, 3);
+        // (2, 3) twice are both kept; NaN is never on the front.
+        let p = pts(&[
+            (3.0, 4.0),
+            (4.0, 1.0),
+            (1.0, 5.0),
+            (2.0, 3.0),
+            (f64::NAN, 0.0),
+            (2.0, 3.0),
+        ]);
+        assert_eq!(
+            pareto_front(&p, Better::Lower, Better::Lower),
+            vec![2, 3, 5, 1]
+        );
+        // Higher y is better: (4, 1) is now the worst y; (1, 5) beats everything.
+        assert_eq!(pareto_front(&p, Better::Lower, Better::Higher), vec![2]);
+    }
+}
