@@ -71,6 +71,10 @@ pub struct AnalyzeArgs {
     /// frame step (0 = masks only, the thesis).
     #[arg(long, default_value_t = 1.0)]
     appearance: f32,
+    /// Refine the homographies by aligning the median backgrounds (kept only where it lowers the
+    /// photometric error and agrees with the points): on or off.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    refine: String,
 }
 
 impl AnalyzeArgs {
@@ -94,6 +98,7 @@ impl AnalyzeArgs {
             noise_k: 3.0,
             dynamic: "on".into(),
             appearance: 1.0,
+            refine: "on".into(),
         }
     }
 
@@ -179,6 +184,7 @@ impl AnalyzeArgs {
             alternative_loops: self.alternatives,
             cache_bytes: self.cache_mb << 20,
             appearance: self.appearance,
+            refine: self.refine == "on",
             noise: vt_core::noise::NoiseParams {
                 k: self.noise_k,
                 dynamic: self.dynamic == "on",

@@ -48,9 +48,12 @@ pub struct RenderOptions {
     /// Crossfade the object over this many frames after a loop wrap or view switch (0 = off).
     #[arg(long, default_value_t = 0)]
     crossfade: usize,
-    /// Compensate per-view exposure differences (estimated from the backgrounds).
+    /// Compensate per-view exposure differences (estimated from the backgrounds; the default).
     #[arg(long)]
     gain_compensation: bool,
+    /// Do not compensate exposure differences (the thesis).
+    #[arg(long, conflicts_with = "gain_compensation")]
+    no_gain_compensation: bool,
 }
 
 impl RenderOptions {
@@ -62,7 +65,7 @@ impl RenderOptions {
                 Interpolation::Bilinear
             },
             crossfade: self.crossfade,
-            gain_compensation: self.gain_compensation,
+            gain_compensation: self.gain_compensation || !self.no_gain_compensation,
         }
     }
 }
@@ -95,6 +98,7 @@ pub const MAX_SECONDS_LONG: f64 = 86_400.0;
 pub const MAX_FRAMES: usize = 5_184_000;
 
 /// A viewpoint path, sampled per output frame. Its length is checked (at most [`MAX_SECONDS`] of
+                no_gain_compensation: false,
 /// output, [`MAX_SECONDS_LONG`] with `long`, and [`MAX_FRAMES`] frames) before any of it is built.
 pub fn path_qs(
     spec: &str,

@@ -97,6 +97,9 @@ fn scene(w: u32, h: u32, views: usize, frames: usize) -> (RenderScene, Objects) 
                             if u * u + v * v < 0.25 {
                                 let i = (y * pw + x) as usize;
                                 patch.mask[i] = 1;
+            dynamic: None,
+            next_seam: Vec::new(),
+            prev_seam: Vec::new(),
                                 patch.rgb[i * 3..i * 3 + 3].copy_from_slice(&[
                                     40,
                                     160 + (x % 60) as u8,

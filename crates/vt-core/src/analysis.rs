@@ -12,11 +12,15 @@ use image::RgbImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::appearance::{self, change_thumb, thumb_factor, Thumb};
 use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, GaussianParams};
-use crate::loops::{find_loops, Loop, LoopParams};
+use crate::loops::{check_loop_input, loops_from_pair_costs, pair_costs, Loop, LoopParams};
 use crate::median::{temporal_median, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
-use crate::transition::{mean_step, seam_score, transition_table_with_costs, warp_masks};
+use crate::noise::{noise_mask, noise_model, FrameSample, MotionKept, NoiseModel, NoiseParams};
+use crate::transition::{
+    seam_score, transition_range, transitions_from_pair_costs, warp_masks, xor_pair_costs,
+};
 use crate::{Error, Homography, Mask, Point, Result};
 
 /// Where a view's frames come from. Implemented by the decoders in `vt-io` and by in-memory
@@ -120,6 +124,18 @@ pub struct AnalyzeParams {
     pub loops: LoopParams,
     /// Geometric model selection.
     pub model: ModelParams,
+    /// Per-pixel noise-model masks and the dynamic region ([`crate::noise`]); scenes written
+    /// before it existed read as [`NoiseParams::off`].
+    #[serde(default = "NoiseParams::off")]
+    pub noise: NoiseParams,
+    /// Weight of the appearance term in eq. (1) and (2) ([`crate::appearance`]; 0 = masks only,
+    /// the thesis, and what scenes written before it existed used).
+    #[serde(default)]
+    pub appearance: f32,
+    /// Refine each `H_(p,p+1)` by aligning the two median backgrounds ([`crate::align`]); scenes
+    /// written before it existed read as off.
+    #[serde(default)]
+    pub refine: bool,
     /// Also report this many next-best *distinct* loops per view (see
     /// [`crate::loops::find_loops`]; distinct = more than `window` frames apart in m or n).
     #[serde(default)]
@@ -139,6 +155,9 @@ impl Default for AnalyzeParams {
         Self {
             blur: GaussianParams::default(),
             mask: MaskParams::default(),
+            noise: NoiseParams::default(),
+            appearance: 1.0,
+            refine: true,
             loops: LoopParams::default(),
             model: ModelParams::default(),
             alternative_loops: 0,
@@ -221,17 +240,37 @@ pub struct ViewResult {
     pub alternatives: Vec<Loop>,
     /// Fraction of pixels set, averaged over frames (how much of the view moves).
     pub moving_fraction: f64,
-    /// Mean `XOR(I(s), I(s+1))`: an ordinary step, the unit of seam scores.
+    /// Mean pair cost of an ordinary step `(s, s+1)` inside the loop (`XOR + kappa * A`): the unit
+    /// of seam scores, taken inside the loop so frames playback never shows cannot distort it.
     pub mean_step: f64,
+    /// The appearance term's unit factor ([`crate::appearance::kappa`]; 0 when off).
+    pub kappa: f64,
+    /// Change thumbnails of every frame (empty when the appearance term is off).
+    pub thumbs: Vec<Thumb>,
+    /// Their block factor.
+    pub thumb_factor: u32,
     /// Seam score of the loop wrap ([`crate::transition::seam_score`] of the eq. (1) cost).
     pub loop_seam: f64,
+    /// Sensor noise estimate of the noise model, grey levels (None when the model is off).
+    pub noise_sigma: Option<f32>,
+    /// Feathered alpha of the dynamic region (None when off or nothing moves often).
+    pub dynamic_alpha: Option<image::GrayImage>,
+    /// Share of the image in the dynamic region.
+    pub dynamic_fraction: f64,
+    /// Share of the real frame-to-frame change the view keeps at its own viewpoint
+    /// ([`crate::noise::MotionKept`]).
+    pub motion_kept: f64,
 }
 
 /// A neighbour link `p -> p + 1`.
 #[derive(Debug, Clone)]
 pub struct Link {
-    /// `H_(p,p+1)`.
+    /// `H_(p,p+1)` in use: refined from the backgrounds when that was kept, else from the points.
     pub homography: Homography,
+    /// `H_(p,p+1)` fitted to the marked points.
+    pub points_homography: Homography,
+    /// The background alignment (None when refinement is off).
+    pub refinement: Option<Refinement>,
     /// RMS transfer error of the points, pixels.
     pub rms: f64,
     /// `t_{p+1}(s, p)` for every frame `s` of view `p`.
@@ -240,6 +279,23 @@ pub struct Link {
     pub backward: Vec<Option<usize>>,
     /// Mean seam score of the forward and backward switches over the frames on each loop.
     pub seam: f64,
+    /// Seam score of every forward switch (`s -> forward[s] + 1`), in the target's step unit.
+    pub forward_seam: Vec<f32>,
+    /// Seam score of every backward switch.
+    pub backward_seam: Vec<f32>,
+}
+
+/// How a link's homography was refined from the backgrounds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Refinement {
+    /// RMS photometric error (grey levels) with the points' homography.
+    pub error_before: f64,
+    /// RMS photometric error with the refined homography.
+    pub error_after: f64,
+    /// RMS transfer error of the marked points under the refined homography, pixels.
+    pub points_rms: f64,
+    /// Whether the refined homography is used (it lowered the error and agrees with the points).
+    pub kept: bool,
 }
 
 /// The whole analysis.
@@ -255,6 +311,10 @@ pub struct SceneAnalysis {
     pub selection: Option<Selection>,
     /// `links[p]` joins view p and p + 1.
     pub links: Vec<Link>,
+    /// Points consistent with the refined homographies (the marked points carried through the
+    /// chain and averaged over the views; None unless some link was refined). The renderer's
+    /// `x_p`.
+    pub refined_points: Option<Vec<Vec<Point>>>,
     /// Where the time went.
     pub timings: Timings,
 }
@@ -300,6 +360,14 @@ pub fn analyze(
             )));
         }
     }
+    params.noise.check()?;
+    if !(params.appearance.is_finite() && (0.0..=1000.0).contains(&params.appearance)) {
+        return Err(Error::InvalidParameter {
+            name: "appearance",
+            value: params.appearance.to_string(),
+            why: "the appearance weight must be in 0..=1000 (0 = masks only)".into(),
+        });
+    }
     let mut timings = Timings::default();
     // The points are cheap to check: select the model and fit homographies before any decoding.
     let mut selection = None;
@@ -323,27 +391,84 @@ pub fn analyze(
     }
     let (width, height) = size.expect("every view has at least one frame");
 
+    // Refinement of H_(p,p+1) from the backgrounds, inside the marked points' hull and outside
+    // the dynamic region (the whole hull when too little of it is static).
+    let mut used: Vec<Homography> = Vec::new();
+    let mut refinements: Vec<Option<Refinement>> = Vec::new();
+    let mut refined_points = None;
+    if let Some(sel) = &selection {
+        let t0 = Instant::now();
+        // Marking deviation implied by the fits: the RMS residual over all links, scaled up by
+        // the residual degrees of freedom (2K measurements, `dof` used by the model), and halved
+        // because a residual carries the noise of both views' points (about 2 sigma).
+        let k2 = 2.0 * points[0].len() as f64;
+        let dof = sel.model.dof() as f64;
+        let mean_sq = sel.fits.iter().map(|f| f.rms * f.rms).sum::<f64>() / sel.fits.len() as f64;
+        let sigma_hat = mean_sq.sqrt() * (k2 / (k2 - dof).max(1.0)).sqrt() / 2.0;
+        for p in 0..m - 1 {
+            let init = sel.fits[p].homography;
+            if !params.refine {
+                used.push(init);
+                refinements.push(None);
+                continue;
+            }
+            let hull = crate::align::hull_mask(&points[p], width, height);
+            let region = match &views[p].dynamic_alpha {
+                Some(al) => {
+                    let raw = al.as_raw();
+                    let r = Mask::from_fn(width, height, |x, y| {
+                        hull.get(x, y) && raw[(y * width + x) as usize] == 0
+                    });
+                    if r.count_ones() * 4 >= hull.count_ones() {
+                        r
+                    } else {
+                        hull
+                    }
+                }
+                None => hull,
+            };
+            let a = crate::align::align_backgrounds(
+                &views[p].background,
+                &views[p + 1].background,
+                &init,
+                &region,
+                sel.model,
+                &crate::align::AlignParams::default(),
+            )?;
+            // Keep it only if it also agrees with the points: their transfer error may grow to
+            // twice the fit's, or by three marking deviations, no more (a background off the
+            // marked plane aligns well but to the wrong plane). The marking deviation is the one
+            // the fits' residuals imply: exact points (synthetic scenes, or just enough points
+            // for the model) leave no room, and the points decide.
+            let points_rms = a.homography.rms_error(&points[p], &points[p + 1]);
+            let fit_rms = sel.fits[p].rms;
+            let bound = (2.0 * fit_rms).max(fit_rms + 3.0 * sigma_hat);
+            let kept = a.improved && points_rms <= bound;
+            used.push(if kept { a.homography } else { init });
+            refinements.push(Some(Refinement {
+                error_before: a.error_before,
+                error_after: a.error_after,
+                points_rms,
+                kept,
+            }));
+        }
+        if refinements.iter().flatten().any(|r| r.kept) {
+            refined_points = crate::align::consistent_points(points, &used);
+        }
+        timings.homographies += t0.elapsed();
+    }
+
     let mut links = Vec::new();
     if let Some(sel) = &selection {
         let t0 = Instant::now();
         observer.start(Stage::Transitions, None, Some(2 * (m - 1) as u64));
         for p in 0..m - 1 {
-            let h = sel.fits[p].homography;
+            let h = used[p];
             let (a, b) = (&views[p], &views[p + 1]);
             let w = params.loops.window;
-            let fwd = transition_table_with_costs(
-                &warp_masks(&a.masks, &h, width, height),
-                &b.masks,
-                b.best_loop.end,
-                w,
-            )?;
+            let fwd = transitions(a, b, &h, width, height, w)?;
             observer.tick();
-            let back = transition_table_with_costs(
-                &warp_masks(&b.masks, &h.inverse(), width, height),
-                &a.masks,
-                a.best_loop.end,
-                w,
-            )?;
+            let back = transitions(b, a, &h.inverse(), width, height, w)?;
             observer.tick();
             // Seam of switching from the frames playback can show (the loop m+1..=n).
             let on_loop = |v: &ViewResult, table: &[Option<(usize, u64)>], to: &ViewResult| {
@@ -358,14 +483,24 @@ pub fn analyze(
                 .chain(on_loop(b, &back, a))
                 .collect();
             let seam = seams.iter().sum::<f64>() / seams.len().max(1) as f64;
+            let seams_of = |t: &[Option<(usize, u64)>], to: &ViewResult| -> Vec<f32> {
+                t.iter()
+                    .map(|e| e.map_or(f32::MAX, |(_, c)| seam_score(c, w, to.mean_step) as f32))
+                    .collect()
+            };
+            let (forward_seam, backward_seam) = (seams_of(&fwd, b), seams_of(&back, a));
             let strip =
                 |t: Vec<Option<(usize, u64)>>| t.into_iter().map(|e| e.map(|(t, _)| t)).collect();
             links.push(Link {
                 homography: h,
+                points_homography: sel.fits[p].homography,
+                refinement: refinements[p],
                 rms: sel.fits[p].rms,
                 forward: strip(fwd),
                 backward: strip(back),
                 seam,
+                forward_seam,
+                backward_seam,
             });
         }
         observer.finish();
@@ -377,8 +512,39 @@ pub fn analyze(
         views,
         selection,
         links,
+        refined_points,
         timings,
     })
+}
+
+/// Eq. (2) from view `a` to view `b` (`h` maps a to b), with the appearance term when both views
+/// have thumbnails (the target's kappa puts it in the target's unit).
+fn transitions(
+    a: &ViewResult,
+    b: &ViewResult,
+    h: &Homography,
+    width: u32,
+    height: u32,
+    window: usize,
+) -> Result<Vec<Option<(usize, u64)>>> {
+    let warped = warp_masks(&a.masks, h, width, height);
+    let Some((t_max, t_frames)) = transition_range(&warped, &b.masks, b.best_loop.end, window)?
+    else {
+        return Ok(vec![None; warped.len()]);
+    };
+    let mut d = xor_pair_costs(&warped, &b.masks, t_frames);
+    if b.kappa > 0.0 && !a.thumbs.is_empty() && !b.thumbs.is_empty() {
+        let (wt, valid) = appearance::warp_thumbs(&a.thumbs, h, a.thumb_factor);
+        let app = appearance::cross_pair_costs(&wt, &valid, &b.thumbs, t_frames);
+        appearance::combine(&mut d, &app, b.kappa);
+    }
+    Ok(transitions_from_pair_costs(
+        &d,
+        warped.len(),
+        t_frames,
+        t_max,
+        window,
+    ))
 }
 
 /// The model chosen, if any.
@@ -406,6 +572,10 @@ fn analyze_view(
     let mut acc: Option<MedianAccumulator> = None;
     let mut cache: Option<Vec<RgbImage>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
+    let mut sample = params
+        .noise
+        .enabled()
+        .then(|| FrameSample::new(params.noise.sample_frames));
     let mut inside = Duration::ZERO;
     let t_pass = Instant::now();
     let too_many = |e: Error| match e {
@@ -439,6 +609,9 @@ fn analyze_view(
             _ => {}
         }
         cached_bytes += frame.as_raw().len();
+        if let Some(s) = sample.as_mut() {
+            s.offer(i, frame);
+        }
         match cache.as_mut() {
             Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.clone()),
             _ => {
@@ -475,6 +648,54 @@ fn analyze_view(
     };
     let bg_blur = gaussian_blur(&background, &params.blur)?;
     timings.median += t.elapsed() + inside;
+    // The noise model and dynamic region, from the evenly spaced sample.
+    let model: Option<NoiseModel> = match sample {
+        Some(s) => {
+            let t = Instant::now();
+            let blurred: Vec<RgbImage> = s
+                .into_frames()
+                .par_iter()
+                .map(|f| gaussian_blur(f, &params.blur))
+                .collect::<Result<_>>()?;
+            let m = noise_model(&bg_blur, &blurred, &params.noise)?;
+            timings.masks += t.elapsed();
+            Some(m)
+        }
+        None => None,
+    };
+    let thresholds = model
+        .as_ref()
+        .filter(|_| params.noise.k > 0.0)
+        .map(|m| m.thresholds.as_slice());
+    let alpha = model.as_ref().and_then(|m| m.alpha.as_ref());
+    // What the object store keeps per frame: the mask, plus the dynamic region's alpha support.
+    let support = alpha.map(|a| {
+        let raw = a.as_raw();
+        Mask::from_index_fn(a.width(), a.height(), |i| raw[i] > 0)
+    });
+    let shown = |m: &Mask| -> Mask {
+        match &support {
+            Some(s) => {
+                let (a, b) = (m.words(), s.words());
+                Mask::from_index_fn(m.width(), m.height(), |i| {
+                    ((a[i / 64] | b[i / 64]) >> (i % 64)) & 1 == 1
+                })
+            }
+            None => m.clone(),
+        }
+    };
+    let mask_of = |blurred: &RgbImage| -> Result<Mask> {
+        match thresholds {
+            Some(t) => Ok(noise_mask(blurred, &bg_blur, t)?
+                .open(params.mask.open_radius)
+                .close(params.mask.close_radius)),
+            None => foreground_mask(blurred, &bg_blur, &params.mask),
+        }
+    };
+    let mut kept = MotionKept::new();
+    let with_thumbs = params.appearance > 0.0;
+    let factor = thumb_factor(bg_blur.width(), bg_blur.height());
+    let mut thumbs: Vec<Thumb> = Vec::new();
 
     // Pass 2: masks.
     observer.start(Stage::Masks, Some(p), Some(n1 as u64));
@@ -485,19 +706,23 @@ fn analyze_view(
         // One frame per thread, buffers reused: no allocation per frame but the mask.
         let blur = GaussianBlur::new(&params.blur)?;
         let (w, h) = bg_blur.dimensions();
-        let computed: Result<Vec<Mask>> = frames
+        let computed: Result<Vec<(Mask, Option<Thumb>)>> = frames
             .par_iter()
             .map_init(
                 || (BlurScratch::default(), RgbImage::new(w, h)),
                 |(scratch, blurred), f| {
                     blur.apply_into(f, blurred, scratch)?;
-                    foreground_mask(blurred, &bg_blur, &params.mask)
+                    let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
+                    Ok((mask_of(blurred)?, thumb))
                 },
             )
             .collect();
-        masks = computed?;
+        let (m, th): (Vec<Mask>, Vec<Option<Thumb>>) = computed?.into_iter().unzip();
+        masks = m;
+        thumbs = th.into_iter().flatten().collect();
         for (i, (m, f)) in masks.iter().zip(&frames).enumerate() {
-            observer.object_frame(p, i, m, f)?;
+            observer.object_frame(p, i, &shown(m), f)?;
+            kept.push(f, m, &background, alpha);
             observer.tick();
         }
         timings.masks += t.elapsed();
@@ -514,8 +739,12 @@ fn analyze_view(
                 ));
             }
             gaussian_blur_into(frame, &params.blur, &mut blurred)?;
-            let m = foreground_mask(&blurred, &bg_blur, &params.mask)?;
-            observer.object_frame(p, i, &m, frame)?;
+            let m = mask_of(&blurred)?;
+            if with_thumbs {
+                thumbs.push(change_thumb(&blurred, &bg_blur, factor));
+            }
+            observer.object_frame(p, i, &shown(&m), frame)?;
+            kept.push(frame, &m, &background, alpha);
             masks.push(m);
             observer.tick();
             inside += t.elapsed();
@@ -534,20 +763,52 @@ fn analyze_view(
 
     let t = Instant::now();
     observer.start(Stage::Loop, Some(p), None);
-    let mut loops = find_loops(
-        &masks,
+    // Eq. (1), with the appearance term in the unit of the masks' ordinary step.
+    check_loop_input(masks.len(), &params.loops, &label(""))?;
+    crate::mask::check_same_size(&masks, &label(""))?;
+    let xor_steps: Vec<u64> = masks
+        .par_windows(2)
+        .map(|w| crate::mask::xor_count(&w[0], &w[1]))
+        .collect();
+    let app_steps: Vec<u64> = thumbs
+        .par_windows(2)
+        .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
+        .collect();
+    let mean = |v: &[u64]| v.iter().sum::<u64>() as f64 / v.len().max(1) as f64;
+    let kappa = appearance::kappa(
+        params.appearance as f64,
+        mean(&xor_steps),
+        mean(&app_steps),
+    );
+    let mut d = pair_costs(&masks, params.loops.min_length);
+    if kappa > 0.0 {
+        let app = appearance::loop_pair_costs(&thumbs, params.loops.min_length);
+        appearance::combine(&mut d, &app, kappa);
+    }
+    let mut loops = loops_from_pair_costs(
+        &d,
+        masks.len(),
         &params.loops,
         1 + params.alternative_loops,
         params.loops.window,
-        &label(""),
-    )?;
+    );
     let alternatives = loops.split_off(1);
     let best_loop = loops[0];
     observer.finish();
     timings.loops += t.elapsed();
     let total_px = masks.len() as f64 * masks[0].len() as f64;
     let moving_fraction = masks.iter().map(|m| m.count_ones() as f64).sum::<f64>() / total_px;
-    let step = mean_step(&masks);
+    // The seam unit: an ordinary step of the frames playback shows (the loop m+1..=n).
+    let step = {
+        let range = best_loop.start + 1..best_loop.end;
+        let n = range.len().max(1) as f64;
+        range
+            .map(|s| {
+                xor_steps[s] as f64 + kappa * app_steps.get(s).copied().unwrap_or(0) as f64
+            })
+            .sum::<f64>()
+            / n
+    };
     let loop_seam = seam_score(best_loop.cost, params.loops.window, step);
     Ok(ViewResult {
         name,
@@ -558,7 +819,16 @@ fn analyze_view(
         alternatives,
         moving_fraction,
         mean_step: step,
+        kappa,
+        thumbs,
+        thumb_factor: factor,
         loop_seam,
+        noise_sigma: model.as_ref().map(|m| m.sigma0),
+        dynamic_fraction: support
+            .as_ref()
+            .map_or(0.0, |s| s.count_ones() as f64 / s.len() as f64),
+        dynamic_alpha: model.and_then(|m| m.alpha),
+        motion_kept: kept.share(),
     })
 }
 

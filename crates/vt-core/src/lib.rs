@@ -10,7 +10,9 @@
 //! coordinates `(x, y) = (column, row)`, origin top-left, as in OpenCV.
 #![deny(missing_docs)]
 
+pub mod align;
 pub mod analysis;
+pub mod appearance;
 pub mod blur;
 mod error;
 pub mod homography;
@@ -19,6 +21,7 @@ pub mod mask;
 pub mod median;
 pub mod metrics;
 pub mod model;
+pub mod noise;
 pub mod render;
 pub mod rng;
 pub mod transition;

@@ -89,7 +89,7 @@ pub fn check_loop_input(n_frames: usize, params: &LoopParams, what: &str) -> Res
 }
 
 /// Row-major matrix of `XOR(I(a), I(b))` for `b - a >= k`, `b < N` (0 elsewhere).
-fn pair_costs(masks: &[Mask], k: usize) -> Vec<u64> {
+pub fn pair_costs(masks: &[Mask], k: usize) -> Vec<u64> {
     let n = masks.len();
     let active = union_active_words(masks);
     let mut d = vec![0u64; n * n];

@@ -54,16 +54,29 @@ pub fn transition_table_with_costs(
     let Some((t_max, t_frames)) = transition_range(warped, target, target_loop_end, window)? else {
         return Ok(vec![None; warped.len()]);
     };
+    let d = xor_pair_costs(warped, target, t_frames);
+    Ok(transitions_from_pair_costs(
+        &d,
+        warped.len(),
+        t_frames,
+        t_max,
+        window,
+    ))
+}
+
+/// Row-major `warped.len() x t_frames` matrix `D(s, t) = XOR(H(I_p(s)), I_{p'}(t))`.
+pub fn xor_pair_costs(warped: &[Mask], target: &[Mask], t_frames: usize) -> Vec<u64> {
     let active = union_active_words(warped.iter().chain(&target[..t_frames]));
     let ns = warped.len();
-    // D(s, t) for all s, t < t_frames.
     let mut d = vec![0u64; ns * t_frames];
-    d.par_chunks_mut(t_frames).enumerate().for_each(|(s, row)| {
-        for (t, v) in row.iter_mut().enumerate() {
-            *v = xor_count_in(&warped[s], &target[t], active.clone());
-        }
-    });
-    Ok(transitions_from_pair_costs(&d, ns, t_frames, t_max, window))
+    d.par_chunks_mut(t_frames.max(1))
+        .enumerate()
+        .for_each(|(s, row)| {
+            for (t, v) in row.iter_mut().enumerate() {
+                *v = xor_count_in(&warped[s], &target[t], active.clone());
+            }
+        });
+    d
 }
 
 /// Checks eq. (2)'s inputs. `None` when the target loop is too short for any t (every entry is

@@ -97,6 +97,10 @@ pub struct ViewEntry {
     pub to_prev: Option<LinkEntry>,
     /// Eq. (2) tables.
     pub transitions: Transitions,
+    /// Points consistent with the refined homographies, the renderer's `x_p` (absent: the
+    /// marked points are used).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_points: Option<Vec<[f64; 2]>>,
     /// Dynamic-region alpha image, relative to the scene (absent: none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dynamic: Option<String>,
@@ -143,19 +147,42 @@ pub struct LinkEntry {
     /// Mean seam score of switching between the two views (both directions).
     #[serde(default)]
     pub seam: f64,
+    /// The homography fitted to the marked points, when `homography` is the refined one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub points_homography: Option<[[f64; 3]; 3]>,
+    /// The background alignment's figures (absent when refinement was off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<vt_core::analysis::Refinement>,
+}
+
+fn rows(h: &Homography) -> [[f64; 3]; 3] {
+    let m = h.matrix();
+    [
+        [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+        [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+        [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+    ]
 }
 
 impl LinkEntry {
     fn from_h(h: &Homography, rms: f64, seam: f64) -> Self {
-        let m = h.matrix();
         Self {
             seam,
-            homography: [
-                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-            ],
+            homography: rows(h),
             rms,
+            points_homography: None,
+            refinement: None,
+        }
+    }
+
+    /// A link entry from an analysis link, `forward` for `H_(p,p+1)`, else its inverse.
+    fn from_link(l: &vt_core::analysis::Link, forward: bool) -> Self {
+        let pick = |h: Homography| if forward { h } else { h.inverse() };
+        let refined = l.refinement.is_some_and(|r| r.kept);
+        Self {
+            points_homography: refined.then(|| rows(&pick(l.points_homography))),
+            refinement: l.refinement,
+            ..Self::from_h(&pick(l.homography), l.rms, l.seam)
         }
     }
 
@@ -179,6 +206,13 @@ pub struct Transitions {
     pub next: Vec<Option<usize>>,
     /// `t_{p-1}(s, p)`: all null for the first view.
     pub prev: Vec<Option<usize>>,
+    /// Seam score of each `next` switch (ordinary steps of the target; empty in scenes analysed
+    /// before seams were kept per switch).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub next_seam: Vec<f32>,
+    /// Seam score of each `prev` switch.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub prev_seam: Vec<f32>,
 }
 
 /// File name of view p's background.
@@ -244,14 +278,18 @@ impl SceneFile {
                     loop_seam: v.loop_seam,
                     loop_: v.best_loop.into(),
                     alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
-                    to_next: next.map(|l| LinkEntry::from_h(&l.homography, l.rms, l.seam)),
-                    to_prev: prev
-                        .map(|l| LinkEntry::from_h(&l.homography.inverse(), l.rms, l.seam)),
+                    to_next: next.map(|l| LinkEntry::from_link(l, true)),
+                    to_prev: prev.map(|l| LinkEntry::from_link(l, false)),
+                    refined_points: a.refined_points.as_ref().and_then(|r| {
+                        r.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
+                    }),
                     transitions: Transitions {
                         next: next
                             .map(|l| l.forward.clone())
                             .unwrap_or_else(|| none.clone()),
                         prev: prev.map(|l| l.backward.clone()).unwrap_or(none),
+                        next_seam: next.map(|l| l.forward_seam.clone()).unwrap_or_default(),
+                        prev_seam: prev.map(|l| l.backward_seam.clone()).unwrap_or_default(),
                     },
                     dynamic: v.dynamic_alpha.as_ref().map(|_| dynamic_name(p)),
                     dynamic_fraction: v.dynamic_fraction,
@@ -519,7 +557,16 @@ impl LoadedScene {
                 loop_end: v.loop_.end,
                 next: v.transitions.next.clone(),
                 prev: v.transitions.prev.clone(),
-                points: v.points.iter().map(|p| Point::new(p[0], p[1])).collect(),
+                next_seam: v.transitions.next_seam.clone(),
+                prev_seam: v.transitions.prev_seam.clone(),
+                points: v
+                    .refined_points
+                    .as_ref()
+                    .filter(|r| r.len() == v.points.len())
+                    .unwrap_or(&v.points)
+                    .iter()
+                    .map(|p| Point::new(p[0], p[1]))
+                    .collect(),
             });
         }
         let model = file
