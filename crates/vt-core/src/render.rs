@@ -28,7 +28,9 @@ use rayon::prelude::*;
 
 use crate::model::{fit_model, MotionModel};
 use crate::round_u8;
-use crate::warp::{state, Border, Interpolation, Mapping, Run, Sampler, CHUNK};
+use crate::warp::{
+    interleave, state, Border, Interpolation, Mapping, Run, Sampler, CHUNK, ROWS_PER_JOB,
+};
 use crate::{Error, Homography, Point, Result};
 
 /// A view as the renderer needs it.
@@ -631,67 +633,71 @@ fn blend_warps<'a>(sources: &[Source<'a>], interp: Interpolation, out: &mut RgbI
     }
     let size = out.dimensions();
     let sampler = |s: &Source<'a>| {
-        let sampler = Sampler::new(s.image, s.h, interp, Border::Replicate, Mapping::Division, size);
+        let sampler = Sampler::new(
+            s.image,
+            s.h,
+            interp,
+            Border::Replicate,
+            Mapping::Division,
+            size,
+        );
         // weight * gain_inv[k], in the order the per-pixel formula multiplies them.
         let wg = s.gain_inv.map(|g| s.weight * g);
         (sampler, wg, s.weight)
     };
     let first = sampler(&sources[0]);
+    // One source: the second contributes nothing (its state stays NONE).
     let second = sources.get(1).map(sampler);
     out.as_mut()
-        .par_chunks_mut(w * 3)
+        .par_chunks_mut(w * 3 * ROWS_PER_JOB)
         .enumerate()
-        .for_each(|(y, row)| {
-                // On the stack: rayon's per-job init would allocate once per split.
-                let (r0, r1) = (&mut Run::default(), &mut Run::default());
+        .for_each(|(band, rows)| {
+            // On the stack, once per band: rayon's per-job init would allocate.
+            let (r0, r1) = (&mut Run::default(), &mut Run::default());
+            let mut bytes = [[0u8; CHUNK]; 3];
+            for (r, row) in rows.chunks_mut(w * 3).enumerate() {
+                let y = band * ROWS_PER_JOB + r;
                 for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
                     let n = px.len() / 3;
                     first.0.run(y, c * CHUNK, n, r0);
-                    if let Some(s) = &second {
-                        s.0.run(y, c * CHUNK, n, r1);
-                    }
-                    for (i, o) in px.chunks_exact_mut(3).enumerate() {
-                        let mut acc = [0f32; 3];
-                        let mut acc_all = [0f32; 3];
-                        let (mut wsum, mut wsum_all) = (0f32, 0f32);
-                        let mut add = |run: &Run, wg: &[f32; 3], weight: f32| {
-                            let st = run.state[i];
-                            if st == state::NONE {
-                                return;
-                            }
-                            let inside = st == state::INSIDE;
-                            let c = &run.value[i];
-                            for k in 0..3 {
-                                let v = wg[k] * c[k];
-                                acc_all[k] += v;
-                                if inside {
-                                    acc[k] += v;
-                                }
-                            }
-                            wsum_all += weight;
-                            if inside {
-                                wsum += weight;
-                            }
-                        };
-                        add(r0, &first.1, first.2);
-                        if let Some(s) = &second {
-                            add(r1, &s.1, s.2);
+                    let (wg1, weight1) = match &second {
+                        Some(s) => {
+                            s.0.run(y, c * CHUNK, n, r1);
+                            (s.1, s.2)
                         }
-                        let (acc, wsum) = if wsum > 0.0 {
-                            (acc, wsum)
-                        } else {
-                            (acc_all, wsum_all)
-                        };
-                        for k in 0..3 {
-                            o[k] = if wsum > 0.0 {
-                                round_u8(acc[k] / wsum)
-                            } else {
-                                0
-                            };
+                        None => ([0.0; 3], 0.0),
+                    };
+                    if second.is_none() {
+                        r1.state = [state::NONE; CHUNK];
+                    }
+                    let (wg0, weight0) = (first.1, first.2);
+                    // Per pixel, as a sum over the sources in order (vectorised across pixels):
+                    // v = weight * gain_inv * sample; acc over the sources whose sample is
+                    // inside, acc_all over all with a sample; divide by the matching weight sum.
+                    for k in 0..3 {
+                        for i in 0..CHUNK {
+                            let (s0, s1) = (r0.state[i], r1.state[i]);
+                            let (v0, v1) = (wg0[k] * r0.value[k][i], wg1[k] * r1.value[k][i]);
+                            // Selects instead of branches (so it vectorises); `0 + v` and
+                            // `v + 0` are `v`, so the sums equal the branchy ones bit for bit.
+                            let pick = |c: bool, v: f32| if c { v } else { 0.0 };
+                            let (in0, in1) = (s0 == state::INSIDE, s1 == state::INSIDE);
+                            let (has0, has1) = (s0 != state::NONE, s1 != state::NONE);
+                            let acc_in = (0.0 + pick(in0, v0)) + pick(in1, v1);
+                            let ws_in = (0.0 + pick(in0, weight0)) + pick(in1, weight1);
+                            let acc_all = (0.0 + pick(has0, v0)) + pick(has1, v1);
+                            let ws_all = (0.0 + pick(has0, weight0)) + pick(has1, weight1);
+                            let use_in = ws_in > 0.0;
+                            let acc = if use_in { acc_in } else { acc_all };
+                            let ws = if use_in { ws_in } else { ws_all };
+                            let v = round_u8(acc / ws);
+                            bytes[k][i] = if ws > 0.0 { v } else { 0 };
                         }
                     }
+                    interleave(&bytes, px);
                 }
-            });
+            }
+        });
 }
 
 /// Warps the object patch by `h` (inverse mapping over the forward image of the box) and writes
@@ -703,10 +709,10 @@ fn blend_warps<'a>(sources: &[Source<'a>], interp: Interpolation, out: &mut RgbI
 fn composite(
     patch: &ObjectPatch,
     h: &Homography,
-    dynamic: Option<&image::GrayImage>,
     interp: Interpolation,
     gain: [f32; 3],
     alpha: f32,
+    dynamic: Option<&image::GrayImage>,
     out: &mut RgbImage,
 ) {
     if patch.width == 0 || patch.height == 0 {
@@ -809,6 +815,9 @@ fn composite(
                     for v in &mut colour {
                         *v /= cover;
                     }
+                }
+            }
+            let o = (y as usize * ow as usize + x as usize) * 3;
             let alpha = match dynamic {
                 Some(d) => {
                     let (dw, dh) = (d.width() as i64, d.height() as i64);
@@ -825,9 +834,6 @@ fn composite(
                 }
                 None => alpha,
             };
-                }
-            }
-            let o = (y as usize * ow as usize + x as usize) * 3;
             for c in 0..3 {
                 let v = colour[c] / gain[c];
                 let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
@@ -855,12 +861,12 @@ mod tests {
             background: RgbImage::new(4, 4),
             loop_start: m,
             loop_end: n,
-            dynamic: None,
-            next_seam: Vec::new(),
-            prev_seam: Vec::new(),
             next,
             prev,
             points: pts(dx),
+            dynamic: None,
+            next_seam: Vec::new(),
+            prev_seam: Vec::new(),
         };
         let none = vec![None; 8];
         RenderScene {

@@ -33,14 +33,6 @@ fn round_even(v: f64) -> f64 {
     (v + ROUND_MAGIC) - ROUND_MAGIC
 }
 
-/// `floor(v)` as an integer for `|v| < 2^31` (callers clamp first): truncate, then step down
-/// for negative non-integers. Vectorises, unlike `f64::floor` on baseline x86-64.
-#[inline(always)]
-fn floor_i32(v: f64) -> i32 {
-    let t = v as i32;
-    t - ((t as f64) > v) as i32
-}
-
 /// `H^-1` row-major: `m[3 r + c]`.
 fn inverse_rows(h: &Homography) -> [f64; 9] {
     let inv = h.raw().1;
@@ -283,10 +275,10 @@ pub(crate) enum Mapping {
 }
 
 /// Samples of one run of output pixels: the value before rounding (`f32`, unrounded for the
-/// bilinear modes) and the [`state`] of each.
+/// bilinear modes) per channel, and the [`state`] of each pixel.
 pub(crate) struct Run {
-    /// Per pixel, RGB.
-    pub value: [[f32; 3]; CHUNK],
+    /// Per channel, per pixel (structure of arrays, so the callers' loops vectorise).
+    pub value: [[f32; CHUNK]; 3],
     /// Per pixel, one of [`state`].
     pub state: [u8; CHUNK],
     sx: [f64; CHUNK],
@@ -295,12 +287,16 @@ pub(crate) struct Run {
     iy: [i32; CHUNK],
     fx: [f32; CHUNK],
     fy: [f32; CHUNK],
+    /// Per pixel, the bytes `a b` (the 2x2 block's upper row, 6 bytes of RGB) and `c d` (its
+    /// lower row), little-endian: channel `k` of `a` is byte `k`, of `b` byte `k + 3`.
+    upper: [u64; CHUNK],
+    lower: [u64; CHUNK],
 }
 
 impl Default for Run {
     fn default() -> Self {
         Self {
-            value: [[0.0; 3]; CHUNK],
+            value: [[0.0; CHUNK]; 3],
             state: [0; CHUNK],
             sx: [0.0; CHUNK],
             sy: [0.0; CHUNK],
@@ -308,8 +304,34 @@ impl Default for Run {
             iy: [0; CHUNK],
             fx: [0.0; CHUNK],
             fy: [0.0; CHUNK],
+            upper: [0; CHUNK],
+            lower: [0; CHUNK],
         }
     }
+}
+
+/// Byte `k` of `v` (little-endian).
+#[inline(always)]
+fn byte(v: u64, k: usize) -> u32 {
+    (v >> (8 * k)) as u32 & 0xff
+}
+
+/// `floor(v)` for `|v| < 2^51` as an exact `f64`, by the rounding trick (vectorises).
+#[inline(always)]
+fn floor_exact(v: f64) -> f64 {
+    let r = round_even(v);
+    if r > v {
+        r - 1.0
+    } else {
+        r
+    }
+}
+
+/// An integer-valued `f64` of magnitude below `2^31` as `i32`, from the low mantissa bits of
+/// `v + 2^52 + 2^51` (no saturating conversion, so it vectorises).
+#[inline(always)]
+fn int_bits(v: f64) -> i32 {
+    (v + ROUND_MAGIC).to_bits() as u32 as i32
 }
 
 /// The one RGB sampler: a source, `H^-1`, an interpolation, a border and a mapping.
@@ -360,6 +382,9 @@ impl<'a> Sampler<'a> {
         debug_assert!(n <= CHUNK);
         if self.sw == 0 || self.sh == 0 {
             run.state[..n].fill(state::NONE);
+            for v in &mut run.value {
+                v[..n].fill(0.0);
+            }
             return;
         }
         match self.interp {
@@ -378,8 +403,9 @@ impl<'a> Sampler<'a> {
             Mapping::Reciprocal => 1e9,
             Mapping::Division => f64::MAX,
         };
+        let nearest = self.interp == Interpolation::Nearest;
         // States, then coordinates clamped to [-1, w] (which changes no sample: beyond it every
-        // tap is outside, or the same clamped edge pixel), so they fit an i32.
+        // tap is outside, or the same clamped edge pixel), floored (bilinear) or rounded.
         for i in 0..CHUNK {
             let (sx, sy) = (run.sx[i], run.sy[i]);
             let valid = sx.abs() <= limit && sy.abs() <= limit;
@@ -391,116 +417,115 @@ impl<'a> Sampler<'a> {
             } else {
                 state::OUTSIDE
             };
-            run.sx[i] = clamp_nan_lo(sx, -1.0, swf);
-            run.sy[i] = clamp_nan_lo(sy, -1.0, shf);
+            let (cx, cy) = (clamp_nan_lo(sx, -1.0, swf), clamp_nan_lo(sy, -1.0, shf));
+            let (bx, by) = if nearest {
+                (round_even(cx), round_even(cy))
+            } else {
+                (floor_exact(cx), floor_exact(cy))
+            };
+            run.ix[i] = int_bits(bx);
+            run.iy[i] = int_bits(by);
+            run.fx[i] = (cx - bx) as f32;
+            run.fy[i] = (cy - by) as f32;
         }
-        if self.interp == Interpolation::Nearest {
-            for i in 0..CHUNK {
-                run.ix[i] = round_even(run.sx[i]) as i32;
-                run.iy[i] = round_even(run.sy[i]) as i32;
-            }
-            for i in 0..n {
-                run.value[i] = self.tap(run.ix[i], run.iy[i]);
+        if nearest {
+            self.gather(n, run, false);
+            for k in 0..3 {
+                for i in 0..CHUNK {
+                    run.value[k][i] = byte(run.upper[i], k) as f32;
+                }
             }
             return;
         }
-        for i in 0..CHUNK {
-            let (sx, sy) = (run.sx[i], run.sy[i]);
-            let (fx, fy) = (floor_i32(sx), floor_i32(sy));
-            run.ix[i] = fx;
-            run.iy[i] = fy;
-            run.fx[i] = (sx - fx as f64) as f32;
-            run.fy[i] = (sy - fy as f64) as f32;
-        }
-        let stride = self.sw * 3;
-        let (wi, hi) = (self.sw as u32 - 1, self.sh as u32 - 1);
-        for i in 0..n {
-            let (x, y, fx, fy) = (run.ix[i], run.iy[i], run.fx[i], run.fy[i]);
-            let lerp = |a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]| -> [f32; 3] {
-                std::array::from_fn(|k| {
-                    let top = a[k] + (b[k] - a[k]) * fx;
-                    let bottom = c[k] + (d[k] - c[k]) * fx;
-                    top + (bottom - top) * fy
-                })
-            };
-            run.value[i] = if (x as u32) < wi && (y as u32) < hi {
-                // Interior: both rows' six bytes with one bounds check each.
-                let a = y as usize * stride + x as usize * 3;
-                let t: &[u8; 6] = self.raw[a..a + 6].try_into().expect("6 bytes");
-                let u: &[u8; 6] = self.raw[a + stride..a + stride + 6]
-                    .try_into()
-                    .expect("6 bytes");
-                let f = |s: &[u8; 6], o: usize| [s[o] as f32, s[o + 1] as f32, s[o + 2] as f32];
-                lerp(f(t, 0), f(t, 3), f(u, 0), f(u, 3))
-            } else {
-                lerp(
-                    self.tap(x, y),
-                    self.tap(x + 1, y),
-                    self.tap(x, y + 1),
-                    self.tap(x + 1, y + 1),
-                )
-            };
+        self.gather(n, run, true);
+        for k in 0..3 {
+            for i in 0..CHUNK {
+                let (t, u) = (run.upper[i], run.lower[i]);
+                let (a, b) = (byte(t, k) as f32, byte(t, k + 3) as f32);
+                let (c, d) = (byte(u, k) as f32, byte(u, k + 3) as f32);
+                let top = a + (b - a) * run.fx[i];
+                let bottom = c + (d - c) * run.fx[i];
+                run.value[k][i] = top + (bottom - top) * run.fy[i];
+            }
         }
     }
 
     fn run_fixed(&self, y: usize, x0: usize, n: usize, run: &mut Run) {
         map_fixed(&self.m, y, x0, self.block_w, &mut run.ix, &mut run.iy);
-        let (swq, shq) = (self.sw as i64 * 32 - 16, self.sh as i64 * 32 - 16);
-        let stride = self.sw * 3;
-        let (wi, hi) = (self.sw as u32 - 1, self.sh as u32 - 1);
-        for i in 0..n {
+        let (swq, shq) = (self.sw as i32 * 32 - 16, self.sh as i32 * 32 - 16);
+        let mut wx = [0i32; CHUNK];
+        let mut wy = [0i32; CHUNK];
+        for i in 0..CHUNK {
             let (qx, qy) = (run.ix[i], run.iy[i]);
-            let inside = qx >= -16 && qy >= -16 && (qx as i64) < swq && (qy as i64) < shq;
+            let inside = qx >= -16 && qy >= -16 && qx < swq && qy < shq;
             run.state[i] = if inside {
                 state::INSIDE
             } else {
                 state::OUTSIDE
             };
             // saturate_cast<short>(X >> INTER_BITS), and the fraction X & 31.
-            let (x, y) = (
-                (qx >> 5).clamp(-32768, 32767),
-                (qy >> 5).clamp(-32768, 32767),
-            );
-            let (ax, ay) = (qx & 31, qy & 31);
-            let w = [
-                (32 - ay) * (32 - ax),
-                (32 - ay) * ax,
-                ay * (32 - ax),
-                ay * ax,
-            ];
-            let sum: [i32; 3] = if (x as u32) < wi && (y as u32) < hi {
-                let a = y as usize * stride + x as usize * 3;
-                let t: &[u8; 6] = self.raw[a..a + 6].try_into().expect("6 bytes");
-                let u: &[u8; 6] = self.raw[a + stride..a + stride + 6]
-                    .try_into()
-                    .expect("6 bytes");
-                std::array::from_fn(|k| {
-                    t[k] as i32 * w[0]
-                        + t[k + 3] as i32 * w[1]
-                        + u[k] as i32 * w[2]
-                        + u[k + 3] as i32 * w[3]
-                })
+            run.ix[i] = (qx >> 5).clamp(-32768, 32767);
+            run.iy[i] = (qy >> 5).clamp(-32768, 32767);
+            wx[i] = qx & 31;
+            wy[i] = qy & 31;
+        }
+        self.gather(n, run, true);
+        for k in 0..3 {
+            for i in 0..CHUNK {
+                let (ax, ay) = (wx[i], wy[i]);
+                let (t, u) = (run.upper[i], run.lower[i]);
+                let top = byte(t, k) as i32 * (32 - ax) + byte(t, k + 3) as i32 * ax;
+                let bottom = byte(u, k) as i32 * (32 - ax) + byte(u, k + 3) as i32 * ax;
+                // OpenCV's sum over (32 - ay)(32 - ax) a + ..., exact in f32 (< 2^18);
+                // rounding it half up gives OpenCV's (sum + 512) >> 10.
+                let sum = top * (32 - ay) + bottom * ay;
+                run.value[k][i] = sum as f32 * (1.0 / 1024.0);
+            }
+        }
+    }
+
+    /// Loads the taps of pixels `0..n` (`ix`, `iy` set) into `run.upper` / `run.lower`: the
+    /// pixel itself (`block` false, into `upper`) or the 2x2 block to its lower right. The
+    /// interior is two unaligned 8-byte reads; the border goes through [`Sampler::tap`].
+    #[inline(always)]
+    fn gather(&self, n: usize, run: &mut Run, block: bool) {
+        let stride = self.sw * 3;
+        let (wi, hi) = (self.sw as u32 - 1, self.sh as u32 - 1);
+        let len = self.raw.len();
+        let read8 =
+            |at: usize| u64::from_le_bytes(self.raw[at..at + 8].try_into().expect("8 bytes"));
+        let pack =
+            |p: [u8; 3], q: [u8; 3]| u64::from_le_bytes([p[0], p[1], p[2], q[0], q[1], q[2], 0, 0]);
+        for i in 0..n {
+            let (x, y) = (run.ix[i], run.iy[i]);
+            let a = (y as usize)
+                .wrapping_mul(stride)
+                .wrapping_add((x as usize).wrapping_mul(3));
+            if !block {
+                run.upper[i] = if (x as u32) <= wi && (y as u32) <= hi && a + 8 <= len {
+                    read8(a)
+                } else {
+                    pack(self.tap(x, y), [0; 3])
+                };
+                continue;
+            }
+            if (x as u32) < wi && (y as u32) < hi && a + stride + 8 <= len {
+                run.upper[i] = read8(a);
+                run.lower[i] = read8(a + stride);
             } else {
-                let taps = [
-                    self.tap(x, y),
-                    self.tap(x + 1, y),
-                    self.tap(x, y + 1),
-                    self.tap(x + 1, y + 1),
-                ];
-                std::array::from_fn(|k| (0..4).map(|j| taps[j][k] as i32 * w[j]).sum::<i32>())
-            };
-            // Exact in f32 (sum < 2^18); rounding it half up gives OpenCV's (sum + 512) >> 10.
-            run.value[i] = sum.map(|s| s as f32 * (1.0 / 1024.0));
+                run.upper[i] = pack(self.tap(x, y), self.tap(x + 1, y));
+                run.lower[i] = pack(self.tap(x, y + 1), self.tap(x + 1, y + 1));
+            }
         }
     }
 
     /// One source pixel with the border rule.
     #[inline(always)]
-    fn tap(&self, x: i32, y: i32) -> [f32; 3] {
+    fn tap(&self, x: i32, y: i32) -> [u8; 3] {
         let (x, y) = match self.border {
             Border::Constant => {
                 if x < 0 || y < 0 || x as usize >= self.sw || y as usize >= self.sh {
-                    return [0.0; 3];
+                    return [0; 3];
                 }
                 (x as usize, y as usize)
             }
@@ -510,11 +535,7 @@ impl<'a> Sampler<'a> {
             ),
         };
         let i = (y * self.sw + x) * 3;
-        [
-            self.raw[i] as f32,
-            self.raw[i + 1] as f32,
-            self.raw[i + 2] as f32,
-        ]
+        [self.raw[i], self.raw[i + 1], self.raw[i + 2]]
     }
 }
 
@@ -553,24 +574,42 @@ pub fn warp_rgb_into(
         Mapping::Reciprocal,
         out.dimensions(),
     );
+    // Bands of rows per job, so the run buffer is set up once per band, on the stack (rayon's
+    // per-job init would allocate).
     out.as_mut()
-        .par_chunks_mut(ow * 3)
+        .par_chunks_mut(ow * 3 * ROWS_PER_JOB)
         .enumerate()
-        .for_each(|(y, row)| {
-            // On the stack: rayon's per-job init would allocate once per split.
+        .for_each(|(band, rows)| {
             let run = &mut Run::default();
-            for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
-                let n = px.len() / 3;
-                sampler.run(y, c * CHUNK, n, run);
-                for (i, o) in px.chunks_exact_mut(3).enumerate() {
-                    let keep = (run.state[i] != state::NONE) as u8 as f32;
-                    let v = run.value[i];
-                    o[0] = round_u8(v[0] * keep);
-                    o[1] = round_u8(v[1] * keep);
-                    o[2] = round_u8(v[2] * keep);
+            let mut bytes = [[0u8; CHUNK]; 3];
+            for (r, row) in rows.chunks_mut(ow * 3).enumerate() {
+                let y = band * ROWS_PER_JOB + r;
+                for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
+                    let n = px.len() / 3;
+                    sampler.run(y, c * CHUNK, n, run);
+                    for k in 0..3 {
+                        for i in 0..CHUNK {
+                            let keep = (run.state[i] != state::NONE) as u8 as f32;
+                            bytes[k][i] = round_u8(run.value[k][i] * keep);
+                        }
+                    }
+                    interleave(&bytes, px);
                 }
             }
         });
+}
+
+/// Rows per parallel job of the row passes (warps, the renderer's blend).
+pub(crate) const ROWS_PER_JOB: usize = 4;
+
+/// Writes per-channel bytes back as interleaved RGB (`px.len() / 3` pixels).
+#[inline(always)]
+pub(crate) fn interleave(bytes: &[[u8; CHUNK]; 3], px: &mut [u8]) {
+    for (i, o) in px.chunks_exact_mut(3).enumerate() {
+        o[0] = bytes[0][i];
+        o[1] = bytes[1][i];
+        o[2] = bytes[2][i];
+    }
 }
 
 #[cfg(test)]
@@ -902,8 +941,9 @@ mod tests {
                         let n = (w - x0).min(CHUNK as u32) as usize;
                         sampler.run(y as usize, x0 as usize, n, &mut run);
                         for i in 0..n {
+                            let value = [run.value[0][i], run.value[1][i], run.value[2][i]];
                             let got = (run.state[i] != state::NONE)
-                                .then(|| (run.value[i], run.state[i] == state::INSIDE));
+                                .then_some((value, run.state[i] == state::INSIDE));
                             let want = reference_division(&src, &h, interp, x0 + i as u32, y);
                             // Bit-identical f32 values (to_bits: exact, -0 vs 0 included).
                             prop_assert_eq!(
@@ -915,6 +955,30 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn round_u8_is_the_saturating_cast() {
+        let check = |v: f32| assert_eq!(round_u8(v), (v + 0.5) as u8, "{v:?}");
+        for i in -20_000..320_000 {
+            let v = i as f32 / 1024.0;
+            check(v);
+            check(v.next_up());
+            check(v.next_down());
+        }
+        for v in [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MAX,
+            f32::MIN,
+            1e9,
+            -1e9,
+            0.0,
+            -0.0,
+        ] {
+            check(v);
         }
     }
 
