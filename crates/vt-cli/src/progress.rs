@@ -111,3 +111,30 @@ impl Observer for AnalysisObserver {
         w.push(mask, raw).map_err(to_core)
     }
 }
+
+/// One bar per stage for library calls that report `progress(stage, done, total)`: a new bar
+/// when the stage changes, cleared by [`StageBars::finish`].
+#[derive(Default)]
+pub struct StageBars {
+    current: Option<(String, ProgressBar)>,
+}
+
+impl StageBars {
+    /// The progress callback.
+    pub fn update(&mut self, stage: &str, done: u64, total: u64) {
+        if self.current.as_ref().is_none_or(|(s, _)| s != stage) {
+            self.finish();
+            self.current = Some((stage.to_string(), bar(total, stage)));
+        }
+        if let Some((_, pb)) = &self.current {
+            pb.set_position(done);
+        }
+    }
+
+    /// Clears the last bar.
+    pub fn finish(&mut self) {
+        if let Some((_, pb)) = self.current.take() {
+            pb.finish_and_clear();
+        }
+    }
+}

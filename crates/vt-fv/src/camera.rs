@@ -426,6 +426,67 @@ impl Ring {
     }
 }
 
+/// A new camera from a spec: a par line `name k11..k33 r11..r33 t1 t2 t3` (scaled by `scale`,
+/// like the photos), `angle:DEG` (on the cameras' [`Ring`], 0 = first camera, growing towards
+/// the second, looking at `target`) or `between:I,J,T` (between views I and J, 0-based, at T in
+/// [0, 1], see [`interpolate`]).
+pub fn parse_camera_spec(
+    spec: &str,
+    cams: &[Camera],
+    scale: f64,
+    target: &Vector3<f64>,
+) -> Result<Camera> {
+    let spec = spec.trim();
+    let bad = |what: String| Error::CameraSpec {
+        spec: spec.to_string(),
+        what,
+    };
+    if let Some(deg) = spec.strip_prefix("angle:") {
+        let deg: f64 = deg
+            .trim()
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| bad(format!("angle {deg:?} is not a number")))?;
+        let ring = Ring::fit(cams).map_err(|e| bad(e.to_string()))?;
+        return ring.camera(deg, target).map_err(|e| bad(e.to_string()));
+    }
+    if let Some(rest) = spec.strip_prefix("between:") {
+        let f: Vec<&str> = rest.split(',').map(str::trim).collect();
+        if f.len() != 3 {
+            return Err(bad("expected between:I,J,T".into()));
+        }
+        let idx = |s: &str| -> Result<usize> {
+            let i: usize = s
+                .parse()
+                .map_err(|_| bad(format!("view {s:?} is not a whole number")))?;
+            if i >= cams.len() {
+                return Err(bad(format!(
+                    "view {i} does not exist ({} views, 0-based)",
+                    cams.len()
+                )));
+            }
+            Ok(i)
+        };
+        let (i, j) = (idx(f[0])?, idx(f[1])?);
+        let t: f64 = f[2]
+            .parse()
+            .ok()
+            .filter(|t| (0.0..=1.0).contains(t))
+            .ok_or_else(|| bad(format!("T {:?} is not in [0, 1]", f[2])))?;
+        return interpolate(&cams[i], &cams[j], t).map_err(|e| bad(e.to_string()));
+    }
+    let cam = parse_par(&format!("1\n{spec}\n"))
+        .map_err(|e| {
+            // The spec is line 2 of the wrapped text; report it as the spec's.
+            let msg = e.to_string();
+            let msg = msg.strip_prefix("camera file line 2: ").unwrap_or(&msg);
+            bad(format!("par line: {msg}"))
+        })?
+        .remove(0);
+    Ok(if scale == 1.0 { cam } else { cam.scaled(scale) })
+}
+
 /// A camera between cameras `a` and `b` at `s` in `[0, 1]`: rotation by slerp, centre and `K` by
 /// linear interpolation.
 pub fn interpolate(a: &Camera, b: &Camera, s: f64) -> Result<Camera> {

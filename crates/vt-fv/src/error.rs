@@ -24,6 +24,14 @@ pub enum Error {
         /// Camera lines present.
         found: usize,
     },
+    /// A new-camera spec (par line, `angle:DEG` or `between:I,J,T`) that cannot be used.
+    #[error("{spec:?}: {what}")]
+    CameraSpec {
+        /// The spec as given.
+        spec: String,
+        /// What is wrong.
+        what: String,
+    },
     /// A camera whose matrices cannot form a projection (singular K, non-rotation R).
     #[error("camera {name}: {what}")]
     BadCamera {

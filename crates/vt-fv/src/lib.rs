@@ -8,10 +8,12 @@
 //!
 //! Images are the `image` crate's [`image::RgbImage`]; pixel centres sit at integer coordinates
 //! `(x, y) = (column, row)`, origin top-left, as in the Middlebury camera files. No I/O except
-//! writing PLY to a caller's writer.
+//! writing PLY to a caller's writer and [`dataset`] (a Middlebury-style data folder, read and
+//! written through vt-io).
 #![deny(missing_docs)]
 
 pub mod camera;
+pub mod dataset;
 mod error;
 pub mod hull;
 pub mod silhouette;

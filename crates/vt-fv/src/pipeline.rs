@@ -66,6 +66,15 @@ impl Default for ViewParams {
 }
 
 impl ViewParams {
+    /// The method's name: `paper`, `textured` or `textured+synthesis`.
+    pub fn name(&self) -> &'static str {
+        match (self.method, self.refine) {
+            (Method::Paper, _) => "paper",
+            (Method::Textured, false) => "textured",
+            (Method::Textured, true) => "textured+synthesis",
+        }
+    }
+
     /// The paper's method with these synthesis settings.
     pub fn paper(synth: SynthParams) -> Self {
         Self {
@@ -73,6 +82,72 @@ impl ViewParams {
             synth,
             ..Self::default()
         }
+    }
+}
+
+/// The choices behind [`ViewParams`], as a user gives them (checked by [`ViewOptions::params`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewOptions {
+    /// The method.
+    pub method: Method,
+    /// Patch side of the guided synthesis, odd, at least 3.
+    pub patch: usize,
+    /// Paper-exact synthesis (no speed options).
+    pub exact: bool,
+    /// [`ViewParams::refine`] ([`Method::Textured`] only).
+    pub refine: bool,
+    /// [`TextureParams::references`], 1..=64.
+    pub references: usize,
+}
+
+impl ViewOptions {
+    /// The settings for `w x h` photos, or the first option out of range.
+    pub fn params(&self, w: u32, h: u32) -> Result<ViewParams> {
+        let bad = |name: &str, value: String, why: String| Error::BadParam {
+            name: name.into(),
+            value,
+            why,
+        };
+        let patch = self.patch;
+        if patch.is_multiple_of(2) || patch < 3 {
+            return Err(bad(
+                "patch",
+                patch.to_string(),
+                "must be odd and at least 3".into(),
+            ));
+        }
+        if patch as u32 > w.min(h) {
+            let why = format!("larger than the {w}x{h} reference photos");
+            return Err(bad("patch", patch.to_string(), why));
+        }
+        if self.references == 0 || self.references > 64 {
+            let why = "must be in 1..=64".to_string();
+            return Err(bad("references", self.references.to_string(), why));
+        }
+        if self.refine && self.method == Method::Paper {
+            let why = "applies to the textured method only".to_string();
+            return Err(bad("refine", String::new(), why));
+        }
+        let synth = if self.exact {
+            SynthParams {
+                patch,
+                ..Default::default()
+            }
+        } else {
+            SynthParams::fast_for(patch)
+        };
+        Ok(match self.method {
+            Method::Paper => ViewParams::paper(synth),
+            Method::Textured => {
+                let mut p = ViewParams {
+                    synth,
+                    refine: self.refine,
+                    ..ViewParams::default()
+                };
+                p.texture.references = self.references;
+                p
+            }
+        })
     }
 }
 
@@ -89,6 +164,26 @@ pub struct NovelView {
     pub reference: usize,
     /// Seconds per stage, in order: rough render, texturing, synthesis.
     pub times: Vec<(&'static str, f64)>,
+}
+
+impl NovelView {
+    /// How the view was made, in words: `guided (paper) from NAME (patch 7)` or `textured from
+    /// NAME and its 1 nearest`.
+    pub fn describe(&self, cams: &[Camera], p: &ViewParams) -> String {
+        let reference = &cams[self.reference].name;
+        match p.method {
+            Method::Paper => format!("guided (paper) from {reference} (patch {})", p.synth.patch),
+            Method::Textured => format!(
+                "textured from {reference} and its {} nearest{}",
+                p.texture.references.saturating_sub(1),
+                if p.refine {
+                    ", refined by synthesis"
+                } else {
+                    ""
+                }
+            ),
+        }
+    }
 }
 
 /// Renders `model` from `cam` and makes the new view as `p` says.
@@ -137,7 +232,7 @@ pub fn novel_view(
 }
 
 /// PSNR (dB) and SSIM of one image against the withheld photo.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Score {
     /// PSNR in dB.
     pub psnr: f64,
@@ -245,6 +340,23 @@ pub struct EvalReport {
 }
 
 impl EvalReport {
+    /// The scored images by name, in table order: `nearest_photo`, `rough`, `rough_blur2`,
+    /// `guide`, `guided`.
+    pub fn candidates(&self) -> [(&'static str, Scores); 5] {
+        [
+            ("nearest_photo", self.nearest_photo),
+            ("rough", self.rough),
+            ("rough_blur2", self.rough_blur2),
+            ("guide", self.guide),
+            ("guided", self.guided),
+        ]
+    }
+
+    /// Seconds in all stages.
+    pub fn total_secs(&self) -> f64 {
+        self.times.iter().map(|t| t.1).sum()
+    }
+
     /// Seconds to build the model (visual and photo hull).
     pub fn model_secs(&self) -> f64 {
         self.stage_secs(&["visual hull", "photo hull"])
@@ -261,6 +373,40 @@ impl EvalReport {
             .filter(|(n, _)| names.contains(n))
             .map(|(_, s)| s)
             .sum()
+    }
+}
+
+/// The score table: PSNR and SSIM of each candidate inside the silhouette and over the whole
+/// image, the silhouette IoU and the seconds per stage.
+impl std::fmt::Display for EvalReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let head = ["image", "PSNR in", "SSIM in", "PSNR all", "SSIM all"];
+        let [a, b, c, d, e] = head;
+        writeln!(f, "{a:<14} {b:>10} {c:>8} {d:>10} {e:>8}")?;
+        for (name, s) in self.candidates() {
+            let (i, o) = (s.inside, s.whole);
+            writeln!(
+                f,
+                "{name:<14} {:>10.2} {:>8.3} {:>10.2} {:>8.3}",
+                i.psnr, i.ssim, o.psnr, o.ssim
+            )?;
+        }
+        writeln!(
+            f,
+            "silhouette IoU (rough render vs withheld photo) {:.3}; {} surface voxels",
+            self.silhouette_iou, self.surface_voxels
+        )?;
+        let stages: Vec<String> = self
+            .times
+            .iter()
+            .map(|(n, s)| format!("{n} {s:.2}"))
+            .collect();
+        write!(
+            f,
+            "seconds: {} (total {:.2})",
+            stages.join(", "),
+            self.total_secs()
+        )
     }
 }
 
