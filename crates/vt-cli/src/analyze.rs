@@ -282,12 +282,28 @@ pub fn run(args: AnalyzeArgs) -> Result<AnalyzeResult> {
         write_png(&dir.path().join(background_name(p)), &v.background)?;
     }
     vt_io::scene::write_dynamic(dir.path(), &analysis)?;
-    let scene = SceneFile::from_analysis(&analysis, &points, &params);
+    let mut scene = SceneFile::from_analysis(&analysis, &points, &params);
+    scene.fps = source_fps(&args.views);
     scene.write(dir.path())?;
     dir.commit()?;
     print_summary(&analysis, &scene, started.elapsed().as_secs_f64());
     println!("scene: {}", args.out.display());
     Ok(AnalyzeResult { scene })
+}
+
+/// The views' frame rate: the median of each video's median real frame interval (None for
+/// frame folders or when no video has timestamps).
+fn source_fps(views: &[PathBuf]) -> Option<f64> {
+    let mut rates: Vec<f64> = views
+        .iter()
+        .filter(|v| v.is_file())
+        .filter_map(|v| vt_io::video::median_frame_rate(v).ok().flatten())
+        .collect();
+    if rates.is_empty() {
+        return None;
+    }
+    rates.sort_by(f64::total_cmp);
+    Some(rates[(rates.len() - 1) / 2])
 }
 
 /// Refuses marked points outside the frame (beyond [`POINT_MARGIN`] of its size).

@@ -25,9 +25,9 @@ pub struct RenderArgs {
     /// Output: `.mp4` (H.264), `.gif`, or a folder of PNG frames (no extension).
     #[arg(long)]
     out: PathBuf,
-    /// Output frame rate.
-    #[arg(long, default_value_t = 30.0)]
-    fps: f64,
+    /// Output frame rate (default: the scene's source frame rate, else 30).
+    #[arg(long)]
+    fps: Option<f64>,
     /// Total length in seconds (default: the path's own length; keyframe paths then hold their
     /// last q, sweeps go on back and forth).
     #[arg(long)]
@@ -77,13 +77,14 @@ impl RenderArgs {
             scene,
             path: "sweep:0.5".into(),
             out,
-            fps: 30.0,
+            fps: Some(30.0),
             duration: None,
             long: false,
             options: RenderOptions {
                 nearest: false,
                 crossfade: 0,
                 gain_compensation: true,
+                no_gain_compensation: false,
             },
         }
     }
@@ -98,7 +99,6 @@ pub const MAX_SECONDS_LONG: f64 = 86_400.0;
 pub const MAX_FRAMES: usize = 5_184_000;
 
 /// A viewpoint path, sampled per output frame. Its length is checked (at most [`MAX_SECONDS`] of
-                no_gain_compensation: false,
 /// output, [`MAX_SECONDS_LONG`] with `long`, and [`MAX_FRAMES`] frames) before any of it is built.
 pub fn path_qs(
     spec: &str,
@@ -299,10 +299,14 @@ pub struct RenderSummary {
 
 pub fn run(args: RenderArgs) -> Result<RenderSummary> {
     let scene = LoadedScene::open(&args.scene)?;
+    let fps = args
+        .fps
+        .or(scene.file.fps.filter(|f| f.is_finite() && *f > 0.0 && *f <= 1000.0))
+        .unwrap_or(30.0);
     let qs = path_qs(
         &args.path,
         scene.render.views.len(),
-        args.fps,
+        fps,
         args.duration,
         args.long,
     )?;
@@ -312,7 +316,7 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
     if let Some(f) = args.path.strip_prefix('@') {
         inputs.push(Path::new(f));
     }
-    let mut sink = FrameWriter::create(&args.out, &inputs, w, h, args.fps)?;
+    let mut sink = FrameWriter::create(&args.out, &inputs, w, h, fps)?;
     let mut player = Player::new();
     let mut frame = RgbImage::new(w, h);
     let mut seams = Vec::new();

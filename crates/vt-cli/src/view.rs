@@ -55,9 +55,9 @@ pub struct ViewArgs {
     /// Port on 127.0.0.1 (0 = any free port; the URL is printed).
     #[arg(long, default_value_t = 8080)]
     port: u16,
-    /// Frame rate at speed 1.
-    #[arg(long, default_value_t = 30.0)]
-    fps: f64,
+    /// Frame rate at speed 1 (default: the scene's source frame rate, else 30).
+    #[arg(long)]
+    fps: Option<f64>,
     /// Starting viewpoint.
     #[arg(long, default_value_t = 0.0)]
     q: f64,
@@ -100,8 +100,8 @@ struct Shared {
 }
 
 pub fn run(args: ViewArgs) -> Result<()> {
-    if !(args.fps.is_finite() && args.fps > 0.0 && args.fps <= 240.0) {
-        bail!("--fps {} must be in (0, 240]", vt_io::output::num(args.fps));
+    if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && *f > 0.0 && *f <= 240.0)) {
+        bail!("--fps {} must be in (0, 240]", vt_io::output::num(fps));
     }
     if !(1..=100).contains(&args.quality) {
         bail!("--quality {} must be in 1..=100", args.quality);
@@ -130,7 +130,11 @@ pub fn run(args: ViewArgs) -> Result<()> {
     });
     {
         let shared = shared.clone();
-        let (fps, quality) = (args.fps, args.quality);
+        let fps = args
+            .fps
+            .or(scene.file.fps.filter(|f| f.is_finite() && *f > 0.0 && *f <= 240.0))
+            .unwrap_or(30.0);
+        let quality = args.quality;
         std::thread::spawn(move || {
             let mut renderer = renderer;
             // A panic in the renderer must not freeze the video: say so and start again.

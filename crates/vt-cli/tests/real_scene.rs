@@ -78,6 +78,27 @@ fn tree_single_view_keeps_the_motion() {
     assert!(stdout.contains("motion kept"), "{stdout}");
     let json = read_json(&out.join("scene.json"));
     let kept = json["views"][0]["motion_kept"].as_f64().unwrap();
+    // The source's real frame rate (VFR: median interval 0.4 s) is the scene's default rate, and
+    // a folder name with a dot is a PNG folder.
+    let fps = json["fps"].as_f64().unwrap();
+    assert!((fps - 2.5).abs() < 0.01, "scene fps {fps}");
+    let frames_dir = tmp.path().join("frames.v1");
+    let stdout = vt_ok(&[
+        "render",
+        s(&out),
+        "--path",
+        "0s:0",
+        "--duration",
+        "2",
+        "--out",
+        s(&frames_dir),
+    ]);
+    assert!(stdout.contains("rendered 5 frames"), "{stdout}");
+    let pngs = std::fs::read_dir(&frames_dir)
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().path().extension() == Some("png".as_ref()))
+        .count();
+    assert_eq!(pngs, 5);
     let source = decode(&tree());
     let scene = LoadedScene::open(&out).unwrap();
     let frames = play(&scene, RenderParams::default(), |_| 0.0, 50);

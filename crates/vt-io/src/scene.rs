@@ -49,6 +49,10 @@ pub struct SceneFile {
     /// `vt_core::transition::seam_score`: 0 invisible, 1 = one ordinary frame step).
     #[serde(default)]
     pub seam_score: f64,
+    /// The source videos' frame rate (median real frame interval, median over the views;
+    /// absent for frame folders and older scenes): what `vt render` and `vt view` play at.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fps: Option<f64>,
     /// One entry per view, in order.
     pub views: Vec<ViewEntry>,
 }
@@ -315,6 +319,7 @@ impl SceneFile {
                     .collect();
                 all.iter().sum::<f64>() / all.len().max(1) as f64
             },
+            fps: None,
             views,
         }
     }

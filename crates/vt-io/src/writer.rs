@@ -211,9 +211,15 @@ pub enum FrameWriter {
 }
 
 impl FrameWriter {
-    /// Chooses by the name: `.mp4`, `.gif`, or no extension for a PNG folder.
+    /// Chooses by the name: `.mp4`, `.gif`, or else a PNG folder, whatever dots its name has
+    /// (`run.v2`, `frames.2024`); only image and other video extensions are refused, since a
+    /// folder named like a file is surely a mistake.
     pub fn create(target: &Path, inputs: &[&Path], w: u32, h: u32, fps: f64) -> Result<Self> {
-        match ext_of(target).as_deref() {
+        const REFUSED: [&str; 11] = [
+            "png", "jpg", "jpeg", "avi", "mov", "mkv", "webm", "m4v", "mpg", "mpeg", "webp",
+        ];
+        let ext = ext_of(target).filter(|e| e == "mp4" || e == "gif" || REFUSED.contains(&e.as_str()));
+        match ext.as_deref() {
             None => Ok(FrameWriter::Folder {
                 output: Output::dir(target, OutputKind::Frames, inputs)?,
                 count: 0,
