@@ -204,6 +204,9 @@ fn quick_report_is_complete_and_every_image_loads() {
         "a-mask-resolution",
         "a-render",
         "a-crossfade",
+        "a-refine",
+        "a-appearance",
+        "a-noise",
         "b-grid",
         "b-photo-threshold-psnr",
         "b-photo-threshold-iou",
@@ -211,6 +214,7 @@ fn quick_report_is_complete_and_every_image_loads() {
         "b-step",
         "b-levels",
         "b-iterations",
+        "b-references",
     ] {
         assert!(
             ids.contains(&want),

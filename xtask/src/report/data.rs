@@ -379,6 +379,51 @@ fn build_tree() -> Result<Tree> {
     })
 }
 
+/// System A's real-footage scene: tree.avi on a slanted plane seen by cameras on a line, with
+/// known homographies and clock offsets (vt-synth's `RealScene`), 2 px marking noise.
+pub struct Real {
+    /// The generator (truth).
+    pub scene: vt_synth::real::RealScene,
+    /// Every frame of every view.
+    pub frames: Vec<Vec<RgbImage>>,
+    /// The marked points (with noise).
+    pub points: Vec<Vec<Point>>,
+}
+
+/// Parameters of the real-footage scene.
+pub fn real_params(quick: bool) -> vt_synth::real::RealParams {
+    vt_synth::real::RealParams {
+        views: if quick { 3 } else { 5 },
+        frames: if quick { 80 } else { 120 },
+        marking_noise: 2.0,
+        ..Default::default()
+    }
+}
+
+fn build_real(ctx: &mut Ctx) -> Result<Real> {
+    let tr = tree(ctx)?;
+    let rp = real_params(ctx.quick);
+    let scene =
+        vt_synth::real::RealScene::new(tr.frames.clone(), rp).map_err(anyhow::Error::msg)?;
+    let frames = (0..rp.views)
+        .map(|v| (0..rp.frames).map(|s| scene.frame(v, s)).collect())
+        .collect();
+    let points = (0..rp.views)
+        .map(|v| {
+            scene
+                .marked_points(v)
+                .into_iter()
+                .map(|(x, y)| Point::new(x, y))
+                .collect()
+        })
+        .collect();
+    Ok(Real {
+        scene,
+        frames,
+        points,
+    })
+}
+
 /// The lazily built inputs.
 #[derive(Default)]
 pub struct Cache {
@@ -387,6 +432,7 @@ pub struct Cache {
     temple: Option<Rc<Temple>>,
     tree: Option<Rc<Tree>>,
     synth_b_model: Option<Rc<SynthBModel>>,
+    real: Option<Rc<Real>>,
 }
 
 /// Builds (once) and returns an input.
@@ -414,3 +460,4 @@ getter!(synth_b, SynthB, build_synth_b);
 getter!(temple, Temple, build_temple);
 getter!(tree, Tree, |_: &mut Ctx| build_tree());
 getter!(synth_b_model, SynthBModel, build_synth_b_model);
+getter!(real, Real, build_real);

@@ -37,11 +37,6 @@ pub fn knobs() -> Vec<Knob> {
             render_modes,
         ),
         Knob::new("Crossfade length", crossfade),
-        Knob::missing(
-            "Homography from points vs refined",
-            "not yet implemented: vt fits H(p,p+1) from the marked points only; a refinement \
-             step (issue #10) does not exist in this tree yet, so there is nothing to measure.",
-        ),
     ]
 }
 

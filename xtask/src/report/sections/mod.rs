@@ -3,6 +3,7 @@
 
 pub mod gallery;
 pub mod knobs_a;
+pub mod knobs_a_real;
 pub mod knobs_b;
 pub mod models;
 pub mod perf;
@@ -34,7 +35,8 @@ impl Knob {
         }
     }
 
-    /// A knob that does not exist yet, and why.
+    /// A knob that does not exist yet, and why (listed on the page as "not yet implemented").
+    #[allow(dead_code)]
     pub fn missing(title: &'static str, why: &'static str) -> Self {
         Self {
             title,
@@ -51,7 +53,11 @@ fn curves(ctx: &mut Ctx) -> Result<Vec<Item>> {
             .into(),
     }];
     let mut failed = Vec::new();
-    for knob in knobs_a::knobs().into_iter().chain(knobs_b::knobs()) {
+    for knob in knobs_a::knobs()
+        .into_iter()
+        .chain(knobs_a_real::knobs())
+        .chain(knobs_b::knobs())
+    {
         match knob.measure {
             Ok(f) => {
                 let t = std::time::Instant::now();

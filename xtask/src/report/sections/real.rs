@@ -6,7 +6,6 @@
 //! photo's silhouette and over the whole image.
 
 use anyhow::Result;
-use image::RgbImage;
 use serde_json::json;
 use vt_core::analysis::AnalyzeParams;
 use vt_core::model::{select_model, ModelParams, MotionModel};
@@ -17,7 +16,7 @@ use vt_fv::{PhotoParams, SynthParams};
 use vt_synth::real::{RealParams, RealScene};
 
 use super::knobs_a::{circ, loop_phase_error, transition_phase_errors};
-use crate::report::data::{build_scene, synth_a, temple, tree};
+use crate::report::data::{build_scene, real, synth_a, temple, tree};
 use crate::report::model::{Gallery, Item, Table};
 use crate::report::Ctx;
 
@@ -80,19 +79,13 @@ fn system_a_table(ctx: &mut Ctx) -> Result<Table> {
         json!(sa.analysis_secs),
     ]);
 
-    let tr = tree(ctx)?;
-    let rp = real_params(ctx.quick);
-    let scene = RealScene::new(tr.frames.clone(), rp).map_err(anyhow::Error::msg)?;
-    let frames: Vec<Vec<RgbImage>> = (0..rp.views)
-        .map(|v| (0..rp.frames).map(|s| scene.frame(v, s)).collect())
-        .collect();
-    let points: Vec<Vec<Point>> = (0..rp.views)
-        .map(|v| pts(&scene.marked_points(v)))
-        .collect();
+    let r = real(ctx)?;
+    let (scene, frames, points) = (&r.scene, &r.frames, &r.points);
+    let rp = *scene.params();
     let mut params = AnalyzeParams::default();
     params.loops.min_length = rp.frames / 3;
     let dir = ctx.work.path().join("real-scene");
-    let (a, secs, _) = build_scene(&frames, &points, &params, &dir)?;
+    let (a, secs, _) = build_scene(frames, points, &params, &dir)?;
     let usable = scene.usable();
     let (mut sum, mut n, mut ok) = (0usize, 0usize, 0usize);
     for (p, link) in a.links.iter().enumerate() {

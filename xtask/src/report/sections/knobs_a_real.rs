@@ -1,0 +1,223 @@
+//! System A's knobs that only real footage can judge: homography refinement, the appearance term
+//! of eq. (1)-(2) and noise-model masks, on the real-footage scene (tree.avi on a slanted plane,
+//! known homographies and clock offsets, 2 px marking noise). A transition is right when the
+//! frame it continues with shows the same source frame playback would have reached.
+
+use anyhow::Result;
+use vt_core::analysis::{AnalyzeParams, SceneAnalysis};
+use vt_core::model::{ModelParams, MotionModel};
+use vt_core::noise::NoiseParams;
+
+use super::knobs_a::circ;
+use super::Knob;
+use crate::report::data::{build_scene, real, Real};
+use crate::report::model::{Axis, Better, Curve, Setting};
+use crate::report::Ctx;
+
+/// The real-footage knobs, in page order.
+pub fn knobs() -> Vec<Knob> {
+    vec![
+        Knob::new("Homography from points vs refined", homography_refine),
+        Knob::new("Appearance weight in eq. (1) and (2)", appearance),
+        Knob::new("Noise-model masks", noise_masks),
+    ]
+}
+
+const SCENE: &str = "the real-footage scene (tree.avi, 68 real frames looped, as 3 views of a \
+slanted plane with known homographies and clock offsets, 2 px marking noise; 5 views in the full \
+report)";
+
+/// Analyses the real scene with `params`: (analysis, seconds).
+fn run(ctx: &mut Ctx, r: &Real, params: &AnalyzeParams, tag: &str) -> Result<(SceneAnalysis, f64)> {
+    let mut params = *params;
+    params.loops.min_length = r.frames[0].len() / 3;
+    let dir = ctx.work.path().join(format!("real-{tag}"));
+    let (a, secs, _) = build_scene(&r.frames, &r.points, &params, &dir)?;
+    std::fs::remove_dir_all(&dir).ok();
+    Ok((a, secs))
+}
+
+/// (mean transition error in source frames, share within +-1) over the frames on each loop.
+fn transition_errors(r: &Real, a: &SceneAnalysis) -> (f64, f64) {
+    let usable = r.scene.usable();
+    let (mut sum, mut n, mut ok) = (0usize, 0usize, 0usize);
+    for (p, link) in a.links.iter().enumerate() {
+        for (from, to, table) in [(p, p + 1, &link.forward), (p + 1, p, &link.backward)] {
+            let l = &a.views[from].best_loop;
+            for s in l.start + 1..=l.end {
+                if let Some(t) = table[s] {
+                    let e = circ(
+                        r.scene.source_index(from, s + 1),
+                        r.scene.source_index(to, t + 1),
+                        usable,
+                    );
+                    sum += e;
+                    ok += (e <= 1) as usize;
+                    n += 1;
+                }
+            }
+        }
+    }
+    (sum as f64 / n.max(1) as f64, ok as f64 / n.max(1) as f64)
+}
+
+fn corner_error(r: &Real, a: &SceneAnalysis) -> f64 {
+    a.links
+        .iter()
+        .enumerate()
+        .map(|(p, l)| r.scene.corner_error(p, p + 1, &l.homography.matrix()))
+        .sum::<f64>()
+        / a.links.len().max(1) as f64
+}
+
+fn homography_refine(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let r = real(ctx)?;
+    let base = AnalyzeParams::default();
+    let settings = [
+        (
+            "points, model by GRIC",
+            AnalyzeParams {
+                refine: false,
+                ..base
+            },
+        ),
+        (
+            "points, homography",
+            AnalyzeParams {
+                refine: false,
+                model: ModelParams {
+                    force: Some(MotionModel::Homography),
+                    ..base.model
+                },
+                ..base
+            },
+        ),
+        (
+            "refined from backgrounds",
+            AnalyzeParams {
+                refine: true,
+                ..base
+            },
+        ),
+    ];
+    let mut pts = Vec::new();
+    for (i, (label, params)) in settings.iter().enumerate() {
+        let (a, _) = run(ctx, &r, params, &format!("refine-{i}"))?;
+        let (err, within) = transition_errors(&r, &a);
+        pts.push(
+            Setting::new(
+                *label,
+                a.timings.homographies.as_secs_f64() * 1e3,
+                corner_error(&r, &a),
+                params.refine == base.refine && params.model == base.model,
+            )
+            .with("transition error (frames)", err)
+            .with("transitions within +-1 (%)", 100.0 * within)
+            .with(
+                "links whose refinement was kept",
+                a.links
+                    .iter()
+                    .filter(|l| l.refinement.is_some_and(|r| r.kept))
+                    .count() as f64,
+            ),
+        );
+    }
+    Ok(vec![Curve::new(
+        "a-refine",
+        "Homography from points vs refined",
+        format!(
+            "H(p,p+1) fitted to the marked points (the model GRIC picks, or a homography forced) \
+             or refined by aligning the two median backgrounds, on {SCENE}. x: time of the model \
+             and homography stage; y: the largest distance between where the estimate and the \
+             true homography put the image corners, pixels, mean over neighbour pairs. A \
+             refinement is kept only where it lowers the photometric error and still agrees \
+             with the points (the table says how many links kept theirs)."
+        ),
+        Axis::new("homography stage (ms)", Better::Lower),
+        Axis::log("corner error vs truth (px)", Better::Lower),
+        pts,
+    )])
+}
+
+fn appearance(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let r = real(ctx)?;
+    let base = AnalyzeParams::default();
+    let weights: Vec<f32> = ctx.pick(vec![0.0, 1.0, 4.0], vec![0.0, 0.25, 0.5, 1.0, 2.0, 4.0]);
+    let mut pts = Vec::new();
+    for (i, &w) in weights.iter().enumerate() {
+        let params = AnalyzeParams {
+            appearance: w,
+            ..base
+        };
+        let (a, _) = run(ctx, &r, &params, &format!("appearance-{i}"))?;
+        let (err, within) = transition_errors(&r, &a);
+        let t = a.timings.loops + a.timings.transitions;
+        pts.push(
+            Setting::new(
+                format!("{w}"),
+                t.as_secs_f64() * 1e3,
+                err,
+                w == base.appearance,
+            )
+            .with("transitions within +-1 (%)", 100.0 * within),
+        );
+    }
+    Ok(vec![Curve::new(
+        "a-appearance",
+        "Appearance weight in eq. (1) and (2)",
+        format!(
+            "Weight of the appearance term added to the mask XOR cost of the loop and transition \
+             searches (0 = masks only, the thesis), on {SCENE}. x: loop + transition search time; \
+             y: mean transition error in source frames over the frames on each loop."
+        ),
+        Axis::new("loop + transition search (ms)", Better::Lower),
+        Axis::new("transition error (frames)", Better::Lower),
+        pts,
+    )])
+}
+
+fn noise_masks(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let r = real(ctx)?;
+    let base = AnalyzeParams::default();
+    let settings = [
+        ("off (global threshold)", NoiseParams::off()),
+        (
+            "noise model, no dynamic region",
+            NoiseParams {
+                dynamic: false,
+                ..NoiseParams::default()
+            },
+        ),
+        ("noise model + dynamic region", NoiseParams::default()),
+    ];
+    let mut pts = Vec::new();
+    for (i, (label, noise)) in settings.iter().enumerate() {
+        let params = AnalyzeParams {
+            noise: *noise,
+            ..base
+        };
+        let (a, _) = run(ctx, &r, &params, &format!("noise-{i}"))?;
+        let (err, within) = transition_errors(&r, &a);
+        pts.push(
+            Setting::new(
+                *label,
+                a.timings.masks.as_secs_f64() * 1e3,
+                err,
+                *noise == base.noise,
+            )
+            .with("transitions within +-1 (%)", 100.0 * within),
+        );
+    }
+    Ok(vec![Curve::new(
+        "a-noise",
+        "Noise-model masks",
+        format!(
+            "Moving-object masks by the global threshold (the thesis) or by a per-pixel noise \
+             model, with or without the dynamic region, on {SCENE}. x: mask stage time; y: mean \
+             transition error in source frames over the frames on each loop."
+        ),
+        Axis::new("mask stage (ms)", Better::Lower),
+        Axis::new("transition error (frames)", Better::Lower),
+        pts,
+    )])
+}
