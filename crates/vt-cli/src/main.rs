@@ -100,6 +100,13 @@ fn main() {
         Command::Demo { out, frames } => demo(out, frames),
     };
     if let Err(e) = result {
+        if vt_io::output::interrupted() {
+            // The failure came from the interruption removing our temporaries: the handler
+            // reports it and exits with 130.
+            loop {
+                std::thread::sleep(std::time::Duration::from_secs(1));
+            }
+        }
         eprintln!("error: {}", error_line(&e));
         std::process::exit(1);
     }

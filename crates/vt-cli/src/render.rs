@@ -56,7 +56,21 @@ pub struct RenderOptions {
     no_gain_compensation: bool,
 }
 
+/// Longest `--crossfade`, frames.
+pub const MAX_CROSSFADE: usize = 1000;
+
 impl RenderOptions {
+    /// Checks the options against their limits.
+    pub fn check(&self) -> Result<()> {
+        if self.crossfade > MAX_CROSSFADE {
+            bail!(
+                "--crossfade {} is more than {MAX_CROSSFADE} frames",
+                self.crossfade
+            );
+        }
+        Ok(())
+    }
+
     pub fn params(&self) -> RenderParams {
         RenderParams {
             interpolation: if self.nearest {
@@ -298,6 +312,7 @@ pub struct RenderSummary {
 }
 
 pub fn run(args: RenderArgs) -> Result<RenderSummary> {
+    args.options.check()?;
     let scene = LoadedScene::open(&args.scene)?;
     let fps = args
         .fps

@@ -144,6 +144,8 @@ pub fn run(cmd: SynthCommand) -> Result<()> {
 
 /// Most pixels in one synthetic frame (3840 x 2160).
 pub const MAX_SYNTH_PIXELS: u64 = 3840 * 2160;
+/// Most pixels of a synthetic object's photos and truth images together (2 x views + 1 images).
+pub const MAX_SYNTH_OBJECT_PIXELS: u64 = 1 << 28;
 /// Most views of a synthetic texture scene.
 pub const MAX_SYNTH_VIEWS: usize = 64;
 /// Most frames of a synthetic texture scene, all views together.
@@ -295,6 +297,15 @@ fn write_object(a: &ObjectArgs) -> Result<()> {
     }
     if a.size < 16 || a.size > 4096 {
         bail!("--size {} must be in 16..=4096", a.size);
+    }
+    // Photos, masks and truth of every view and midpoint are held in memory together.
+    let pixels = (2 * a.views as u64 + 1) * a.size as u64 * a.size as u64;
+    if pixels > MAX_SYNTH_OBJECT_PIXELS {
+        bail!(
+            "--views {} at --size {} is {pixels} pixels of photos and truth, more than {MAX_SYNTH_OBJECT_PIXELS}",
+            a.views,
+            a.size
+        );
     }
     let spacing = 360.0 / a.views as f64;
     // splitmix64 of the seed, as a fraction of the spacing; seed 0 keeps angle 0.

@@ -106,6 +106,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     if !(1..=100).contains(&args.quality) {
         bail!("--quality {} must be in 1..=100", args.quality);
     }
+    args.options.check()?;
     let scene = LoadedScene::open(&args.scene)?;
     if scene.render.check_q(args.q).is_err() {
         bail!(

@@ -157,6 +157,12 @@ pub fn cleanup_now() {
     }
 }
 
+/// True once an interruption started cleaning up; waits until the cleanup is done. A run whose
+/// work failed because its temporaries vanished under it asks this before reporting the failure.
+pub fn interrupted() -> bool {
+    live().stopping
+}
+
 /// Installs the SIGINT/SIGTERM (and SIGHUP) handler of a command-line run: it removes the run's
 /// temporaries, kills its encoders, says so on stderr and exits with status 130.
 pub fn install_interrupt_cleanup() -> Result<()> {
