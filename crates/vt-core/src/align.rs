@@ -297,7 +297,10 @@ pub fn align_backgrounds(
                 if d.abs() < 1e-12 {
                     continue;
                 }
-                let (u, v) = ((h[0] * x + h[1] * y + h[2]) / d, (h[3] * x + h[4] * y + h[5]) / d);
+                let (u, v) = (
+                    (h[0] * x + h[1] * y + h[2]) / d,
+                    (h[3] * x + h[4] * y + h[5]) / d,
+                );
                 let Some((ib, gx, gy)) = gb.sample_grad(u, v) else {
                     continue;
                 };
@@ -364,11 +367,7 @@ pub fn align_backgrounds(
     Ok(Alignment {
         homography,
         error_before,
-        error_after: if improved {
-            error_after
-        } else {
-            error_before
-        },
+        error_after: if improved { error_after } else { error_before },
         improved,
         pixels,
     })
@@ -400,7 +399,8 @@ pub fn hull_mask(points: &[Point], width: u32, height: u32) -> Mask {
             Box::new(pts.iter().rev())
         };
         for &p in iter {
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
             {
                 hull.pop();
             }
@@ -481,11 +481,13 @@ mod tests {
         ))
         .unwrap();
         let b = warp(&a, &truth, 1.05);
-        let init = Homography::from_matrix(truth.matrix() * Matrix3::new(
-            1.0, 0.0, 2.5, 0.0, 1.0, -1.5, 0.0, 0.0, 1.0,
-        ))
+        let init = Homography::from_matrix(
+            truth.matrix() * Matrix3::new(1.0, 0.0, 2.5, 0.0, 1.0, -1.5, 0.0, 0.0, 1.0),
+        )
         .unwrap();
-        let region = Mask::from_fn(200, 150, |x, y| (30..170).contains(&x) && (25..125).contains(&y));
+        let region = Mask::from_fn(200, 150, |x, y| {
+            (30..170).contains(&x) && (25..125).contains(&y)
+        });
         let r = align_backgrounds(
             &a,
             &b,
@@ -525,7 +527,9 @@ mod tests {
         let pts: Vec<Vec<Point>> = (0..3)
             .map(|p| {
                 sq.iter()
-                    .map(|q| Point::new(q.x + 10.0 * p as f64 + if p == 1 { 3.0 } else { 0.0 }, q.y))
+                    .map(|q| {
+                        Point::new(q.x + 10.0 * p as f64 + if p == 1 { 3.0 } else { 0.0 }, q.y)
+                    })
                     .collect()
             })
             .collect();

@@ -775,11 +775,7 @@ fn analyze_view(
         .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
         .collect();
     let mean = |v: &[u64]| v.iter().sum::<u64>() as f64 / v.len().max(1) as f64;
-    let kappa = appearance::kappa(
-        params.appearance as f64,
-        mean(&xor_steps),
-        mean(&app_steps),
-    );
+    let kappa = appearance::kappa(params.appearance as f64, mean(&xor_steps), mean(&app_steps));
     let mut d = pair_costs(&masks, params.loops.min_length);
     if kappa > 0.0 {
         let app = appearance::loop_pair_costs(&thumbs, params.loops.min_length);
@@ -803,9 +799,7 @@ fn analyze_view(
         let range = best_loop.start + 1..best_loop.end;
         let n = range.len().max(1) as f64;
         range
-            .map(|s| {
-                xor_steps[s] as f64 + kappa * app_steps.get(s).copied().unwrap_or(0) as f64
-            })
+            .map(|s| xor_steps[s] as f64 + kappa * app_steps.get(s).copied().unwrap_or(0) as f64)
             .sum::<f64>()
             / n
     };

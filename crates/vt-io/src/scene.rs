@@ -260,48 +260,48 @@ impl SceneFile {
                 .map(|(k, v)| (k.name().to_string(), *v))
                 .collect(),
         });
-        let views = a
-            .views
-            .iter()
-            .enumerate()
-            .map(|(p, v)| {
-                let none = vec![None; v.n_frames];
-                let next = a.links.get(p);
-                let prev = if p > 0 { a.links.get(p - 1) } else { None };
-                ViewEntry {
-                    name: v.name.clone(),
-                    frames: v.n_frames,
-                    points: points
-                        .get(p)
-                        .map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
-                        .unwrap_or_default(),
-                    background: background_name(p),
-                    objects: objects_name(p),
-                    moving_fraction: v.moving_fraction,
-                    mean_step: v.mean_step,
-                    loop_seam: v.loop_seam,
-                    loop_: v.best_loop.into(),
-                    alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
-                    to_next: next.map(|l| LinkEntry::from_link(l, true)),
-                    to_prev: prev.map(|l| LinkEntry::from_link(l, false)),
-                    refined_points: a.refined_points.as_ref().and_then(|r| {
-                        r.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
-                    }),
-                    transitions: Transitions {
-                        next: next
-                            .map(|l| l.forward.clone())
-                            .unwrap_or_else(|| none.clone()),
-                        prev: prev.map(|l| l.backward.clone()).unwrap_or(none),
-                        next_seam: next.map(|l| l.forward_seam.clone()).unwrap_or_default(),
-                        prev_seam: prev.map(|l| l.backward_seam.clone()).unwrap_or_default(),
-                    },
-                    dynamic: v.dynamic_alpha.as_ref().map(|_| dynamic_name(p)),
-                    dynamic_fraction: v.dynamic_fraction,
-                    motion_kept: Some(v.motion_kept),
-                    noise_sigma: v.noise_sigma,
-                }
-            })
-            .collect();
+        let views =
+            a.views
+                .iter()
+                .enumerate()
+                .map(|(p, v)| {
+                    let none = vec![None; v.n_frames];
+                    let next = a.links.get(p);
+                    let prev = if p > 0 { a.links.get(p - 1) } else { None };
+                    ViewEntry {
+                        name: v.name.clone(),
+                        frames: v.n_frames,
+                        points: points
+                            .get(p)
+                            .map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
+                            .unwrap_or_default(),
+                        background: background_name(p),
+                        objects: objects_name(p),
+                        moving_fraction: v.moving_fraction,
+                        mean_step: v.mean_step,
+                        loop_seam: v.loop_seam,
+                        loop_: v.best_loop.into(),
+                        alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
+                        to_next: next.map(|l| LinkEntry::from_link(l, true)),
+                        to_prev: prev.map(|l| LinkEntry::from_link(l, false)),
+                        refined_points: a.refined_points.as_ref().and_then(|r| {
+                            r.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
+                        }),
+                        transitions: Transitions {
+                            next: next
+                                .map(|l| l.forward.clone())
+                                .unwrap_or_else(|| none.clone()),
+                            prev: prev.map(|l| l.backward.clone()).unwrap_or(none),
+                            next_seam: next.map(|l| l.forward_seam.clone()).unwrap_or_default(),
+                            prev_seam: prev.map(|l| l.backward_seam.clone()).unwrap_or_default(),
+                        },
+                        dynamic: v.dynamic_alpha.as_ref().map(|_| dynamic_name(p)),
+                        dynamic_fraction: v.dynamic_fraction,
+                        motion_kept: Some(v.motion_kept),
+                        noise_sigma: v.noise_sigma,
+                    }
+                })
+                .collect();
         SceneFile {
             format: FORMAT.into(),
             version: VERSION,

@@ -232,13 +232,17 @@ impl RealScene {
         if !(4..=8).contains(&params.points) {
             return Err(format!("points {} must be in 4..=8", params.points));
         }
-        let finite_pos = |v: f64| v.is_finite() && v > 0.0;
-        if !finite_pos(params.distance)
-            || !(params.baseline.is_finite() && params.baseline >= 0.0)
-            || !(params.slant_deg.is_finite() && params.slant_deg.abs() < 75.0)
-            || !(params.exposure.is_finite() && (0.0..0.5).contains(&params.exposure))
-            || !(params.marking_noise.is_finite() && params.marking_noise >= 0.0)
-        {
+        let ok = params.distance.is_finite()
+            && params.distance > 0.0
+            && params.baseline.is_finite()
+            && params.baseline >= 0.0
+            && params.slant_deg.is_finite()
+            && params.slant_deg.abs() < 75.0
+            && params.exposure.is_finite()
+            && (0.0..0.5).contains(&params.exposure)
+            && params.marking_noise.is_finite()
+            && params.marking_noise >= 0.0;
+        if !ok {
             return Err(format!(
                 "geometry out of range: distance {} (> 0), baseline {} (>= 0), slant {} (|.| < 75), exposure {} (0 to 0.5), marking noise {} (>= 0)",
                 params.distance, params.baseline, params.slant_deg, params.exposure, params.marking_noise
@@ -698,7 +702,7 @@ mod tests {
         assert_eq!(s_idx, (s.offsets()[p] + 7) % 6);
         let direct = warp(&s.source()[s_idx], &s.homography(p), 96, 72, s.gains()[p]);
         assert_eq!(direct, s.frame(p, 7));
-        let fit = fit_homography(&s.plane_points().to_vec(), &s.true_points(p)).unwrap();
+        let fit = fit_homography(s.plane_points(), &s.true_points(p)).unwrap();
         assert!(s.corner_error(0, p, &(fit * s.homography(0).try_inverse().unwrap())) < 1e-6);
     }
 }
