@@ -214,12 +214,15 @@ fn mask_threshold(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     )])
 }
 
+/// The forward and backward transition tables of one neighbour pair.
+pub type TablePair = (Vec<Option<usize>>, Vec<Option<usize>>);
+
 /// Mean phase error (frames) of the transitions p -> p+1 and back over the frames on each loop,
 /// and the share within +-1 frame.
 pub fn transition_phase_errors(
     sa: &SynthA,
     loops: &[(usize, usize)],
-    tables: &[(Vec<Option<usize>>, Vec<Option<usize>>)],
+    tables: &[TablePair],
 ) -> (f64, f64) {
     let period = sa.scene.params().period;
     let (mut sum, mut n, mut within) = (0usize, 0usize, 0usize);

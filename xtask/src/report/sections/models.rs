@@ -87,7 +87,10 @@ fn scene_row(
     Ok(())
 }
 
-fn texture_points(scene: &TextureScene) -> (Vec<(Vec<Point>, Vec<Point>)>, Vec<Matrix3<f64>>) {
+/// Marked point pairs of neighbouring views.
+type PointPairs = Vec<(Vec<Point>, Vec<Point>)>;
+
+fn texture_points(scene: &TextureScene) -> (PointPairs, Vec<Matrix3<f64>>) {
     let m = scene.params().views;
     let pairs = (0..m - 1)
         .map(|p| (to_points(&scene.points(p)), to_points(&scene.points(p + 1))))
@@ -261,7 +264,7 @@ fn sweep_point(
     let reference = warp_rgb(tex, &true_h, w, h, Interpolation::Bilinear);
     let src = sweep_points();
     let mut votes = [0usize; 4];
-    let mut psnrs = vec![0.0; 4];
+    let mut psnrs = [0.0; 4];
     for trial in 0..trials {
         let s = noisy(&src, sigma, 100 + 2 * trial);
         let d = noisy(

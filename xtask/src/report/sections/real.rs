@@ -273,7 +273,7 @@ fn system_b(ctx: &mut Ctx) -> Result<Vec<Item>> {
         ],
     );
     let mut gallery = Vec::new();
-    let mut sums = vec![[0.0f64; 4]; 5];
+    let mut sums = [[0.0f64; 4]; 5];
     for &k in &withheld {
         let (paper, pimg) = leave_one_out(
             &tp.cams,

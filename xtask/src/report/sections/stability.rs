@@ -285,7 +285,7 @@ fn images_table() -> Table {
     }
     let masks = |n: usize| -> Vec<Mask> {
         (0..n)
-            .map(|i| Mask::from_fn(16, 8, |x, y| (x + y + i as u32) % 5 == 0))
+            .map(|i| Mask::from_fn(16, 8, |x, y| (x + y + i as u32).is_multiple_of(5)))
             .collect()
     };
     for (input, n, params) in [
