@@ -90,6 +90,8 @@ pub fn curve_svg(c: &Curve, path: &Path) -> Result<()> {
     let root = SVGBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;
     let (x0, x1) = range(&c.x, c.points.iter().map(|p| p.x));
+    // Room on the right for the last points' labels.
+    let x1 = x1 + 0.18 * (x1 - x0);
     let (y0, y1) = range_with_legend(&c.y, c.points.iter().map(|p| p.y));
     let mut chart = ChartBuilder::on(&root)
         .caption(&c.title, ("sans-serif", 18))
