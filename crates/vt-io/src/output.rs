@@ -775,7 +775,7 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(
-            e.contains("not a vt output (a folder with 1 entries"),
+            e.contains("not a vt output (a folder with 1 entry and"),
             "{e}"
         );
         let file = root.path().join("notes.txt");

@@ -218,7 +218,8 @@ impl FrameWriter {
         const REFUSED: [&str; 11] = [
             "png", "jpg", "jpeg", "avi", "mov", "mkv", "webm", "m4v", "mpg", "mpeg", "webp",
         ];
-        let ext = ext_of(target).filter(|e| e == "mp4" || e == "gif" || REFUSED.contains(&e.as_str()));
+        let ext =
+            ext_of(target).filter(|e| e == "mp4" || e == "gif" || REFUSED.contains(&e.as_str()));
         match ext.as_deref() {
             None => Ok(FrameWriter::Folder {
                 output: Output::dir(target, OutputKind::Frames, inputs)?,
@@ -325,6 +326,19 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("not a vt video output"), "{e}");
+        // An encoder that dies is reported as such, with its status, not as a broken pipe.
+        let dead = dir.path().join("dead.mp4");
+        let mut w = VideoWriter::create(&dead, &[], 33, 17, 10.0).unwrap();
+        w.child.lock().unwrap().kill().unwrap();
+        let e = (0..200)
+            .find_map(|_| w.write(&img).err())
+            .expect("writing to a dead encoder fails")
+            .to_string();
+        assert!(
+            e.contains("ffmpeg stopped encoding (signal: 9") && !e.contains("Broken pipe"),
+            "{e}"
+        );
+        drop(w);
         // A frame of the wrong size is refused with both sizes; nothing is left behind.
         let target = dir.path().join("b.mp4");
         let mut w = VideoWriter::create(&target, &[], 32, 16, 10.0).unwrap();
