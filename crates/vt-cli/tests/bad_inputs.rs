@@ -214,7 +214,7 @@ fn build_fixtures(f: &Path) {
     let variant = |name: &str, json: &dyn Fn(String) -> String| {
         let d = f.join(name);
         copy_dir(&scene, &d);
-        edit(&d.join("scene.json"), |t| json(t));
+        edit(&d.join("scene.json"), json);
         d
     };
     variant("scene_v0", &|t| {
