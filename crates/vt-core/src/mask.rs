@@ -136,6 +136,17 @@ impl Mask {
         self.get_index(y as usize * self.width as usize + x as usize)
     }
 
+    /// Pixel value at `(x, y)`, `false` outside the image (for neighbourhood and projection
+    /// tests that may step off the edge; [`Mask::get`] panics there instead).
+    #[inline]
+    pub fn get_or_false(&self, x: i64, y: i64) -> bool {
+        x >= 0
+            && y >= 0
+            && x < self.width as i64
+            && y < self.height as i64
+            && self.get_index(y as usize * self.width as usize + x as usize)
+    }
+
     #[inline]
     fn get_index(&self, i: usize) -> bool {
         (self.words[i >> 6] >> (i & 63)) & 1 == 1
