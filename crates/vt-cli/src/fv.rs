@@ -350,10 +350,10 @@ fn render(a: RenderArgs) -> Result<()> {
             .context("guided synthesis")?;
         pb.finish_and_clear();
         let what = v.describe(&d.cams, &view);
-        (v.guided, v.rough.coverage.count(), what)
+        (v.guided, v.rough.coverage.count_ones(), what)
     } else {
         let r = render_rough(&model, &cam, w, h);
-        (r.image, r.coverage.count(), "rough".to_string())
+        (r.image, r.coverage.count_ones(), "rough".to_string())
     };
     if coverage == 0 {
         bail!("--camera {}: camera sees none of the model", cam.name);

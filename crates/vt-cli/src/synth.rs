@@ -350,7 +350,7 @@ fn write_object(a: &ObjectArgs) -> Result<()> {
             .collect();
         for (i, c) in named.iter().enumerate() {
             write_png(&folder.join(&c.name), &photos[i])?;
-            let m = masks[i].to_image();
+            let m = vt_fv::silhouette::mask_image(&masks[i]);
             let p = mdir.join(&c.name);
             m.save(&p).with_context(|| p.display().to_string())?;
         }

@@ -168,7 +168,7 @@ pub fn scale_mask(m: &Mask, w: u32, h: u32) -> Mask {
             (y as f64 * sy).floor() as i64,
             ((y + 1) as f64 * sy).ceil() as i64,
         );
-        (y0..y1.max(y0 + 1)).any(|yy| (x0..x1.max(x0 + 1)).any(|xx| m.get(xx, yy)))
+        (y0..y1.max(y0 + 1)).any(|yy| (x0..x1.max(x0 + 1)).any(|xx| m.get_or_false(xx, yy)))
     })
 }
 
@@ -632,7 +632,7 @@ pub fn write_eval_images(dir: &Path, imgs: &EvalImages, mask: &Mask) -> Result<(
         img.save(&p).map_err(|e| path_err(&p, e.to_string()))?;
     }
     let p = dir.join("silhouette.png");
-    mask.to_image()
+    crate::silhouette::mask_image(mask)
         .save(&p)
         .map_err(|e| path_err(&p, e.to_string()))
 }

@@ -6,21 +6,16 @@ use image::RgbImage;
 use crate::silhouette::Mask;
 use crate::Result;
 
-/// vt-core's mask of the same pixels.
-fn core_mask(m: &Mask) -> vt_core::Mask {
-    vt_core::Mask::from_fn(m.width(), m.height(), |x, y| m.get(x as i64, y as i64))
-}
-
 /// PSNR in dB over all channels of the pixels in `mask` (all pixels without one); infinite for
 /// identical images. Errors for a size mismatch or an empty mask.
 pub fn psnr(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
-    Ok(vt_core::metrics::psnr(a, reference, mask.map(core_mask).as_ref())?)
+    Ok(vt_core::metrics::psnr(a, reference, mask)?)
 }
 
 /// Mean SSIM of luma over 11x11 windows inside the image whose centre is in `mask`. Errors for a
 /// size mismatch, images smaller than 11x11 or a mask with no valid centre.
 pub fn ssim(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
-    Ok(vt_core::metrics::ssim(a, reference, mask.map(core_mask).as_ref())?)
+    Ok(vt_core::metrics::ssim(a, reference, mask)?)
 }
 
 #[cfg(test)]

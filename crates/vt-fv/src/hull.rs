@@ -499,7 +499,7 @@ impl Carver<'_> {
             if px < 0 || py < 0 || px >= v.w || py >= v.h {
                 continue;
             }
-            if !v.mask.get(px, py) {
+            if !crate::silhouette::bit(v.mask, (py * v.w + px) as usize) {
                 return false;
             }
             sat += 1;
@@ -640,7 +640,11 @@ pub fn auto_bounds(cams: &[Camera], masks: &[Mask], params: &HullParams) -> Resu
     let mut rhs = Vector3::zeros();
     let mut rays = Vec::new();
     for (c, m) in cams.iter().zip(masks) {
-        let (x0, y0, x1, y1) = m.bbox().expect("silhouettes are not empty: checked above");
+        // Inclusive box of the set pixels (vt-core's upper bounds are exclusive).
+        let (x0, y0, x1, y1) = m
+            .bounding_box()
+            .map(|(x0, y0, x1, y1)| (x0, y0, x1 - 1, y1 - 1))
+            .expect("silhouettes are not empty: checked above");
         let d = c.ray((x0 + x1) as f64 / 2.0, (y0 + y1) as f64 / 2.0);
         let proj = nalgebra::Matrix3::identity() - d * d.transpose();
         a += proj;

@@ -594,7 +594,9 @@ pub fn photo_hull_keeping(
                 .zip(masks)
                 .flat_map(|(ch, m)| {
                     ch.iter()
-                        .filter(|&&(o, n, p)| o > 0 && n == 0 && m.as_slice()[p as usize] != 0)
+                        .filter(|&&(o, n, p)| {
+                            o > 0 && n == 0 && crate::silhouette::bit(m, p as usize)
+                        })
                         .map(|&(o, _, _)| o - 1)
                 })
                 .filter(|&slot| !alive[slot as usize])

@@ -265,10 +265,10 @@ pub fn score(img: &RgbImage, truth: &RgbImage, mask: &Mask) -> Result<Scores> {
 
 /// Intersection over union of two masks of the same size (1 when both are empty).
 pub fn iou(a: &Mask, b: &Mask) -> f64 {
-    let (mut inter, mut union) = (0usize, 0usize);
-    for (x, y) in a.as_slice().iter().zip(b.as_slice()) {
-        inter += (*x != 0 && *y != 0) as usize;
-        union += (*x != 0 || *y != 0) as usize;
+    let (mut inter, mut union) = (0u64, 0u64);
+    for (x, y) in a.words().iter().zip(b.words()) {
+        inter += (x & y).count_ones() as u64;
+        union += (x | y).count_ones() as u64;
     }
     if union == 0 {
         1.0
@@ -302,10 +302,10 @@ pub fn error_map(img: &RgbImage, truth: &RgbImage, mask: &Mask) -> RgbImage {
         let e: u32 = (0..3).map(|k| a[k].abs_diff(b[k]) as u32).sum();
         let g = (e * 4 / 3).min(255) as u8;
         let (xi, yi) = (x as i64, y as i64);
-        let edge = mask.get(xi, yi)
+        let edge = mask.get(x, y)
             && [(-1, 0), (1, 0), (0, -1), (0, 1)]
                 .iter()
-                .any(|(dx, dy)| !mask.get(xi + dx, yi + dy));
+                .any(|(dx, dy)| !mask.get_or_false(xi + dx, yi + dy));
         if edge {
             Rgb([255, 0, 0])
         } else {

@@ -242,7 +242,7 @@ pub fn guided_synthesis_stats(
             });
             covered
                 .dilate((patch / 2) as u32)
-                .as_slice()
+                .to_bytes()
                 .iter()
                 .map(|&v| v != 0)
                 .collect()

@@ -349,7 +349,7 @@ pub fn texture_view(
     push_pull(&mut known, wu, h as usize);
     let mut image = RgbImage::from_fn(w, h, |x, y| {
         let i = (y * w + x) as usize;
-        if !region.get(x as i64, y as i64) {
+        if !region.get(x, y) {
             return Rgb([0, 0, 0]);
         }
         Rgb(known[i]
@@ -371,7 +371,7 @@ pub fn texture_view(
             why: e.to_string(),
         })?;
         for (i, (px, sp)) in image.pixels_mut().zip(soft.pixels()).enumerate() {
-            if region.as_slice()[i] == 0 {
+            if !crate::silhouette::bit(&region, i) {
                 continue;
             }
             let t = match samples[i] {

@@ -42,7 +42,7 @@ fn load(factor: u32) -> (Vec<Camera>, Vec<RgbImage>, Vec<Mask>) {
             image::Rgb(acc.map(|a| (a / (f * f)) as u8))
         });
         let sm = Mask::from_fn(w, h, |x, y| {
-            (0..f * f).any(|i| m.get((x * f + i % f) as i64, (y * f + i / f) as i64))
+            (0..f * f).any(|i| m.get_or_false((x * f + i % f) as i64, (y * f + i / f) as i64))
         });
         cams.push(c.scaled(1.0 / factor as f64));
         imgs.push(small);
@@ -62,9 +62,9 @@ fn temple_cameras_see_the_object_and_bounds_hold_it() {
     );
     for (c, m) in cams.iter().zip(&masks) {
         // The temple has gaps between its columns, so test against the silhouette's box.
-        let (x0, y0, x1, y1) = m.bbox().unwrap();
+        let (x0, y0, x1, y1) = m.bounding_box().unwrap();
         let (u, v, _) = c.project(&((lo + hi) / 2.0)).unwrap();
-        let inside = u >= x0 as f64 && u <= x1 as f64 && v >= y0 as f64 && v <= y1 as f64;
+        let inside = u >= x0 as f64 && u < x1 as f64 && v >= y0 as f64 && v < y1 as f64;
         assert!(
             inside,
             "{}: box centre projects outside the silhouette's box at {u},{v}",
