@@ -1,0 +1,23 @@
+//! The one error type of vt-view.
+
+/// Result alias for vt-view.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What can stop the viewer from starting.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A viewer parameter out of its range (the message names it with its value).
+    #[error("{0}")]
+    Param(String),
+    /// The port cannot be listened on. The OS error is part of the message, not also `source()`.
+    #[error("port {port}: cannot listen on 127.0.0.1: {cause}")]
+    Listen {
+        /// The port asked for.
+        port: u16,
+        /// The OS error.
+        cause: std::io::Error,
+    },
+    /// The renderer refused the scene or its parameters.
+    #[error(transparent)]
+    Core(#[from] vt_core::Error),
+}

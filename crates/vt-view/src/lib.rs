@@ -1,0 +1,577 @@
+//! vt-view: System A's live viewer in the browser (`vt view` is a thin front end over it).
+//!
+//! The Rust side renders (eq. 3-6, as `vt render`) and streams JPEG frames as MJPEG
+//! (`multipart/x-mixed-replace`), which every browser shows in a plain `<img>` with no script;
+//! the page sends the viewpoint and speed to `/control` and polls `/state` for the status line.
+//! The server binds 127.0.0.1 only and answers exactly five routes: `/`, `/stream.mjpg`,
+//! `/frame.jpg`, `/state`, `/control`; everything else is 404. No files are served.
+//!
+//! The HTTP layer is std's `TcpListener` with `httparse` for the request line and headers, so
+//! nothing is ever allocated on a client's word: a request head is at most [`MAX_HEAD`] bytes,
+//! request bodies are refused unread (413), each connection has its own thread (at most
+//! [`MAX_CONNECTIONS`]; beyond that new ones get 503), and idle or slow clients are dropped after
+//! [`IDLE_TIMEOUT`] (reads) or [`WRITE_TIMEOUT`] (a stream nobody reads).
+#![deny(missing_docs)]
+
+mod error;
+
+pub use error::{Error, Result};
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use image::codecs::jpeg::JpegEncoder;
+use image::RgbImage;
+use serde::Serialize;
+use vt_core::render::{split_q, FrameChoice, Player, RenderParams, Renderer};
+use vt_io::scene::LoadedScene;
+
+
+
+const PAGE: &str = include_str!("view.html");
+
+/// Largest request head (request line and headers), bytes.
+pub const MAX_HEAD: usize = 8192;
+/// Most connections served at once; more get 503.
+pub const MAX_CONNECTIONS: usize = 512;
+/// A connection that sends nothing for this long is closed.
+pub const IDLE_TIMEOUT: Duration = Duration::from_secs(15);
+/// A client that takes no data for this long is dropped.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(15);
+/// Slowest playback speed other than 0 (paused), and the fastest.
+pub const SPEED_RANGE: (f64, f64) = (0.01, 8.0);
+
+/// Locks, treating a poisoned lock as usable: the data behind these locks (a control value, the
+/// latest frame) is valid whatever a panicking thread was doing.
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+#[derive(Clone, Copy)]
+struct Control {
+    q: f64,
+    speed: f64,
+}
+
+#[derive(Clone, Copy, Default, Serialize)]
+struct Status {
+    q: f64,
+    view: usize,
+    frame: usize,
+    wraps: u64,
+    switches: u64,
+    fps: f64,
+    speed: f64,
+    frames: u64,
+}
+
+#[derive(Default)]
+struct Latest {
+    seq: u64,
+    jpeg: Arc<Vec<u8>>,
+    status: Status,
+}
+
+struct Shared {
+    control: Mutex<Control>,
+    latest: Mutex<Latest>,
+    fresh: Condvar,
+}
+
+/// What the viewer shows and how: the scene's renderer settings, the starting viewpoint, the
+/// frame rate at speed 1 and the JPEG quality. Checked by [`Viewer::bind`].
+#[derive(Debug, Clone)]
+pub struct ViewerParams {
+    /// Port on 127.0.0.1 (0 = any free port; [`Viewer::port`] says which).
+    pub port: u16,
+    /// Frames per second at speed 1, in (0, 240].
+    pub fps: f64,
+    /// Starting viewpoint, in `[0, M - 1]`.
+    pub q: f64,
+    /// JPEG quality, 1-100.
+    pub quality: u8,
+    /// Renderer settings (interpolation, crossfade, gain compensation, ...).
+    pub render: RenderParams,
+}
+
+/// A viewer bound to its port, not yet serving.
+pub struct Viewer {
+    listener: TcpListener,
+    port: u16,
+    shared: Arc<Shared>,
+    page: Arc<String>,
+    q_max: f64,
+}
+
+impl Viewer {
+    /// Checks the parameters, starts the render thread and binds 127.0.0.1:`port`. `name` is the
+    /// scene's name as the page shows it.
+    pub fn bind(scene: LoadedScene, name: &str, params: &ViewerParams) -> Result<Self> {
+        if !(params.fps.is_finite() && params.fps > 0.0 && params.fps <= 240.0) {
+            return Err(Error::Param(format!(
+                "frame rate {} must be in (0, 240]",
+                vt_io::output::num(params.fps)
+            )));
+        }
+        if !(1..=100).contains(&params.quality) {
+            return Err(Error::Param(format!(
+                "JPEG quality {} must be in 1..=100",
+                params.quality
+            )));
+        }
+        if scene.render.check_q(params.q).is_err() {
+            return Err(Error::Param(format!(
+                "viewpoint {} is outside [0, {}] (the scene has {} views)",
+                vt_io::output::num(params.q),
+                scene.render.q_max(),
+                scene.render.views.len()
+            )));
+        }
+        let q_max = scene.render.q_max();
+        let renderer = Renderer::new(scene.render.clone(), params.render)?;
+        let listener =
+            TcpListener::bind(("127.0.0.1", params.port)).map_err(|e| Error::Listen {
+                port: params.port,
+                cause: e,
+            })?;
+        let port = listener
+            .local_addr()
+            .map_err(|e| Error::Listen {
+                port: params.port,
+                cause: e,
+            })?
+            .port();
+        let shared = Arc::new(Shared {
+            control: Mutex::new(Control {
+                q: params.q,
+                speed: 1.0,
+            }),
+            latest: Mutex::new(Latest::default()),
+            fresh: Condvar::new(),
+        });
+        {
+            let shared = shared.clone();
+            let (fps, quality) = (params.fps, params.quality);
+            std::thread::spawn(move || {
+                let mut renderer = renderer;
+                // A panic in the renderer must not freeze the video: say so and start again.
+                for _ in 0..100 {
+                    let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        rayon::scope(|_| render_loop(&scene, &mut renderer, &shared, fps, quality))
+                    }));
+                    if run.is_ok() {
+                        return;
+                    }
+                    eprintln!("vt view: the renderer failed; restarting it");
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            });
+        }
+        let name = serde_json::to_string(name)
+            .unwrap_or_else(|_| "\"scene\"".into())
+            .replace('<', "\\u003c");
+        let page = Arc::new(
+            PAGE.replace("__QMAX__", &q_max.to_string())
+                .replace("__Q0__", &format!("{:.2}", params.q))
+                .replace("\"__SCENE__\"", &name),
+        );
+        Ok(Self {
+            listener,
+            port,
+            shared,
+            page,
+            q_max,
+        })
+    }
+
+    /// The port it listens on.
+    pub fn port(&self) -> u16 {
+        self.port
+    }
+
+    /// Serves connections until the process ends.
+    pub fn serve(self) {
+        let Viewer {
+            listener,
+            shared,
+            page,
+            q_max,
+            ..
+        } = self;
+        let active = Arc::new(AtomicUsize::new(0));
+        for conn in listener.incoming() {
+            let Ok(mut conn) = conn else {
+                // Out of file descriptors or similar: let some connections finish.
+                std::thread::sleep(Duration::from_millis(20));
+                continue;
+            };
+            if active.load(Ordering::SeqCst) >= MAX_CONNECTIONS {
+                let _ = conn.set_write_timeout(Some(Duration::from_millis(200)));
+                let _ = respond(
+                    &mut conn,
+                    503,
+                    "text/plain",
+                    b"busy: too many connections",
+                    true,
+                );
+                continue;
+            }
+            active.fetch_add(1, Ordering::SeqCst);
+            let guard = ActiveGuard(active.clone());
+            let (shared, page) = (shared.clone(), page.clone());
+            let spawned = std::thread::Builder::new()
+                .name("vt-view-conn".into())
+                .stack_size(256 << 10)
+                .spawn(move || {
+                    let _guard = guard;
+                    serve_connection(conn, &shared, &page, q_max);
+                });
+            // When no thread can be made, the connection (moved into the failed closure) is closed.
+            drop(spawned);
+        }
+    }
+}
+
+/// Decrements the connection count when a connection's thread ends (also by panic).
+struct ActiveGuard(Arc<AtomicUsize>);
+impl Drop for ActiveGuard {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// Writes a whole response with `Content-Length`.
+fn respond(
+    conn: &mut TcpStream,
+    status: u16,
+    content_type: &str,
+    body: &[u8],
+    close: bool,
+) -> std::io::Result<()> {
+    let reason = match status {
+        200 => "OK",
+        400 => "Bad Request",
+        404 => "Not Found",
+        405 => "Method Not Allowed",
+        413 => "Content Too Large",
+        431 => "Request Header Fields Too Large",
+        503 => "Service Unavailable",
+        _ => "Error",
+    };
+    let head = format!(
+        "HTTP/1.1 {status} {reason}\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nCache-Control: no-cache, no-store\r\nConnection: {}\r\n\r\n",
+        body.len(),
+        if close { "close" } else { "keep-alive" }
+    );
+    conn.write_all(head.as_bytes())?;
+    conn.write_all(body)?;
+    conn.flush()
+}
+
+/// What one request asked for.
+struct Request {
+    path: String,
+    query: String,
+    keep_alive: bool,
+}
+
+/// Reads one request head (at most [`MAX_HEAD`] bytes) from `conn`, keeping any bytes after it
+/// in `buf` for the next request. `Ok(None)`: the client closed or went idle. `Err(status)`: a
+/// request to refuse with that status, then close.
+fn read_request(
+    conn: &mut TcpStream,
+    buf: &mut Vec<u8>,
+) -> Result<Option<Request>, (u16, &'static str)> {
+    let mut chunk = [0u8; 2048];
+    loop {
+        let mut headers = [httparse::EMPTY_HEADER; 32];
+        let mut req = httparse::Request::new(&mut headers);
+        match req.parse(buf) {
+            Ok(httparse::Status::Complete(len)) => {
+                let method = req.method.unwrap_or("");
+                let target = req.path.unwrap_or("/").to_string();
+                let version = req.version.unwrap_or(1);
+                let mut has_body = false;
+                let mut close = version == 0;
+                for h in req.headers.iter() {
+                    let v = String::from_utf8_lossy(h.value).trim().to_ascii_lowercase();
+                    if h.name.eq_ignore_ascii_case("content-length") {
+                        has_body |= v != "0";
+                    } else if h.name.eq_ignore_ascii_case("transfer-encoding") {
+                        has_body = true;
+                    } else if h.name.eq_ignore_ascii_case("connection") {
+                        close |= v.contains("close");
+                    }
+                }
+                if has_body {
+                    // Never read (or allocate for) a body: this server takes none.
+                    return Err((413, "request bodies are not accepted"));
+                }
+                if method != "GET" {
+                    return Err((405, "only GET is served"));
+                }
+                buf.drain(..len);
+                let (path, query) = target.split_once('?').unwrap_or((&target, ""));
+                return Ok(Some(Request {
+                    path: path.to_string(),
+                    query: query.to_string(),
+                    keep_alive: !close,
+                }));
+            }
+            Ok(httparse::Status::Partial) => {
+                if buf.len() >= MAX_HEAD {
+                    return Err((431, "request head too large"));
+                }
+            }
+            Err(httparse::Error::TooManyHeaders) => return Err((431, "too many headers")),
+            Err(_) => return Err((400, "malformed request")),
+        }
+        let want = (MAX_HEAD - buf.len()).min(chunk.len());
+        match conn.read(&mut chunk[..want]) {
+            Ok(0) | Err(_) => return Ok(None),
+            Ok(n) => buf.extend_from_slice(&chunk[..n]),
+        }
+    }
+}
+
+/// Serves one connection: requests one after another (keep-alive) until it closes, goes idle,
+/// or turns into an MJPEG stream.
+fn serve_connection(mut conn: TcpStream, shared: &Arc<Shared>, page: &str, q_max: f64) {
+    let _ = conn.set_read_timeout(Some(IDLE_TIMEOUT));
+    let _ = conn.set_write_timeout(Some(WRITE_TIMEOUT));
+    let _ = conn.set_nodelay(true);
+    let mut buf = Vec::with_capacity(1024);
+    loop {
+        let req = match read_request(&mut conn, &mut buf) {
+            Ok(Some(r)) => r,
+            Ok(None) => return,
+            Err((status, why)) => {
+                let _ = respond(&mut conn, status, "text/plain", why.as_bytes(), true);
+                return;
+            }
+        };
+        let close = !req.keep_alive;
+        let sent = match req.path.as_str() {
+            "/" => respond(
+                &mut conn,
+                200,
+                "text/html; charset=utf-8",
+                page.as_bytes(),
+                close,
+            ),
+            "/state" => {
+                let s = lock(&shared.latest).status;
+                respond(&mut conn, 200, "application/json", &json(&s), close)
+            }
+            "/control" => match parse_control(&req.query, q_max) {
+                Ok((q, speed)) => {
+                    let mut c = lock(&shared.control);
+                    if let Some(q) = q {
+                        c.q = q;
+                    }
+                    if let Some(sp) = speed {
+                        c.speed = sp;
+                    }
+                    drop(c);
+                    let s = lock(&shared.latest).status;
+                    respond(&mut conn, 200, "application/json", &json(&s), close)
+                }
+                Err(e) => respond(&mut conn, 400, "text/plain", e.as_bytes(), close),
+            },
+            "/frame.jpg" => {
+                let jpeg = lock(&shared.latest).jpeg.clone();
+                respond(&mut conn, 200, "image/jpeg", &jpeg, close)
+            }
+            "/stream.mjpg" => {
+                // Written straight to the socket and flushed per frame: a buffered body would
+                // hold back the last frame while playback is paused.
+                stream_mjpeg(shared, &mut conn);
+                return;
+            }
+            _ => respond(&mut conn, 404, "text/plain", b"not found", close),
+        };
+        if sent.is_err() || close {
+            return;
+        }
+    }
+}
+
+fn json<T: Serialize>(v: &T) -> Vec<u8> {
+    serde_json::to_vec(v).unwrap_or_default()
+}
+
+/// `q=1.5&speed=0.5`; each optional; values checked.
+fn parse_control(query: &str, q_max: f64) -> Result<(Option<f64>, Option<f64>), String> {
+    let (mut q, mut speed) = (None, None);
+    for pair in query.split('&').filter(|p| !p.is_empty()) {
+        let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
+        let (ks, vs) = (vt_io::output::shorten(k), vt_io::output::shorten(v));
+        let x: f64 = v
+            .parse()
+            .map_err(|_| format!("{ks}: '{vs}' is not a number"))?;
+        let (slow, fast) = SPEED_RANGE;
+        match k {
+            "q" if x.is_finite() && (0.0..=q_max).contains(&x) => q = Some(x),
+            "q" => {
+                return Err(format!(
+                    "q {} is outside [0, {q_max}]",
+                    vt_io::output::num(x)
+                ))
+            }
+            "speed" if x == 0.0 || (slow..=fast).contains(&x) => speed = Some(x),
+            "speed" => {
+                return Err(format!(
+                    "speed {} must be 0 (paused) or in [{slow}, {fast}]",
+                    vt_io::output::num(x)
+                ))
+            }
+            _ => return Err(format!("unknown parameter '{ks}'")),
+        }
+    }
+    Ok((q, speed))
+}
+
+/// Renders at `fps * speed`, encodes JPEG, publishes. Paused (speed 0), it re-renders only when
+/// the viewpoint moves, keeping the shown frame unless the object's source view changes.
+fn render_loop(
+    scene: &LoadedScene,
+    renderer: &mut Renderer,
+    shared: &Shared,
+    fps: f64,
+    quality: u8,
+) {
+    let (w, h) = renderer.size();
+    let mut frame = RgbImage::new(w, h);
+    let mut player = Player::new();
+    // The last published control and choice: any control change republishes at once.
+    let mut last: Option<(f64, f64, FrameChoice)> = None;
+    let mut next_tick = Instant::now();
+    let mut times: std::collections::VecDeque<Instant> = std::collections::VecDeque::new();
+    let mut count = 0u64;
+    loop {
+        let Control { q, speed } = *lock(&shared.control);
+        let now = Instant::now();
+        let playing = speed > 0.0;
+        let due = playing && now >= next_tick;
+        let moved = last.is_none_or(|(lq, ls, _)| lq != q || ls != speed);
+        if !due && !moved {
+            let wait = if playing {
+                next_tick.saturating_duration_since(now)
+            } else {
+                Duration::from_millis(10)
+            };
+            std::thread::sleep(wait.min(Duration::from_millis(10)));
+            continue;
+        }
+        let choice = match last {
+            Some((_, _, c)) if !due && c.view == split_q(q).2 => c,
+            _ => match player.advance(&scene.render, q) {
+                Ok(c) => c,
+                Err(_) => continue,
+            },
+        };
+        if renderer
+            .render_into(&scene.objects, q, &choice, &mut frame)
+            .is_err()
+        {
+            std::thread::sleep(Duration::from_millis(50));
+            continue;
+        }
+        let mut jpeg = Vec::with_capacity(64 << 10);
+        if JpegEncoder::new_with_quality(&mut jpeg, quality)
+            .encode_image(&frame)
+            .is_err()
+        {
+            continue;
+        }
+        count += 1;
+        times.push_back(Instant::now());
+        while times.len() > 30 {
+            times.pop_front();
+        }
+        let measured = match (times.front(), times.back()) {
+            (Some(a), Some(b)) if times.len() > 1 && b > a => {
+                (times.len() - 1) as f64 / (*b - *a).as_secs_f64()
+            }
+            _ => 0.0,
+        };
+        {
+            let mut l = lock(&shared.latest);
+            l.seq += 1;
+            l.jpeg = Arc::new(jpeg);
+            l.status = Status {
+                q,
+                view: choice.view,
+                frame: choice.frame,
+                wraps: player.wraps,
+                switches: player.switches,
+                fps: if playing { measured } else { 0.0 },
+                speed,
+                frames: count,
+            };
+        }
+        shared.fresh.notify_all();
+        last = Some((q, speed, choice));
+        if due {
+            // Speed is at least SPEED_RANGE.0 and fps positive, so the step is finite; still,
+            // never panic on it.
+            next_tick += Duration::try_from_secs_f64(1.0 / (fps * speed))
+                .unwrap_or(Duration::from_secs(1))
+                .min(Duration::from_secs(3600));
+            if next_tick < Instant::now() {
+                next_tick = Instant::now();
+            }
+        }
+    }
+}
+
+/// Serves one MJPEG client until it disconnects: every new frame becomes one part, each part ends
+/// with the next boundary, and while nothing new is rendered (paused) the current frame is
+/// repeated every 200 ms, because browsers display a part only when the following one arrives.
+fn stream_mjpeg(shared: &Shared, out: &mut TcpStream) {
+    let head = "HTTP/1.1 200 OK\r\nContent-Type: multipart/x-mixed-replace; boundary=vtframe\r\n\
+                Cache-Control: no-cache, no-store\r\nConnection: close\r\n\r\n--vtframe\r\n";
+    if out
+        .write_all(head.as_bytes())
+        .and_then(|_| out.flush())
+        .is_err()
+    {
+        return;
+    }
+    let mut seen = 0u64;
+    loop {
+        // A new frame, or after 200 ms the current one again: browsers show a multipart part
+        // only once the next one starts, so a paused picture must still be followed.
+        let jpeg = {
+            let mut l = lock(&shared.latest);
+            let deadline = Instant::now() + Duration::from_millis(200);
+            while (l.seq == seen && Instant::now() < deadline) || l.jpeg.is_empty() {
+                let left = deadline
+                    .saturating_duration_since(Instant::now())
+                    .max(Duration::from_millis(1));
+                l = shared
+                    .fresh
+                    .wait_timeout(l, left)
+                    .unwrap_or_else(|e| e.into_inner())
+                    .0;
+            }
+            seen = l.seq;
+            l.jpeg.clone()
+        };
+        let part = format!(
+            "Content-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
+            jpeg.len()
+        );
+        let sent = out
+            .write_all(part.as_bytes())
+            .and_then(|_| out.write_all(&jpeg))
+            .and_then(|_| out.write_all(b"\r\n--vtframe\r\n"))
+            .and_then(|_| out.flush());
+        if sent.is_err() {
+            return;
+        }
+    }
+}
