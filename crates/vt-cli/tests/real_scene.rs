@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use common::*;
 use image::RgbImage;
-use vt_core::render::{Player, RenderParams, Renderer, Step};
+use vt_core::render::{Player, RenderParams, Renderer, Step, SwitchPolicy};
 use vt_io::scene::LoadedScene;
 use vt_synth::real::{RealParams, RealScene};
 
@@ -132,7 +132,10 @@ fn tree_single_view_keeps_the_motion() {
         );
     }
     assert!(kept >= 0.9, "motion kept {kept}");
-    assert!(worst <= 1.5, "rendered frame {worst} grey levels from its source frame");
+    assert!(
+        worst <= 1.5,
+        "rendered frame {worst} grey levels from its source frame"
+    );
     assert!(
         wrap <= 2.0 * mean_step && wrap4 <= 1.2 * step4,
         "loop wrap {wrap:.2} vs ordinary step {mean_step:.2}; crossfade 4: {wrap4:.2} vs {step4:.2}"
@@ -196,7 +199,14 @@ fn analyze_real(real: &Real, out: &Path, extra: &[&str]) -> LoadedScene {
     let points = real.dir.join("points.txt");
     let mut args = vec!["analyze"];
     args.extend(views.iter().map(String::as_str));
-    args.extend_from_slice(&["--points", s(&points), "--out", s(out), "--min-length", "40"]);
+    args.extend_from_slice(&[
+        "--points",
+        s(&points),
+        "--out",
+        s(out),
+        "--min-length",
+        "40",
+    ]);
     args.extend_from_slice(extra);
     let stdout = vt_ok(&args);
     if verbose() {
@@ -276,6 +286,48 @@ fn real_scene_with_marking_noise() {
     assert!(corner <= 0.5, "corner error {corner} px");
     // The refined points still carry about 2 / sqrt(5) px of marking error into x(q).
     assert!(min_psnr >= 34.0, "PSNR at fractional q: {psnrs:?}");
+
+    // Switch where it matches: along a slow sweep, the seams of the switches the player makes,
+    // with eq. (6) as is and with bad switches postponed.
+    let (thesis_mean, thesis_max, _) = switch_seams(&scene, SwitchPolicy::thesis());
+    let (mean, max, postponed) = switch_seams(&scene, SwitchPolicy::default());
+    if verbose() {
+        eprintln!(
+            "switch seams along a sweep: eq. (6) mean {thesis_mean:.2} max {thesis_max:.2}; postponed ({postponed} frames) mean {mean:.2} max {max:.2}"
+        );
+    }
+    assert!(mean <= thesis_mean && max <= thesis_max.max(SwitchPolicy::default().max_seam));
+}
+
+/// Mean and largest seam score of the switches a player makes over a slow sweep 0 -> 4 -> 0
+/// (0.05 views per frame), and the frames it postponed.
+fn switch_seams(scene: &LoadedScene, policy: SwitchPolicy) -> (f64, f64, u64) {
+    let mut player = Player::with_policy(policy);
+    let mut seams = Vec::new();
+    for i in 0..=160 {
+        let q = if i <= 80 {
+            i as f64 * 0.05
+        } else {
+            (160 - i) as f64 * 0.05
+        };
+        let c = player.advance(&scene.render, q).unwrap();
+        if let (Step::Switch { .. }, Some((pv, next))) = (c.step, c.continuation) {
+            let v = &scene.render.views[pv];
+            let table = if c.view > pv {
+                &v.next_seam
+            } else {
+                &v.prev_seam
+            };
+            seams.push(table[next - 1] as f64);
+        }
+    }
+    assert!(!seams.is_empty(), "a sweep across 5 views switches");
+    let mean = seams.iter().sum::<f64>() / seams.len() as f64;
+    (
+        mean,
+        seams.iter().cloned().fold(0.0, f64::max),
+        player.postponed_frames,
+    )
 }
 
 #[test]

@@ -367,41 +367,45 @@ impl MotionKept {
         background: &RgbImage,
         alpha: Option<&GrayImage>,
     ) {
-        if let Some((pf, pm)) = &self.prev {
+        if let Some((pf, pm)) = &mut self.prev {
             let (a, b, bg) = (pf.as_raw(), frame.as_raw(), background.as_raw());
-            let w = frame.width() as usize;
-            let (mut real, mut kept) = (0f64, 0f64);
-            for i in 0..(frame.width() as usize * frame.height() as usize) {
-                let (x, y) = ((i % w) as u32, (i / w) as u32);
-                let dyn_a = alpha.map_or(0.0, |al| al.as_raw()[i] as f32 / 255.0);
-                let a0 = if dyn_a > 0.0 {
-                    dyn_a
-                } else if pm.get(x, y) {
-                    1.0
-                } else {
-                    0.0
-                };
-                let a1 = if dyn_a > 0.0 {
-                    dyn_a
-                } else if mask.get(x, y) {
-                    1.0
-                } else {
-                    0.0
-                };
-                for c in 0..3 {
-                    let (f0, f1, g) = (
-                        a[3 * i + c] as f32,
-                        b[3 * i + c] as f32,
-                        bg[3 * i + c] as f32,
-                    );
-                    real += (f1 - f0).abs() as f64;
-                    let r0 = a0 * f0 + (1.0 - a0) * g;
-                    let r1 = a1 * f1 + (1.0 - a1) * g;
-                    kept += (r1 - r0).abs() as f64;
-                }
-            }
+            let (w0, w1) = (pm.words(), mask.words());
+            let bit = |w: &[u64], i: usize| (w[i / 64] >> (i % 64)) & 1 == 1;
+            let n = frame.width() as usize * frame.height() as usize;
+            let (real, kept) = (0..n)
+                .into_par_iter()
+                .with_min_len(4096)
+                .map(|i| {
+                    let dyn_a = alpha.map_or(0.0, |al| al.as_raw()[i] as f32 / 255.0);
+                    let pick = |set: bool| match (dyn_a > 0.0, set) {
+                        (true, _) => dyn_a,
+                        (false, true) => 1.0,
+                        (false, false) => 0.0,
+                    };
+                    let (a0, a1) = (pick(bit(w0, i)), pick(bit(w1, i)));
+                    let (mut real, mut kept) = (0f64, 0f64);
+                    for c in 0..3 {
+                        let (f0, f1, g) = (
+                            a[3 * i + c] as f32,
+                            b[3 * i + c] as f32,
+                            bg[3 * i + c] as f32,
+                        );
+                        real += (f1 - f0).abs() as f64;
+                        let r0 = a0 * f0 + (1.0 - a0) * g;
+                        let r1 = a1 * f1 + (1.0 - a1) * g;
+                        kept += (r1 - r0).abs() as f64;
+                    }
+                    (real, kept)
+                })
+                .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
             self.real += real;
             self.kept += kept;
+            // Reuse the buffers: no allocation per frame once warm.
+            if pf.dimensions() == frame.dimensions() {
+                pf.copy_from_slice(frame.as_raw());
+                pm.clone_from(mask);
+                return;
+            }
         }
         self.prev = Some((frame.clone(), mask.clone()));
     }
