@@ -14,7 +14,9 @@ use serde::Serialize;
 use crate::camera::{parse_camera_spec, parse_par, Camera};
 use crate::hull::{auto_bounds, dims_for, visual_hull, Aabb, HullParams};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
-use crate::pipeline::{error_map, leave_one_out, EvalImages, EvalReport, Score, ViewParams};
+use crate::pipeline::{
+    error_map, leave_one_out_from, EvalImages, EvalReport, Others, Score, ViewParams,
+};
 use crate::silhouette::{mask_from_image, threshold_silhouette, Mask, SilhouetteParams};
 
 /// Everything that can go wrong reading or writing a data folder. Each cause is printed once.
@@ -369,24 +371,18 @@ impl Dataset {
         model: &ModelParams,
         view: &ViewParams,
     ) -> crate::Result<(EvalReport, EvalImages)> {
+        // One copy of the other views, used for the bounds and the model; view k is scored
+        // inside its scoring silhouette.
+        let keep: Vec<usize> = (0..self.cams.len()).filter(|&i| i != k).collect();
+        let others = Others::of(&self.cams, &self.images, &self.masks, &keep);
         let t = Instant::now();
-        let bounds = match model.bounds {
-            Some(b) => b,
-            None => {
-                let (cams, masks) = (without(&self.cams, k), without(&self.masks, k));
-                volume(None, &cams, &masks)?
-            }
-        };
+        let bounds = volume(model.bounds, &others.cams, &others.masks)?;
         let bounds_secs = t.elapsed().as_secs_f64();
-        // The model is carved from the other views' silhouettes; view k is scored inside its
-        // scoring silhouette.
-        let mut masks = self.masks.clone();
-        masks[k] = self.score_masks[k].clone();
-        let (mut r, imgs) = leave_one_out(
-            &self.cams,
-            &self.images,
-            &masks,
-            k,
+        let view_k = (k, &self.cams[k], &self.images[k], &self.score_masks[k]);
+        let (mut r, imgs) = leave_one_out_from(
+            &others,
+            &keep,
+            view_k,
             &model.hull(bounds),
             &model.photo(),
             view,
@@ -394,14 +390,6 @@ impl Dataset {
         r.times.insert(0, ("bounds", bounds_secs));
         Ok((r, imgs))
     }
-}
-
-fn without<T: Clone>(v: &[T], k: usize) -> Vec<T> {
-    v.iter()
-        .enumerate()
-        .filter(|&(i, _)| i != k)
-        .map(|(_, x)| x.clone())
-        .collect()
 }
 
 /// The volume a model is built in: `given`, else found from the silhouettes ([`auto_bounds`]

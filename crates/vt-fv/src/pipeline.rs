@@ -446,31 +446,65 @@ pub fn leave_one_out(
         });
     }
     let keep: Vec<usize> = (0..cams.len()).filter(|&i| i != withheld).collect();
-    let sub_cams: Vec<Camera> = keep.iter().map(|&i| cams[i].clone()).collect();
-    let sub_imgs: Vec<RgbImage> = keep.iter().map(|&i| images[i].clone()).collect();
-    let sub_masks: Vec<Mask> = keep.iter().map(|&i| masks[i].clone()).collect();
+    let others = Others::of(cams, images, masks, &keep);
+    let view_k = (
+        withheld,
+        &cams[withheld],
+        &images[withheld],
+        &masks[withheld],
+    );
+    leave_one_out_from(&others, &keep, view_k, hull, photo, view)
+}
+
+/// The views a model is built from when one is withheld: one copy of each of the others.
+pub(crate) struct Others {
+    pub cams: Vec<Camera>,
+    pub images: Vec<RgbImage>,
+    pub masks: Vec<Mask>,
+}
+
+impl Others {
+    /// The views at `keep`.
+    pub(crate) fn of(cams: &[Camera], images: &[RgbImage], masks: &[Mask], keep: &[usize]) -> Self {
+        Self {
+            cams: keep.iter().map(|&i| cams[i].clone()).collect(),
+            images: keep.iter().map(|&i| images[i].clone()).collect(),
+            masks: keep.iter().map(|&i| masks[i].clone()).collect(),
+        }
+    }
+}
+
+/// [`leave_one_out`] from the other views (`keep` are their indices among all views) and the
+/// withheld view `(index, camera, photo, scoring silhouette)`.
+pub(crate) fn leave_one_out_from(
+    others: &Others,
+    keep: &[usize],
+    (withheld, cam, truth, mask): (usize, &Camera, &RgbImage, &Mask),
+    hull: &HullParams,
+    photo: &PhotoParams,
+    view: &ViewParams,
+) -> Result<(EvalReport, EvalImages)> {
+    let (sub_cams, sub_imgs, sub_masks) = (&others.cams, &others.images, &others.masks);
     let mut times = Vec::new();
     let t = Instant::now();
-    let grid = visual_hull(&sub_cams, &sub_masks, hull)?;
+    let grid = visual_hull(sub_cams, sub_masks, hull)?;
     times.push(("visual hull", t.elapsed().as_secs_f64()));
     let t = Instant::now();
     let model = photo_hull_keeping(
         grid,
-        &sub_cams,
-        &sub_imgs,
-        Some(&sub_masks),
+        sub_cams,
+        sub_imgs,
+        Some(sub_masks),
         photo,
         &mut |_, _, _| {},
     )?;
     times.push(("photo hull", t.elapsed().as_secs_f64()));
-    let (w, h) = images[withheld].dimensions();
-    let v = novel_view(&model, &sub_cams, &sub_imgs, &cams[withheld], w, h, view)?;
+    let (w, h) = truth.dimensions();
+    let v = novel_view(&model, sub_cams, sub_imgs, cam, w, h, view)?;
     times.extend(v.times.iter().copied());
     let t = Instant::now();
-    let truth = &images[withheld];
-    let mask = &masks[withheld];
     // The baseline photo: nearest by direction from the object, as the texturing picks it.
-    let nearest = nearest_by_direction(&sub_cams, &cams[withheld], &model_centre(&model), 1)[0];
+    let nearest = nearest_by_direction(sub_cams, cam, &model_centre(&model), 1)[0];
     let blurred = blur2(&v.rough.image)?;
     let report = EvalReport {
         withheld,
