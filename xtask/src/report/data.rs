@@ -294,65 +294,26 @@ fn build_synth_b_model(ctx: &mut Ctx) -> Result<SynthBModel> {
     })
 }
 
-/// templeSparseRing as shipped in testdata (9 photos, the par file lists 16 views), silhouettes
-/// by the Middlebury threshold recipe, optionally downscaled.
+/// templeSparseRing as shipped in testdata (16 photos), loaded as `vt fv` loads a data folder
+/// (vt-fv's `Dataset`: carving silhouettes 3/3 and the Middlebury recipe's for scoring),
+/// optionally downscaled.
 pub struct Temple {
-    /// Cameras of the photos present, in par order.
-    pub cams: Vec<vt_fv::camera::Camera>,
-    /// Photos.
-    pub images: Vec<RgbImage>,
-    /// Silhouettes.
-    pub masks: Vec<vt_fv::silhouette::Mask>,
+    /// Photos, cameras, carving and scoring silhouettes.
+    pub ds: vt_fv::dataset::Dataset,
     /// Scale applied to the 640x480 photos.
     pub scale: f64,
 }
 
 fn build_temple(ctx: &mut Ctx) -> Result<Temple> {
-    use vt_fv::silhouette::{threshold_silhouette, SilhouetteParams};
-    let dir = super::testdata().join("templeSparseRing");
-    let par = dir.join("templeSR_par.txt");
-    let text = std::fs::read_to_string(&par).with_context(|| par.display().to_string())?;
-    let all = vt_fv::camera::parse_par(&text).with_context(|| par.display().to_string())?;
     let scale = ctx.pick(0.5, 1.0);
-    let (mut cams, mut images, mut masks) = (Vec::new(), Vec::new(), Vec::new());
-    for c in all {
-        let path = dir.join(&c.name);
-        if !path.is_file() {
-            continue;
-        }
-        let img = vt_io::frames::read_rgb(&path)?;
-        let mask = threshold_silhouette(&img, &SilhouetteParams::default());
-        if scale == 1.0 {
-            cams.push(c);
-            images.push(img);
-            masks.push(mask);
-            continue;
-        }
-        let (w, h) = (
-            (img.width() as f64 * scale).round() as u32,
-            (img.height() as f64 * scale).round() as u32,
-        );
-        images.push(image::imageops::resize(
-            &img,
-            w,
-            h,
-            image::imageops::FilterType::Triangle,
-        ));
-        // Silhouettes are thresholded at full size, then sampled at the small pixel centres.
-        let small = vt_fv::silhouette::Mask::from_fn(w, h, |x, y| {
-            let sx = ((x as f64 + 0.5) / scale - 0.5).round() as i64;
-            let sy = ((y as f64 + 0.5) / scale - 0.5).round() as i64;
-            mask.get(sx, sy)
-        });
-        masks.push(small);
-        cams.push(c.scaled(scale));
-    }
-    Ok(Temple {
-        cams,
-        images,
-        masks,
-        scale,
-    })
+    let ds = vt_fv::dataset::Dataset::load(
+        &super::testdata().join("templeSparseRing"),
+        &vt_fv::dataset::DataOptions {
+            scale,
+            ..Default::default()
+        },
+    )?;
+    Ok(Temple { ds, scale })
 }
 
 /// tree.avi's frames (a real 320x240 video of a tree in wind, static camera).

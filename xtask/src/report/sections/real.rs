@@ -10,9 +10,9 @@ use serde_json::json;
 use vt_core::analysis::AnalyzeParams;
 use vt_core::model::{select_model, ModelParams, MotionModel};
 use vt_core::Point;
-use vt_fv::hull::HullParams;
-use vt_fv::pipeline::{leave_one_out, Scores, ViewParams};
-use vt_fv::{PhotoParams, SynthParams};
+use vt_fv::dataset::ModelParams as FvModel;
+use vt_fv::pipeline::{Scores, ViewParams};
+use vt_fv::GuidedParams;
 use vt_synth::real::{RealParams, RealScene};
 
 use super::knobs_a::{circ, loop_phase_error, transition_phase_errors};
@@ -231,35 +231,41 @@ fn distinct_poses(cams: &[vt_fv::Camera]) -> Vec<usize> {
 fn system_b(ctx: &mut Ctx) -> Result<Vec<Item>> {
     let tp = temple(ctx)?;
     let grid = ctx.pick(64, 128);
-    let n = tp.cams.len();
+    let n = tp.ds.cams.len();
     // Withheld views: only those whose pose no other camera duplicates (the ring closes, so its
     // first and last photos look from almost the same place), spread around the ring.
-    let unique = distinct_poses(&tp.cams);
+    let unique = distinct_poses(&tp.ds.cams);
     let withheld: Vec<usize> = if ctx.quick {
         let step = (unique.len() / 4).max(1);
         unique.iter().copied().step_by(step).take(4).collect()
     } else {
         unique.clone()
     };
-    let hull = HullParams {
-        dims: [grid; 3],
+    let model = FvModel {
+        grid,
         ..Default::default()
     };
-    let (w, h) = tp.images[0].dimensions();
+    let paper_model = FvModel {
+        grid,
+        paper_carving: true,
+        ..Default::default()
+    };
+    let (w, h) = tp.ds.images[0].dimensions();
     let mut t = Table::new(
         "real-b-temple",
         "System B: leave-one-out on templeSparseRing",
         format!(
             "Withheld: the photos whose pose no other camera duplicates (nearest other viewing \
              direction more than half the ring's median spacing away). Each withheld photo is \
-             rebuilt from the other {} (visual hull + photo hull at \
-             {grid}^3, silhouettes by the Middlebury threshold recipe, images {w}x{h}, {:.0} % of \
-             the 640x480 photos) and \
-             compared with the photo it replaces: PSNR and SSIM inside the withheld photo's \
-             silhouette and over the whole image. Baselines: the nearest reference photo as it \
+             rebuilt from the other {} as `vt fv eval` does it (vt-fv's Dataset: model at \
+             {grid}^3 carved from thresholded silhouettes dilated and eroded by 3, images {w}x{h}, \
+             {:.0} % of the 640x480 photos) and compared with the photo it replaces: PSNR and \
+             SSIM inside the withheld photo's Middlebury-recipe silhouette and over the whole \
+             image. Baselines, all from vt-fv's default model: the nearest reference photo as it \
              is, the rough render (flat voxel colours), the rough render blurred (Gaussian sigma \
-             2). 'paper, guided' is SPEC B.4-B.6 with patch 7 (SynthParams::fast_for(7)); 'vt \
-             default' is vt-fv's default new-view method (ViewParams::default()).",
+             2). 'paper, guided' is the paper's method end to end (paper carving rule, guided \
+             synthesis of the rough render, patch 7); 'vt default' is vt-fv's default model and \
+             new-view method (ViewParams::default()).",
             n - 1,
             100.0 * tp.scale
         ),
@@ -275,29 +281,17 @@ fn system_b(ctx: &mut Ctx) -> Result<Vec<Item>> {
     let mut gallery = Vec::new();
     let mut sums = [[0.0f64; 4]; 5];
     for &k in &withheld {
-        let (paper, pimg) = leave_one_out(
-            &tp.cams,
-            &tp.images,
-            &tp.masks,
+        let (paper, pimg) = tp.ds.leave_one_out(
             k,
-            &hull,
-            &PhotoParams::default(),
-            &ViewParams::paper(SynthParams::fast_for(7)),
+            &paper_model,
+            &ViewParams::paper(GuidedParams::fast_for(7)),
         )?;
-        let (def, dimg) = leave_one_out(
-            &tp.cams,
-            &tp.images,
-            &tp.masks,
-            k,
-            &hull,
-            &PhotoParams::default(),
-            &ViewParams::default(),
-        )?;
-        let name = tp.cams[k].name.clone();
+        let (def, dimg) = tp.ds.leave_one_out(k, &model, &ViewParams::default())?;
+        let name = tp.ds.cams[k].name.clone();
         let rows: [(&str, &Scores); 5] = [
-            ("nearest photo", &paper.nearest_photo),
-            ("rough render", &paper.rough),
-            ("rough render, blur sigma 2", &paper.rough_blur2),
+            ("nearest photo", &def.nearest_photo),
+            ("rough render", &def.rough),
+            ("rough render, blur sigma 2", &def.rough_blur2),
             ("paper, guided", &paper.guided),
             ("vt default", &def.guided),
         ];
