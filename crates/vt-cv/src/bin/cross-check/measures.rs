@@ -309,6 +309,26 @@ pub(super) fn check_warp_bilinear(
         m.differ == 0,
         (&model, &cv),
     );
+    // vt-core's fixed-point mode is OpenCV's arithmetic: identical to OpenCV; its distance from
+    // the exact mode is the price of the knob (reported, bounded by the exact row's bound).
+    let fixed = vt_core::warp::warp_rgb(src, h, width, height, Interpolation::BilinearFixed);
+    let f = image_diff(&fixed, &cv);
+    let e = image_diff(&fixed, &vt);
+    t.add_images(
+        "warp RGB bilinear-fixed",
+        input,
+        format!(
+            "{} of {} pixels differ (max {}); vs exact: {:.3}% within 1, max {}",
+            f.differ,
+            f.pixels,
+            f.max,
+            100.0 - pct(e.over_one, e.pixels),
+            e.max
+        ),
+        "identical",
+        f.differ == 0,
+        (&fixed, &cv),
+    );
     Ok(())
 }
 
