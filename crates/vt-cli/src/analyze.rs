@@ -426,70 +426,10 @@ fn print_summary(a: &SceneAnalysis, scene: &SceneFile, total_s: f64) {
 /// Compares a scene with the truth of a synthetic texture scene; returns a printable report and
 /// fails when a check fails.
 pub fn check_against_truth(truth_path: &Path, result: &AnalyzeResult) -> Result<String> {
-    let truth: crate::synth::TextureTruth = serde_json::from_str(
-        &std::fs::read_to_string(truth_path).with_context(|| truth_path.display().to_string())?,
-    )
-    .with_context(|| truth_path.display().to_string())?;
-    let period = truth.period;
-    let phase =
-        |p: usize, s: usize| (s as i64 - truth.phase[p] as i64).rem_euclid(period as i64) as usize;
-    let circ = |a: usize, b: usize| {
-        let d = a.abs_diff(b) % period;
-        d.min(period - d)
-    };
-    let mut lines = vec!["truth check (synthetic scene):".to_string()];
-    let mut ok = true;
-    let w = result.scene.params.loops.window;
-    for (p, v) in result.scene.views.iter().enumerate() {
-        let len = v.loop_.end - v.loop_.start;
-        let off = circ(len % period, 0);
-        ok &= off <= 1;
-        let mut worst = 0;
-        for (side, table, q) in [
-            ("next", &v.transitions.next, p + 1),
-            ("prev", &v.transitions.prev, p.wrapping_sub(1)),
-        ] {
-            if q >= result.scene.views.len() {
-                continue;
-            }
-            for (s, t) in table.iter().enumerate().take(v.frames + 1 - w) {
-                let t =
-                    t.with_context(|| format!("view {p} {side} transition of frame {s} missing"))?;
-                worst = worst.max(circ(phase(p, s), phase(q, t)));
-            }
-        }
-        ok &= worst <= 1;
-        lines.push(format!(
-            "  view {p}: loop length {len} = {:.2} periods (off by {off} frame(s)); worst transition phase error {worst} frame(s)",
-            len as f64 / period as f64
-        ));
-    }
-    for (p, th) in truth.homographies_next.iter().enumerate() {
-        let Some(link) = &result.scene.views[p].to_next else {
-            continue;
-        };
-        let h = link.homography()?;
-        let t = vt_core::Homography::from_matrix(nalgebra::Matrix3::from_row_slice(&th.concat()))?;
-        let (w, hh) = (result.scene.width as f64, result.scene.height as f64);
-        let err = [(0.0, 0.0), (w, 0.0), (0.0, hh), (w, hh)]
-            .iter()
-            .map(|&(x, y)| {
-                let pt = vt_core::Point::new(x, y);
-                match (h.apply(pt), t.apply(pt)) {
-                    (Some(a), Some(b)) => (a - b).norm(),
-                    _ => f64::INFINITY,
-                }
-            })
-            .fold(0.0, f64::max);
-        ok &= err < 0.5;
-        lines.push(format!(
-            "  H({p},{}) corner error vs truth: {err:.4} px",
-            p + 1
-        ));
-    }
-    lines.push(format!("  result: {}", if ok { "PASS" } else { "FAIL" }));
-    let report = lines.join("\n");
-    if !ok {
+    let truth = vt_synth::files::read_truth(truth_path)?;
+    let check = vt_synth::files::check_against_truth(&truth, &result.scene)?;
+    let report = check.lines.join("\n");
+    if !check.pass {
         bail!("the analysis does not match the synthetic truth:\n{report}");
     }
     Ok(report)

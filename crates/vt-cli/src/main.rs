@@ -184,7 +184,7 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     let scene = root.join("scene");
     eprintln!("2/3 analysing it into {}", out.join("scene").display());
     let views: Vec<PathBuf> = (0..params.views)
-        .map(|p| data.join(synth::view_dir(p)))
+        .map(|p| data.join(vt_synth::files::view_dir(p)))
         .collect();
     let args =
         analyze::AnalyzeArgs::for_demo(views, data.join("points.txt"), scene.clone(), frames);

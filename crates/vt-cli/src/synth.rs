@@ -4,11 +4,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use vt_io::frames::write_png;
 use vt_io::output::{Output, OutputKind};
-use vt_synth::{Rig, TextureParams, TextureScene};
+use vt_synth::{Rig, TextureParams};
 
 use crate::progress::bar;
 
@@ -175,115 +173,12 @@ fn check_texture_size(p: &TextureParams) -> Result<()> {
     Ok(())
 }
 
-/// Folder name of view p's frames.
-pub fn view_dir(p: usize) -> String {
-    format!("view_{p:02}")
-}
-
-/// truth.json of a texture scene.
-#[derive(Serialize, Deserialize)]
-pub struct TextureTruth {
-    /// "vt-synth-textures".
-    pub format: String,
-    /// 1.
-    pub version: u32,
-    /// The generator's parameters.
-    pub params: TextureParams,
-    /// Motion period, frames.
-    pub period: usize,
-    /// Per view: the frame where the motion is at phase 0; frame s of view p has phase
-    /// `(s - phase[p]) mod period`.
-    pub phase: Vec<usize>,
-    /// Per view exposure gain.
-    pub gains: Vec<f64>,
-    /// `H_(p,p+1)` of the object plane, row-major, for p = 0..M-2.
-    pub homographies_next: Vec<[[f64; 3]; 3]>,
-    /// Ground-truth renders of intermediate viewpoints (noise-free, gain 1).
-    pub renders: Vec<TruthRender>,
-}
-
-/// One ground-truth render.
-#[derive(Serialize, Deserialize)]
-pub struct TruthRender {
-    /// Viewpoint in [0, M-1].
-    pub q: f64,
-    /// Motion phase, frames.
-    pub phase: usize,
-    /// File, relative to the scene directory.
-    pub file: String,
-}
-
-/// Writes frames, points.txt and truth.json of a texture scene into `out`, atomically.
+/// Writes a texture scene into `out` (checked against the limits first), with a progress bar.
 pub fn write_textures(out: &Path, params: &TextureParams) -> Result<()> {
     check_texture_size(params)?;
-    let scene = TextureScene::new(*params).map_err(|e| anyhow::anyhow!(e))?;
-    let dir = Output::dir(out, OutputKind::SynthTextures, &[])?;
-    let root = dir.path().to_path_buf();
     let pb = bar((params.views * params.frames) as u64, "synth frames");
-    for p in 0..params.views {
-        let vdir = root.join(view_dir(p));
-        std::fs::create_dir(&vdir).with_context(|| vdir.display().to_string())?;
-        (0..params.frames).into_par_iter().try_for_each(|s| {
-            write_png(&vdir.join(format!("frame_{s:05}.png")), &scene.frame(p, s))?;
-            pb.inc(1);
-            anyhow::Ok(())
-        })?;
-    }
+    vt_synth::files::write_textures(out, params, &|| pb.inc(1))?;
     pb.finish_and_clear();
-    let points: Vec<Vec<vt_core::Point>> = (0..params.views)
-        .map(|p| {
-            scene
-                .points(p)
-                .into_iter()
-                .map(|(x, y)| vt_core::Point::new(x, y))
-                .collect()
-        })
-        .collect();
-    std::fs::write(
-        root.join("points.txt"),
-        vt_io::points::format_points(&points),
-    )
-    .context("points.txt")?;
-
-    let tdir = root.join("truth");
-    std::fs::create_dir(&tdir).context("truth/")?;
-    // Truth at half-view steps, at two phases, so renders can be checked at and between views.
-    let m = params.views;
-    let qs: Vec<f64> = (0..(2 * m - 1).max(1)).map(|i| i as f64 * 0.5).collect();
-    let mut renders = Vec::new();
-    for &q in &qs {
-        for phase in [0, params.period / 3] {
-            let file = format!("truth/q{q:05.2}_phase{phase:03}.png");
-            write_png(&root.join(&file), &scene.truth(q, phase))?;
-            renders.push(TruthRender { q, phase, file });
-        }
-    }
-    let homographies_next = (0..m.saturating_sub(1))
-        .map(|p| {
-            let h = scene.plane_homography(p as f64, p as f64 + 1.0);
-            [
-                [h[(0, 0)], h[(0, 1)], h[(0, 2)]],
-                [h[(1, 0)], h[(1, 1)], h[(1, 2)]],
-                [h[(2, 0)], h[(2, 1)], h[(2, 2)]],
-            ]
-        })
-        .collect();
-    let truth = TextureTruth {
-        format: "vt-synth-textures".into(),
-        version: 1,
-        params: *params,
-        period: params.period,
-        phase: scene.phase_offsets().to_vec(),
-        gains: scene.gains().to_vec(),
-        homographies_next,
-        renders,
-    };
-    std::fs::write(
-        root.join("truth.json"),
-        serde_json::to_string_pretty(&truth)?,
-    )
-    .context("truth.json")?;
-    dir.commit()?;
     Ok(())
 }
 

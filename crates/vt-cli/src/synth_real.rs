@@ -99,14 +99,14 @@ pub fn run(a: &RealArgs) -> Result<()> {
     let pb = bar((a.views * a.frames) as u64, "synth real views");
     for p in 0..a.views {
         if a.png {
-            let vdir = root.join(crate::synth::view_dir(p));
+            let vdir = root.join(vt_synth::files::view_dir(p));
             std::fs::create_dir(&vdir).with_context(|| vdir.display().to_string())?;
             for s in 0..a.frames {
                 write_png(&vdir.join(format!("frame_{s:05}.png")), &scene.frame(p, s))?;
                 pb.inc(1);
             }
         } else {
-            let file = root.join(format!("{}.mp4", crate::synth::view_dir(p)));
+            let file = root.join(format!("{}.mp4", vt_synth::files::view_dir(p)));
             vt_io::video::encode_h264(&file, w, h, fps, a.crf, a.frames, &mut |s| {
                 pb.inc(1);
                 Ok(scene.frame(p, s))

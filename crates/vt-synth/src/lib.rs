@@ -9,6 +9,7 @@
 //! same seed, same pixels.
 #![deny(missing_docs)]
 
+pub mod files;
 pub mod real;
 
 use image::RgbImage;
