@@ -58,10 +58,10 @@ fn homography() -> Homography {
     .expect("well-conditioned")
 }
 
-/// Median of 5 runs of `f` (after one warm-up run).
+/// Median of 11 runs of `f` (after one warm-up run).
 fn time(mut f: impl FnMut()) -> Duration {
     f();
-    let mut v: Vec<Duration> = (0..5)
+    let mut v: Vec<Duration> = (0..11)
         .map(|_| {
             let t = Instant::now();
             f();
@@ -69,7 +69,7 @@ fn time(mut f: impl FnMut()) -> Duration {
         })
         .collect();
     v.sort();
-    v[2]
+    v[5]
 }
 
 struct Case {
@@ -99,7 +99,74 @@ fn cases() -> Vec<Case> {
         .collect();
     let m1 = ms;
     let px = (w * h) as u64;
-    vec![
+    // Masks for the warp and morphology rows: OpenCV gets its 0/255 mat built once, outside
+    // the timing (its cost alone); vt-core works on its own bit-packed masks.
+    let mask = m1[7].clone();
+    let mask_mat = vt_cv::convert::mask_to_mat(&mask).expect("mat");
+    let (mask2, mask_mat2) = (mask.clone(), mask_mat.clone());
+    let noisy = Mask::from_fn(w, h, |x, y| mask.get(x, y) ^ ((x * 7 + y * 13) % 29 == 0));
+    let noisy_mat = vt_cv::convert::mask_to_mat(&noisy).expect("mat");
+    let rgb = |_: ()| img.clone();
+    let (n1, n2, f1, f2, g1, g2) = (rgb(()), rgb(()), rgb(()), rgb(()), rgb(()), rgb(()));
+    let g7 = GaussianParams {
+        ksize: 7,
+        sigma: 0.0,
+    };
+    let interp_case = |name, interp: Interpolation, a: RgbImage, b: RgbImage| Case {
+        name,
+        elements: px,
+        vt: Box::new(move || {
+            black_box(vt_core::warp::warp_rgb(&a, &hm, w, h, interp));
+        }),
+        cv: Box::new(move || {
+            black_box(vt_cv::warp::warp_rgb(&b, &hm, w, h, interp).expect("warp"));
+        }),
+    };
+    let extra = vec![
+        interp_case("warp nearest 640x360", Interpolation::Nearest, n1, n2),
+        interp_case(
+            "warp bilinear-fixed 640x360",
+            Interpolation::BilinearFixed,
+            f1,
+            f2,
+        ),
+        Case {
+            name: "warp mask 640x360",
+            elements: px,
+            vt: Box::new(move || {
+                black_box(vt_core::warp::warp_mask(&mask2, &hm, w, h));
+            }),
+            cv: Box::new(move || {
+                black_box(
+                    vt_cv::warp::warp_mat(&mask_mat2, &hm, w, h, Interpolation::Nearest)
+                        .expect("warp"),
+                );
+            }),
+        },
+        Case {
+            name: "blur 7x7 640x360",
+            elements: px,
+            vt: Box::new(move || {
+                black_box(vt_core::blur::gaussian_blur(&g1, &g7).expect("blur"));
+            }),
+            cv: Box::new(move || {
+                black_box(vt_cv::blur::gaussian_blur(&g2, &g7).expect("blur"));
+            }),
+        },
+        Case {
+            name: "morphology open+close r=2 640x360",
+            elements: px,
+            vt: Box::new(move || {
+                black_box(noisy.open(2).close(2));
+            }),
+            cv: Box::new(move || {
+                use vt_cv::mask::{morph_mat, Morph};
+                let o = morph_mat(&noisy_mat, 2, Morph::Open).expect("open");
+                black_box(morph_mat(&o, 2, Morph::Close).expect("close"));
+            }),
+        },
+    ];
+    let mut all = vec![
         Case {
             name: "warp bilinear 640x360",
             elements: px,
@@ -170,7 +237,9 @@ fn cases() -> Vec<Case> {
                 black_box(vt_cv::mask::foreground_mask(&bg, &b2, &mp).expect("mask"));
             }),
         },
-    ]
+    ];
+    all.extend(extra);
+    all
 }
 
 fn side_by_side(c: &mut Criterion) {
@@ -185,10 +254,18 @@ fn side_by_side(c: &mut Criterion) {
 }
 
 fn ratios() {
-    println!("\nvt-core / OpenCV time ratio (median of 5 runs each; > 1 means vt-core is slower)");
+    println!("\nvt-core / OpenCV time ratio (median of 11 runs each; > 1 means vt-core is slower)");
     println!("| operation | vt-core | OpenCV | ratio |");
     println!("| --- | --- | --- | --- |");
+    // A filter argument (as for criterion: `cargo bench -p vt-cv -- blur`) limits the table too.
+    let filter: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-') && a.parse::<f64>().is_err())
+        .collect();
     for mut case in cases() {
+        if !filter.is_empty() && !filter.iter().any(|f| case.name.contains(f.as_str())) {
+            continue;
+        }
         let (a, b) = (time(&mut case.vt), time(&mut case.cv));
         println!(
             "| {} | {:.2?} | {:.2?} | {:.2} |",
