@@ -40,7 +40,7 @@ fn iou(a: &vt_fv::Mask, b: &vt_fv::Mask) -> f64 {
     let (mut inter, mut union) = (0u64, 0u64);
     for y in 0..a.height() as i64 {
         for x in 0..a.width() as i64 {
-            let (p, q) = (a.get(x, y), b.get(x, y));
+            let (p, q) = (a.get_or_false(x, y), b.get_or_false(x, y));
             inter += (p && q) as u64;
             union += (p || q) as u64;
         }
