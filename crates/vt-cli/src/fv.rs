@@ -85,7 +85,7 @@ pub struct ModelArgs {
 
 /// Guided synthesis settings.
 #[derive(Args, Clone)]
-pub struct SynthArgs {
+pub struct ViewArgs {
     /// Patch side of the guided synthesis, odd (paper: 41; 7 is faster and scores better on
     /// our data).
     #[arg(long, default_value_t = 7)]
@@ -136,7 +136,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     model: ModelArgs,
     #[command(flatten)]
-    synth: SynthArgs,
+    view: ViewArgs,
     /// The new camera: a par line `name k11..k33 r11..r33 t1 t2 t3`, `angle:DEG` (on the
     /// cameras' ring, 0 = first camera, growing towards the second) or `between:I,J,T` (between
     /// views I and J, 0-based in the par file, at T in [0, 1]).
@@ -158,7 +158,7 @@ pub struct OrbitArgs {
     #[command(flatten)]
     model: ModelArgs,
     #[command(flatten)]
-    synth: SynthArgs,
+    view: ViewArgs,
     /// Frames in one turn.
     #[arg(long, default_value_t = 48)]
     frames: usize,
@@ -181,7 +181,7 @@ pub struct EvalArgs {
     #[command(flatten)]
     model: ModelArgs,
     #[command(flatten)]
-    synth: SynthArgs,
+    view: ViewArgs,
     /// The views to withhold one at a time, 0-based in the par file: `2` or `1,2,5`.
     #[arg(long, value_delimiter = ',', required = true, num_args = 1..)]
     leave_out: Vec<usize>,
@@ -261,7 +261,7 @@ impl ModelArgs {
     }
 }
 
-impl SynthArgs {
+impl ViewArgs {
     /// The checked new-view settings for `w x h` photos.
     fn params(&self, w: u32, h: u32) -> Result<ViewParams> {
         let method = match self.method {
@@ -326,7 +326,7 @@ fn render(a: RenderArgs) -> Result<()> {
     drop(Output::file(&a.out, OutputKind::Image, &a.data.inputs())?);
     let d = a.data.load()?;
     let (w, h) = d.size();
-    let view = a.synth.params(w, h)?;
+    let view = a.view.params(w, h)?;
     // Check the camera against the volume before the expensive model build.
     let bounds = d
         .volume(m.bounds)
@@ -389,7 +389,7 @@ fn orbit(a: OrbitArgs) -> Result<()> {
     drop(Output::file(&a.out, OutputKind::Video, &a.data.inputs())?);
     let d = a.data.load()?;
     let (w, h) = d.size();
-    let view = a.synth.params(w, h)?;
+    let view = a.view.params(w, h)?;
     let ring = Ring::fit(&d.cams).context("orbit: the cameras' ring")?;
     let bounds = d
         .volume(m.bounds)
@@ -437,7 +437,7 @@ fn eval(a: EvalArgs) -> Result<()> {
     let d = a.data.load()?;
     d.check_withheld(&a.leave_out).map_err(flag)?;
     let (w, h) = d.size();
-    let view = a.synth.params(w, h)?;
+    let view = a.view.params(w, h)?;
     let pb = bar(a.leave_out.len() as u64, "leave one out");
     let mut reports = Vec::new();
     for &k in &a.leave_out {

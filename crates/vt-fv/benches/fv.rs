@@ -10,7 +10,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::{visual_hull, HullParams};
 use vt_fv::synth::{generate, SceneParams, SynthData};
-use vt_fv::{photo_hull, render_rough, PhotoParams, SynthParams, VoxelModel};
+use vt_fv::{photo_hull, render_rough, GuidedParams, PhotoParams, VoxelModel};
 
 fn data() -> SynthData {
     generate(&SceneParams {
@@ -108,67 +108,67 @@ fn bench(c: &mut Criterion) {
     println!("photo hull 256^3 to convergence (visual hull included): {:.2} s, {} passes, {} voxels removed, {} surface voxels", t.elapsed().as_secs_f64(), m.passes, m.removed, m.surface.len());
 
     let full = std::env::var("VT_BENCH_FULL").is_ok_and(|v| v == "1");
-    let mut configs: Vec<(&str, SynthParams)> = vec![
+    let mut configs: Vec<(&str, GuidedParams)> = vec![
         (
             "patch 7 exact (sequential, every pixel)",
-            SynthParams {
+            GuidedParams {
                 patch: 7,
                 ..Default::default()
             },
         ),
         (
             "patch 7 fast_for (strips, skip black)",
-            SynthParams::fast_for(7),
+            GuidedParams::fast_for(7),
         ),
         (
             "patch 7 stage (i) only",
-            SynthParams {
+            GuidedParams {
                 max_synth_iters: 0,
-                ..SynthParams::fast_for(7)
+                ..GuidedParams::fast_for(7)
             },
         ),
         (
             "patch 7 + 3 levels, step 2",
-            SynthParams {
+            GuidedParams {
                 patch: 7,
-                ..SynthParams::fast()
+                ..GuidedParams::fast()
             },
         ),
         (
             "patch 21 fast (3 levels, step 2, strips, skip black)",
-            SynthParams {
+            GuidedParams {
                 patch: 21,
-                ..SynthParams::fast()
+                ..GuidedParams::fast()
             },
         ),
         (
             "patch 41 fast (3 levels, step 2, strips, skip black)",
-            SynthParams::fast(),
+            GuidedParams::fast(),
         ),
         (
             "patch 41 fast, step 4",
-            SynthParams {
+            GuidedParams {
                 step: 4,
-                ..SynthParams::fast()
+                ..GuidedParams::fast()
             },
         ),
         (
             "patch 41 fast, 1 level",
-            SynthParams {
+            GuidedParams {
                 levels: 1,
-                ..SynthParams::fast()
+                ..GuidedParams::fast()
             },
         ),
         (
             "patch 41 stage (i) only",
-            SynthParams {
+            GuidedParams {
                 max_synth_iters: 0,
-                ..SynthParams::fast()
+                ..GuidedParams::fast()
             },
         ),
     ];
     if full {
-        configs.push(("patch 41 exact (paper)", SynthParams::default()));
+        configs.push(("patch 41 exact (paper)", GuidedParams::default()));
     }
     for (k, cam) in d.extra_cameras.iter().enumerate() {
         let rough = render_rough(&m, cam, 400, 400);

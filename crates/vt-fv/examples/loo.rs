@@ -13,10 +13,10 @@
 use std::path::Path;
 
 use vt_fv::camera::parse_par;
+use vt_fv::guided::GuidedParams;
 use vt_fv::hull::{auto_bounds, dims_for, HullParams};
 use vt_fv::pipeline::{leave_one_out, Method, ViewParams};
 use vt_fv::silhouette::{threshold_silhouette, SilhouetteParams};
-use vt_fv::synthesis::SynthParams;
 use vt_fv::PhotoParams;
 
 fn main() {
@@ -76,7 +76,7 @@ fn main() {
                 "keep" => photo.keep_silhouettes = f() != 0.0,
                 "dil" => sil.dilate = f() as u32,
                 "ero" => sil.erode = f() as u32,
-                "patch" => view.synth = SynthParams::fast_for(f() as usize),
+                "patch" => view.guided = GuidedParams::fast_for(f() as usize),
                 _ => panic!("unknown key {k}"),
             }
         }
@@ -107,7 +107,10 @@ fn main() {
                 )
                 .unwrap();
                 let sc = vt_fv::pipeline::score(&b, &imgs.truth, &masks[k]).unwrap();
-                println!("   guided blurred sigma {sigma}: {:.2} dB {:.3}", sc.inside.psnr, sc.inside.ssim);
+                println!(
+                    "   guided blurred sigma {sigma}: {:.2} dB {:.3}",
+                    sc.inside.psnr, sc.inside.ssim
+                );
             }
             if let Ok(out) = std::env::var("VT_SAVE") {
                 let e = vt_fv::pipeline::error_map(&imgs.guided, &imgs.truth, &masks[k]);

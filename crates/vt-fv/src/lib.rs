@@ -2,7 +2,7 @@
 //!
 //! Pipeline: [`silhouette`]s -> [`hull`] (visual hull on a bit-packed voxel grid) -> [`photo`]
 //! (photo hull by voxel colouring, colours for unseen voxels) -> [`render`] (rough view of the
-//! coloured voxels from a new [`camera`]) -> [`synthesis`] (guided texture synthesis with
+//! coloured voxels from a new [`camera`]) -> [`guided`] (guided texture synthesis with
 //! [`patchmatch`], the rough view as guide and a reference photo as input) -> [`eval`].
 //! [`synth`] makes a ray-cast synthetic object with ground truth for tests and benchmarks.
 //!
@@ -64,10 +64,10 @@ pub fn build_model(
     photo_hull_keeping(grid, cams, images, Some(silhouettes), photo, progress)
 }
 pub mod eval;
+pub mod guided;
 pub mod patchmatch;
 pub mod pipeline;
-pub mod synthesis;
 pub mod texture;
 
+pub use guided::{guided_synthesis, GuidedParams};
 pub use pipeline::{leave_one_out, novel_view, EvalReport, Method, NovelView, ViewParams};
-pub use synthesis::{guided_synthesis, SynthParams};

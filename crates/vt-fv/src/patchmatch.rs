@@ -1,5 +1,5 @@
 //! PatchMatch nearest-neighbour fields (Barnes et al. 2009), SPEC B.5, and the iteration engine
-//! shared with guided synthesis ([`crate::synthesis`]).
+//! shared with guided synthesis ([`crate::guided`]).
 //!
 //! Patches are `p x p` squares (`p` odd) centred on a pixel. The field maps every pixel `a` of
 //! image A to the centre `b` of a patch lying wholly inside image B; pixels of A's patch that fall

@@ -7,11 +7,11 @@ use image::{Rgb, RgbImage};
 
 use crate::camera::Camera;
 use crate::eval::{psnr, ssim};
+use crate::guided::{guided_synthesis, GuidedParams};
 use crate::hull::{visual_hull, HullParams};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
 use crate::render::{render_rough, Rendered};
 use crate::silhouette::Mask;
-use crate::synthesis::{guided_synthesis, SynthParams};
 use crate::texture::{model_centre, nearest_by_direction, texture_view, TextureParams};
 use crate::{Error, Result};
 
@@ -46,7 +46,7 @@ pub struct ViewParams {
     /// The method.
     pub method: Method,
     /// Guided synthesis settings (the paper's method, and [`Method::Textured`] with `refine`).
-    pub synth: SynthParams,
+    pub guided: GuidedParams,
     /// View-dependent texturing settings ([`Method::Textured`]).
     pub texture: TextureParams,
     /// [`Method::Textured`]: run guided synthesis from the nearest photo with the textured view
@@ -58,7 +58,7 @@ impl Default for ViewParams {
     fn default() -> Self {
         Self {
             method: Method::Textured,
-            synth: SynthParams::fast_for(7),
+            guided: GuidedParams::fast_for(7),
             texture: TextureParams::default(),
             refine: false,
         }
@@ -76,10 +76,10 @@ impl ViewParams {
     }
 
     /// The paper's method with these synthesis settings.
-    pub fn paper(synth: SynthParams) -> Self {
+    pub fn paper(guided: GuidedParams) -> Self {
         Self {
             method: Method::Paper,
-            synth,
+            guided,
             ..Self::default()
         }
     }
@@ -128,19 +128,19 @@ impl ViewOptions {
             let why = "applies to the textured method only".to_string();
             return Err(bad("refine", String::new(), why));
         }
-        let synth = if self.exact {
-            SynthParams {
+        let guided = if self.exact {
+            GuidedParams {
                 patch,
                 ..Default::default()
             }
         } else {
-            SynthParams::fast_for(patch)
+            GuidedParams::fast_for(patch)
         };
         Ok(match self.method {
-            Method::Paper => ViewParams::paper(synth),
+            Method::Paper => ViewParams::paper(guided),
             Method::Textured => {
                 let mut p = ViewParams {
-                    synth,
+                    guided,
                     refine: self.refine,
                     ..ViewParams::default()
                 };
@@ -172,7 +172,7 @@ impl NovelView {
     pub fn describe(&self, cams: &[Camera], p: &ViewParams) -> String {
         let reference = &cams[self.reference].name;
         match p.method {
-            Method::Paper => format!("guided (paper) from {reference} (patch {})", p.synth.patch),
+            Method::Paper => format!("guided (paper) from {reference} (patch {})", p.guided.patch),
             Method::Textured => format!(
                 "textured from {reference} and its {} nearest{}",
                 p.texture.references.saturating_sub(1),
@@ -216,7 +216,7 @@ pub fn novel_view(
     };
     let guided = if synthesise {
         let t = Instant::now();
-        let g = guided_synthesis(&images[reference], &guide, &p.synth)?;
+        let g = guided_synthesis(&images[reference], &guide, &p.guided)?;
         times.push(("synthesis", t.elapsed().as_secs_f64()));
         g
     } else {

@@ -9,7 +9,7 @@ use nalgebra::Vector3;
 use vt_fv::camera::parse_par;
 use vt_fv::hull::{auto_bounds, HullParams};
 use vt_fv::silhouette::{threshold_silhouette, SilhouetteParams};
-use vt_fv::{leave_one_out, Camera, Mask, PhotoParams, SynthParams, ViewParams};
+use vt_fv::{leave_one_out, Camera, GuidedParams, Mask, PhotoParams, ViewParams};
 
 fn dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../testdata/templeSparseRing")
@@ -216,7 +216,7 @@ fn temple_leave_one_out_small() {
         g.ssim,
         blur.ssim
     );
-    let synth = SynthParams::fast_for(7);
+    let synth = GuidedParams::fast_for(7);
     let (p, _) = leave_one_out(
         &cams,
         &imgs,

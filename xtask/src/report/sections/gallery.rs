@@ -11,7 +11,7 @@ use vt_core::metrics::psnr;
 use vt_core::render::{Player, RenderParams, Renderer};
 use vt_core::Mask;
 use vt_fv::hull::{visual_hull, HullParams};
-use vt_fv::{guided_synthesis, photo_hull, render_rough, PhotoParams, SynthParams};
+use vt_fv::{guided_synthesis, photo_hull, render_rough, PhotoParams, GuidedParams};
 
 use crate::report::data::{synth_a, synth_b, synth_b_model, tree};
 use crate::report::model::{Gallery, Item};
@@ -191,7 +191,7 @@ fn system_b(ctx: &mut Ctx) -> Result<Vec<Item>> {
     let guided = guided_synthesis(
         &d.photos[m.reference[k]],
         &m.rough[k],
-        &SynthParams::fast_for(7),
+        &GuidedParams::fast_for(7),
     )?;
     let angle = sb.angles[k];
     let images = vec![

@@ -7,7 +7,7 @@ use anyhow::Result;
 use image::RgbImage;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::{visual_hull, HullParams};
-use vt_fv::{guided_synthesis, photo_hull, render_rough, PhotoParams, SynthParams};
+use vt_fv::{guided_synthesis, photo_hull, render_rough, PhotoParams, GuidedParams};
 
 use super::Knob;
 use crate::report::data::{synth_b, synth_b_model};
@@ -196,7 +196,7 @@ fn photo_threshold(ctx: &mut Ctx) -> Result<Vec<Curve>> {
 }
 
 /// Guided synthesis of every extra view with `params`: mean seconds, PSNR and SSIM.
-fn synth_scores(ctx: &mut Ctx, params: &SynthParams) -> Result<(f64, f64, f64)> {
+fn synth_scores(ctx: &mut Ctx, params: &GuidedParams) -> Result<(f64, f64, f64)> {
     let sb = synth_b(ctx)?;
     let m = synth_b_model(ctx)?;
     let d = &sb.data;
@@ -240,13 +240,13 @@ fn patch_size(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let patches: Vec<usize> = ctx.pick(vec![5, 7, 13, 21, 41], vec![5, 7, 9, 13, 21, 31, 41]);
     let mut pts = Vec::new();
     for &patch in &patches {
-        let (t, p, s) = synth_scores(ctx, &SynthParams::fast_for(patch))?;
+        let (t, p, s) = synth_scores(ctx, &GuidedParams::fast_for(patch))?;
         pts.push(
             Setting::new(
                 format!("{patch}"),
                 t,
                 p,
-                patch == SynthParams::default().patch,
+                patch == GuidedParams::default().patch,
             )
             .with("SSIM", s),
         );
@@ -256,7 +256,7 @@ fn patch_size(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         "Patch size",
         synth_caption(
             ctx,
-            "patch side p with SynthParams::fast_for(p) (up to 9: full resolution, parallel \
+            "patch side p with GuidedParams::fast_for(p) (up to 9: full resolution, parallel \
              strips, black skipped; above: 3 pyramid levels and step 2 as well); default: the \
              paper's 41",
         )?,
@@ -270,10 +270,10 @@ fn patch_step(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let patch = ctx.pick(13, 21);
     let mut pts = Vec::new();
     for step in [1, 2, 3, 4] {
-        let params = SynthParams {
+        let params = GuidedParams {
             patch,
             step,
-            ..SynthParams::fast()
+            ..GuidedParams::fast()
         };
         let (t, p, s) = synth_scores(ctx, &params)?;
         pts.push(
@@ -281,7 +281,7 @@ fn patch_step(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                 format!("step {step}"),
                 t,
                 p,
-                step == SynthParams::default().step,
+                step == GuidedParams::default().step,
             )
             .with("SSIM", s),
         );
@@ -292,7 +292,7 @@ fn patch_step(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         synth_caption(
             ctx,
             &format!(
-                "patch {patch} compared on every step-th pixel (SynthParams::fast() otherwise: 3 \
+                "patch {patch} compared on every step-th pixel (GuidedParams::fast() otherwise: 3 \
                  levels, strips, black skipped); default step 1"
             ),
         )?,
@@ -306,10 +306,10 @@ fn pyramid_levels(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let patch = ctx.pick(13, 21);
     let mut pts = Vec::new();
     for levels in [1, 2, 3, 4] {
-        let params = SynthParams {
+        let params = GuidedParams {
             patch,
             levels,
-            ..SynthParams::fast()
+            ..GuidedParams::fast()
         };
         let (t, p, s) = synth_scores(ctx, &params)?;
         pts.push(
@@ -317,7 +317,7 @@ fn pyramid_levels(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                 format!("{levels} level{}", if levels > 1 { "s" } else { "" }),
                 t,
                 p,
-                levels == SynthParams::default().levels,
+                levels == GuidedParams::default().levels,
             )
             .with("SSIM", s),
         );
@@ -328,7 +328,7 @@ fn pyramid_levels(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         synth_caption(
             ctx,
             &format!(
-                "patch {patch}, coarse-to-fine over this many levels (SynthParams::fast() \
+                "patch {patch}, coarse-to-fine over this many levels (GuidedParams::fast() \
                  otherwise: step 2, strips, black skipped); default 1 (the paper)"
             ),
         )?,
@@ -353,16 +353,16 @@ fn iterations(ctx: &mut Ctx) -> Result<Vec<Curve>> {
             (20, 0.01),
         ],
     );
-    let base = SynthParams::fast_for(7);
+    let base = GuidedParams::fast_for(7);
     let mut pts = Vec::new();
     for &(m, t) in &combos {
-        let params = SynthParams {
+        let params = GuidedParams {
             max_init_iters: m,
             stop_ratio: t,
             ..base
         };
         let (secs, p, s) = synth_scores(ctx, &params)?;
-        let d = SynthParams::default();
+        let d = GuidedParams::default();
         pts.push(
             Setting::new(
                 format!("M {m}, T {t}"),
@@ -378,7 +378,7 @@ fn iterations(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         "Iteration cap M and stop threshold T",
         synth_caption(
             ctx,
-            "patch 7 (SynthParams::fast_for(7)) with at most M initialisation-correction \
+            "patch 7 (GuidedParams::fast_for(7)) with at most M initialisation-correction \
              iterations and a stage stopping when the update ratio falls to T; default M 10, \
              T 0.06 (the paper)",
         )?,
@@ -398,7 +398,7 @@ fn references(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let counts: Vec<usize> = ctx.pick(vec![1, 2, 3, 4], vec![1, 2, 3, 4, 6, 8]);
     let mut settings: Vec<(String, ViewParams)> = vec![(
         "paper (rough guide, 1 photo)".into(),
-        ViewParams::paper(SynthParams::fast_for(7)),
+        ViewParams::paper(GuidedParams::fast_for(7)),
     )];
     for &n in &counts {
         settings.push((

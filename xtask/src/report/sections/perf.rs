@@ -11,7 +11,7 @@ use vt_core::render::{Player, RenderParams, Renderer};
 use vt_core::warp::Interpolation;
 use vt_core::{Homography, Point};
 use vt_fv::eval::psnr as fv_psnr;
-use vt_fv::{guided_synthesis, SynthParams};
+use vt_fv::{guided_synthesis, GuidedParams};
 
 use crate::report::data::{build_scene, synth_a, synth_b, synth_b_model, tree};
 use crate::report::model::{Item, Table};
@@ -334,27 +334,27 @@ fn synthesis_table(ctx: &mut Ctx) -> Result<Table> {
             "PSNR (dB)",
         ],
     );
-    let mut settings: Vec<(&str, SynthParams)> = vec![
+    let mut settings: Vec<(&str, GuidedParams)> = vec![
         (
             "patch 7, fast_for(7) (strips, skip black)",
-            SynthParams::fast_for(7),
+            GuidedParams::fast_for(7),
         ),
         (
             "patch 7, exact order (sequential, every pixel)",
-            SynthParams {
+            GuidedParams {
                 patch: 7,
                 ..Default::default()
             },
         ),
         (
             "patch 41, fast() (3 levels, step 2, strips)",
-            SynthParams::fast(),
+            GuidedParams::fast(),
         ),
     ];
     if !ctx.quick {
         settings.push((
-            "patch 41, paper-exact (SynthParams::default())",
-            SynthParams::default(),
+            "patch 41, paper-exact (GuidedParams::default())",
+            GuidedParams::default(),
         ));
     }
     let mut base = None;

@@ -12,7 +12,7 @@ use vt_core::model::{select_model, ModelParams, MotionModel};
 use vt_core::Point;
 use vt_fv::dataset::ModelParams as FvModel;
 use vt_fv::pipeline::{Scores, ViewParams};
-use vt_fv::SynthParams;
+use vt_fv::GuidedParams;
 use vt_synth::real::{RealParams, RealScene};
 
 use super::knobs_a::{circ, loop_phase_error, transition_phase_errors};
@@ -284,7 +284,7 @@ fn system_b(ctx: &mut Ctx) -> Result<Vec<Item>> {
         let (paper, pimg) = tp.ds.leave_one_out(
             k,
             &paper_model,
-            &ViewParams::paper(SynthParams::fast_for(7)),
+            &ViewParams::paper(GuidedParams::fast_for(7)),
         )?;
         let (def, dimg) = tp.ds.leave_one_out(k, &model, &ViewParams::default())?;
         let name = tp.ds.cams[k].name.clone();

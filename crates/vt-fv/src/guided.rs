@@ -13,7 +13,7 @@
 //! search; each chosen colour is written at once. A stage stops when (matches changed this
 //! iteration) / (matches changed in the first stage-(i) iteration) <= `T`.
 //!
-//! Speed options (off in [`SynthParams::default`], the paper's settings): a Gaussian-free 2x box
+//! Speed options (off in [`GuidedParams::default`], the paper's settings): a Gaussian-free 2x box
 //! pyramid (the coarse field, doubled, seeds the next level; the patch side halves per level, at
 //! least 3), patch subsampling (`step`), and parallel row strips (see [`crate::patchmatch`]).
 
@@ -29,7 +29,7 @@ use crate::{Error, Result};
 /// Guided synthesis parameters; `Default` is the paper's (patch 41, L 4, w = 1/4 of the image,
 /// alpha 0.8, T 0.06, M 10) with no speed options.
 #[derive(Debug, Clone, PartialEq)]
-pub struct SynthParams {
+pub struct GuidedParams {
     /// Patch side, odd (41).
     pub patch: usize,
     /// L: reach of the L-shaped patch split and of propagation in stage (ii) (4).
@@ -59,7 +59,7 @@ pub struct SynthParams {
     pub seed: u64,
 }
 
-impl Default for SynthParams {
+impl Default for GuidedParams {
     fn default() -> Self {
         Self {
             patch: 41,
@@ -78,7 +78,7 @@ impl Default for SynthParams {
     }
 }
 
-impl SynthParams {
+impl GuidedParams {
     /// The paper's parameters with every speed option on: 3 pyramid levels, step 2, strips per
     /// thread.
     pub fn fast() -> Self {
@@ -121,7 +121,7 @@ pub struct SynthStats {
 }
 
 /// Guided synthesis of an output the size of `target` from the texture of `input`.
-pub fn guided_synthesis(input: &RgbImage, target: &RgbImage, p: &SynthParams) -> Result<RgbImage> {
+pub fn guided_synthesis(input: &RgbImage, target: &RgbImage, p: &GuidedParams) -> Result<RgbImage> {
     guided_synthesis_stats(input, target, p).map(|r| r.0)
 }
 
@@ -156,7 +156,7 @@ fn half(px: &[[u8; 3]], w: usize, h: usize) -> (Vec<[u8; 3]>, usize, usize) {
 pub fn guided_synthesis_stats(
     input: &RgbImage,
     target: &RgbImage,
-    p: &SynthParams,
+    p: &GuidedParams,
 ) -> Result<(RgbImage, SynthStats)> {
     check_patch(
         "guided synthesis input",
@@ -368,11 +368,11 @@ mod tests {
             ])
         });
         for p in [
-            SynthParams {
+            GuidedParams {
                 patch: 7,
                 ..Default::default()
             },
-            SynthParams {
+            GuidedParams {
                 patch: 7,
                 levels: 2,
                 step: 2,
@@ -393,14 +393,14 @@ mod tests {
     fn bad_params_are_refused() {
         let img = RgbImage::new(20, 20);
         assert!(matches!(
-            guided_synthesis(&img, &img, &SynthParams::default()),
+            guided_synthesis(&img, &img, &GuidedParams::default()),
             Err(Error::ImageTooSmall { need: 41, .. })
         ));
         assert!(matches!(
             guided_synthesis(
                 &img,
                 &img,
-                &SynthParams {
+                &GuidedParams {
                     patch: 5,
                     l: 0,
                     ..Default::default()

@@ -9,7 +9,7 @@ use std::time::Instant;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::HullParams;
 use vt_fv::synth::{generate, SceneParams};
-use vt_fv::{build_model, novel_view, PhotoParams, SynthParams, ViewParams};
+use vt_fv::{build_model, novel_view, GuidedParams, PhotoParams, ViewParams};
 
 #[test]
 fn guided_synthesis_beats_rough_render_on_synthetic_object() {
@@ -36,14 +36,14 @@ fn guided_synthesis_beats_rough_render_on_synthetic_object() {
     let configs = [
         (
             "exact",
-            SynthParams {
+            GuidedParams {
                 patch: 7,
                 ..Default::default()
             },
         ),
         (
             "fast",
-            SynthParams {
+            GuidedParams {
                 patch: 7,
                 levels: 2,
                 step: 2,
@@ -117,11 +117,11 @@ fn synthesis_stage_keeps_large_patches_on_the_guide() {
         &mut |_, _, _| {},
     )
     .unwrap();
-    let base = SynthParams {
+    let base = GuidedParams {
         patch: 17,
-        ..SynthParams::fast()
+        ..GuidedParams::fast()
     };
-    let score = |p: &SynthParams| {
+    let score = |p: &GuidedParams| {
         let v = novel_view(
             &model,
             &d.cameras,
@@ -134,7 +134,7 @@ fn synthesis_stage_keeps_large_patches_on_the_guide() {
         .unwrap();
         psnr(&v.guided, &d.extra_truth[0], Some(&d.extra_masks[0])).unwrap()
     };
-    let stage_i = score(&SynthParams {
+    let stage_i = score(&GuidedParams {
         max_synth_iters: 0,
         ..base.clone()
     });
