@@ -5,9 +5,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Result};
 use clap::Args;
 use image::RgbImage;
-use vt_core::render::{FrameChoice, Player, RenderParams, Renderer, Step};
-use vt_core::warp::{warp_mask, Interpolation};
-use vt_core::Homography;
+use vt_core::render::{Player, RenderParams, Renderer, Step};
+use vt_core::warp::Interpolation;
 use vt_io::scene::LoadedScene;
 use vt_io::writer::FrameWriter;
 
@@ -276,33 +275,6 @@ pub fn path_qs(
         .collect())
 }
 
-/// Seam score of one jump, from the masks in the object stores: how far the new frame's mask is
-/// from the one ordinary playback would have shown, in units of the target view's mean step.
-fn jump_seam(scene: &LoadedScene, choice: &FrameChoice) -> Option<f64> {
-    let (cv, cj) = choice.continuation?;
-    let (v, j) = (choice.view, choice.frame);
-    let stores = &scene.objects.stores;
-    let mut cont = stores[cv].mask(cj);
-    // Carry the continuation's mask view by view into the new view.
-    let mut p = cv;
-    while p != v {
-        let (link, np) = if v > p {
-            (&scene.file.views[p].to_next, p + 1)
-        } else {
-            (&scene.file.views[p].to_prev, p - 1)
-        };
-        let h: Homography = link.as_ref()?.homography().ok()?;
-        cont = warp_mask(&cont, &h, cont.width(), cont.height());
-        p = np;
-    }
-    let step = scene.file.views[v].mean_step;
-    Some(vt_core::transition::seam_score(
-        vt_core::mask::xor_count(&cont, &stores[v].mask(j)),
-        1,
-        step,
-    ))
-}
-
 /// Counts and seams of a render.
 pub struct RenderSummary {
     pub frames: usize,
@@ -316,7 +288,10 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
     let scene = LoadedScene::open(&args.scene)?;
     let fps = args
         .fps
-        .or(scene.file.fps.filter(|f| f.is_finite() && *f > 0.0 && *f <= 1000.0))
+        .or(scene
+            .file
+            .fps
+            .filter(|f| f.is_finite() && *f > 0.0 && *f <= 1000.0))
         .unwrap_or(30.0);
     let qs = path_qs(
         &args.path,
@@ -341,7 +316,7 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
         for &q in &qs {
             let choice = player.advance(&scene.render, q)?;
             if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
-                seams.extend(jump_seam(&scene, &choice));
+                seams.extend(scene.jump_seam(&choice));
             }
             renderer.render_into(&scene.objects, q, &choice, &mut frame)?;
             sink.write(&frame)?;

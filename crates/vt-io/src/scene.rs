@@ -487,6 +487,33 @@ pub struct LoadedScene {
 }
 
 impl LoadedScene {
+    /// Seam score of one jump, from the masks in the object stores: how far the new frame's mask is
+    /// from the one ordinary playback would have shown, in units of the target view's mean step.
+    pub fn jump_seam(&self, choice: &vt_core::render::FrameChoice) -> Option<f64> {
+        let (cv, cj) = choice.continuation?;
+        let (v, j) = (choice.view, choice.frame);
+        let stores = &self.objects.stores;
+        let mut cont = stores[cv].mask(cj);
+        // Carry the continuation's mask view by view into the new view.
+        let mut p = cv;
+        while p != v {
+            let (link, np) = if v > p {
+                (&self.file.views[p].to_next, p + 1)
+            } else {
+                (&self.file.views[p].to_prev, p - 1)
+            };
+            let h: Homography = link.as_ref()?.homography().ok()?;
+            cont = vt_core::warp::warp_mask(&cont, &h, cont.width(), cont.height());
+            p = np;
+        }
+        let step = self.file.views[v].mean_step;
+        Some(vt_core::transition::seam_score(
+            vt_core::mask::xor_count(&cont, &stores[v].mask(j)),
+            1,
+            step,
+        ))
+    }
+
     /// Loads and cross-checks every part of a scene directory.
     pub fn open(dir: &Path) -> Result<Self> {
         if !dir.is_dir() {
