@@ -195,9 +195,11 @@ fn run() {
                         if !filter.split(',').any(|f| label.contains(f)) {
                             continue;
                         }
-                        let mut params = RenderParams::default();
-                        params.interpolation = interp;
-                        params.crossfade = crossfade;
+                        let params = RenderParams {
+                            interpolation: interp,
+                            crossfade,
+                            ..RenderParams::default()
+                        };
                         let mut renderer = Renderer::new(scene.clone(), params).unwrap();
                         let mut player = Player::new();
                         let mut out = RgbImage::new(w, h);
