@@ -288,7 +288,7 @@ fn build(d: &Dataset, bounds: Aabb, m: &ModelParams) -> Result<(VoxelModel, Buil
         bars.update(s, i, n)
     });
     bars.finish();
-    Ok(r.with_context(|| format!("{}", d.par.parent().unwrap_or(&d.par).display()))?)
+    r.with_context(|| format!("{}", d.par.parent().unwrap_or(&d.par).display()))
 }
 
 fn hull(a: HullArgs) -> Result<()> {
