@@ -310,13 +310,14 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
     let mut player = Player::new();
     let mut frame = RgbImage::new(w, h);
     let mut seams = Vec::new();
+    let mask_steps = scene.mask_steps();
     let pb = bar(qs.len() as u64, "render");
     // On a rayon worker, the renderer's parallel passes queue locally: no allocation per frame.
     rayon::scope(|_| -> Result<()> {
         for &q in &qs {
             let choice = player.advance(&scene.render, q)?;
             if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
-                seams.extend(scene.jump_seam(&choice));
+                seams.extend(scene.jump_seam(&choice, &mask_steps));
             }
             renderer.render_into(&scene.objects, q, &choice, &mut frame)?;
             sink.write(&frame)?;

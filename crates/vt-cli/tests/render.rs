@@ -15,14 +15,7 @@ use vt_io::scene::LoadedScene;
 use vt_synth::{TextureParams, TextureScene};
 
 fn psnr(a: &RgbImage, b: &RgbImage) -> f64 {
-    let mse = a
-        .as_raw()
-        .iter()
-        .zip(b.as_raw())
-        .map(|(&x, &y)| (x as f64 - y as f64).powi(2))
-        .sum::<f64>()
-        / a.as_raw().len() as f64;
-    10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
+    vt_core::metrics::psnr(a, b, None).unwrap()
 }
 
 fn max_abs_diff(a: &RgbImage, b: &RgbImage) -> u8 {

@@ -487,9 +487,35 @@ pub struct LoadedScene {
 }
 
 impl LoadedScene {
+    /// Per view, the mean mask change between consecutive frames inside its loop, from the masks
+    /// in the object stores: the unit of [`LoadedScene::jump_seam`]. (scene.json's `mean_step`
+    /// also carries the appearance term, so it is not the unit of a mask-only difference.)
+    pub fn mask_steps(&self) -> Vec<f64> {
+        self.file
+            .views
+            .iter()
+            .zip(&self.objects.stores)
+            .map(|(v, store)| {
+                let (a, b) = (v.loop_.start + 1, v.loop_.end);
+                if b <= a {
+                    return 0.0;
+                }
+                let mut prev = store.mask(a);
+                let mut total = 0u64;
+                for f in a + 1..=b {
+                    let m = store.mask(f);
+                    total += vt_core::mask::xor_count(&prev, &m);
+                    prev = m;
+                }
+                total as f64 / (b - a) as f64
+            })
+            .collect()
+    }
+
     /// Seam score of one jump, from the masks in the object stores: how far the new frame's mask is
-    /// from the one ordinary playback would have shown, in units of the target view's mean step.
-    pub fn jump_seam(&self, choice: &vt_core::render::FrameChoice) -> Option<f64> {
+    /// from the one ordinary playback would have shown, in units of the target view's mean mask
+    /// step inside its loop (`steps`, from [`LoadedScene::mask_steps`]).
+    pub fn jump_seam(&self, choice: &vt_core::render::FrameChoice, steps: &[f64]) -> Option<f64> {
         let (cv, cj) = choice.continuation?;
         let (v, j) = (choice.view, choice.frame);
         let stores = &self.objects.stores;
@@ -506,7 +532,7 @@ impl LoadedScene {
             cont = vt_core::warp::warp_mask(&cont, &h, cont.width(), cont.height());
             p = np;
         }
-        let step = self.file.views[v].mean_step;
+        let step = *steps.get(v)?;
         Some(vt_core::transition::seam_score(
             vt_core::mask::xor_count(&cont, &stores[v].mask(j)),
             1,
