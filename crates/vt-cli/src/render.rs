@@ -55,8 +55,8 @@ pub struct RenderOptions {
     no_gain_compensation: bool,
 }
 
-/// Longest `--crossfade`, frames.
-pub const MAX_CROSSFADE: usize = 1000;
+/// Longest `--crossfade`, frames (the renderer's own limit).
+pub const MAX_CROSSFADE: usize = vt_core::render::MAX_CROSSFADE;
 
 impl RenderOptions {
     /// Checks the options against their limits.

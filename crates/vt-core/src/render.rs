@@ -244,7 +244,11 @@ impl Player {
             return false;
         }
         let v = &scene.views[pv];
-        let seams = if qbar > pv { &v.next_seam } else { &v.prev_seam };
+        let seams = if qbar > pv {
+            &v.next_seam
+        } else {
+            &v.prev_seam
+        };
         seams.get(pj).is_some_and(|&s| s as f64 > pol.max_seam)
     }
 
@@ -440,9 +444,21 @@ pub struct Renderer {
     fade: Option<(usize, usize, usize)>,
 }
 
+/// Longest object crossfade, frames (the blend weight `(k + 1) / (crossfade + 1)` stays exact in
+/// `f32` and its counters far from overflow).
+pub const MAX_CROSSFADE: usize = 1000;
+
 impl Renderer {
-    /// Prepares a renderer (estimates gains when asked).
+    /// Prepares a renderer (estimates gains when asked). Errors for a scene without views or a
+    /// crossfade longer than [`MAX_CROSSFADE`] frames.
     pub fn new(scene: RenderScene, params: RenderParams) -> Result<Self> {
+        if params.crossfade > MAX_CROSSFADE {
+            return Err(Error::InvalidParameter {
+                name: "crossfade",
+                value: params.crossfade.to_string(),
+                why: format!("at most {MAX_CROSSFADE} frames"),
+            });
+        }
         let first = scene.views.first().ok_or_else(|| Error::InvalidParameter {
             name: "views",
             value: "0".into(),
@@ -846,6 +862,24 @@ fn composite(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn absurd_crossfade_is_an_error_not_an_overflow() {
+        for crossfade in [MAX_CROSSFADE + 1, usize::MAX] {
+            let params = RenderParams {
+                crossfade,
+                ..RenderParams::default()
+            };
+            let e = Renderer::new(tiny(), params).err().expect("refused");
+            assert!(e.to_string().contains("crossfade"), "{e}");
+        }
+        let params = RenderParams {
+            crossfade: MAX_CROSSFADE,
+            gain_compensation: false,
+            ..RenderParams::default()
+        };
+        assert!(Renderer::new(tiny(), params).is_ok());
+    }
 
     /// A 3-view scene with tiny hand-made tables, for eq. (6) step by step.
     fn tiny() -> RenderScene {
