@@ -7,7 +7,7 @@ use image::RgbImage;
 use indicatif::{ProgressBar, ProgressStyle};
 use vt_core::analysis::{Observer, Stage};
 use vt_core::Mask;
-use vt_io::objects::ObjectWriter;
+use vt_io::objects::StoreWriter;
 
 /// A bar with a message, or a spinner when the total is unknown.
 pub fn bar(total: u64, msg: &str) -> ProgressBar {
@@ -33,30 +33,24 @@ fn spinner(msg: &str) -> ProgressBar {
     pb
 }
 
-/// Progress bars per stage, and object stores written as masks arrive.
+/// Progress bars per stage, and object stores written as masks arrive (vt-io's [`StoreWriter`]).
 pub struct AnalysisObserver {
-    dir: PathBuf,
     current: Option<ProgressBar>,
-    writer: Option<(usize, ObjectWriter)>,
+    stores: StoreWriter,
 }
 
 impl AnalysisObserver {
     /// Writes object stores into `dir` (the scene's temporary directory).
     pub fn new(dir: PathBuf) -> Self {
         Self {
-            dir,
             current: None,
-            writer: None,
+            stores: StoreWriter::new(dir),
         }
     }
 
     /// Closes the last object store.
     pub fn finish_objects(&mut self) -> vt_core::Result<()> {
-        if let Some((p, w)) = self.writer.take() {
-            w.finish()
-                .map_err(|e| vt_core::Error::external(format!("view {p}"), e))?;
-        }
-        Ok(())
+        self.stores.finish()
     }
 }
 
@@ -94,21 +88,11 @@ impl Observer for AnalysisObserver {
     fn object_frame(
         &mut self,
         view: usize,
-        _frame: usize,
+        frame: usize,
         mask: &Mask,
         raw: &RgbImage,
     ) -> vt_core::Result<()> {
-        let to_core = |e: vt_io::Error| vt_core::Error::external(format!("view {view}"), e);
-        if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
-            self.finish_objects()?;
-            let path = self.dir.join(vt_io::scene::objects_name(view));
-            self.writer = Some((
-                view,
-                ObjectWriter::create(&path, raw.width(), raw.height()).map_err(to_core)?,
-            ));
-        }
-        let (_, w) = self.writer.as_mut().expect("set above");
-        w.push(mask, raw).map_err(to_core)
+        self.stores.object_frame(view, frame, mask, raw)
     }
 }
 

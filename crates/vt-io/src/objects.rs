@@ -379,3 +379,52 @@ mod tests {
         }
     }
 }
+
+/// An analysis observer that writes each view's moving-object store (`objects_NNN.bin`) into a
+/// scene directory as its masks arrive, one view at a time: what `vt analyze` keeps of every
+/// frame. Call [`StoreWriter::finish`] after the analysis to close the last store.
+pub struct StoreWriter {
+    dir: PathBuf,
+    writer: Option<(usize, ObjectWriter)>,
+}
+
+impl StoreWriter {
+    /// Writes stores into `dir` (usually a scene's temporary directory).
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self {
+            dir: dir.into(),
+            writer: None,
+        }
+    }
+
+    /// Closes the last store.
+    pub fn finish(&mut self) -> vt_core::Result<()> {
+        if let Some((p, w)) = self.writer.take() {
+            w.finish()
+                .map_err(|e| vt_core::Error::external(format!("view {p}"), e))?;
+        }
+        Ok(())
+    }
+}
+
+impl vt_core::analysis::Observer for StoreWriter {
+    fn object_frame(
+        &mut self,
+        view: usize,
+        _frame: usize,
+        mask: &Mask,
+        raw: &RgbImage,
+    ) -> vt_core::Result<()> {
+        let to_core = |e: Error| vt_core::Error::external(format!("view {view}"), e);
+        if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
+            self.finish()?;
+            let path = self.dir.join(crate::scene::objects_name(view));
+            self.writer = Some((
+                view,
+                ObjectWriter::create(&path, raw.width(), raw.height()).map_err(to_core)?,
+            ));
+        }
+        let (_, w) = self.writer.as_mut().expect("set above");
+        w.push(mask, raw).map_err(to_core)
+    }
+}

@@ -2,62 +2,19 @@
 //! scene (vt demo's scene) with its truth, analysed and written as a real scene directory; the
 //! synthetic System B object; the templeSparseRing photos; tree.avi's frames.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::rc::Rc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use image::RgbImage;
-use vt_core::analysis::{analyze, AnalyzeParams, MemorySource, Observer, SceneAnalysis};
+use vt_core::analysis::{analyze, AnalyzeParams, MemorySource, SceneAnalysis};
 use vt_core::{Mask, Point};
-use vt_io::objects::ObjectWriter;
-use vt_io::scene::{background_name, objects_name, LoadedScene, SceneFile};
+use vt_io::objects::StoreWriter;
+use vt_io::scene::{background_name, LoadedScene, SceneFile};
 use vt_synth::{TextureParams, TextureScene};
 
 use super::Ctx;
-
-/// Writes each view's moving-object store as its masks arrive (what `vt analyze` does).
-struct StoreWriter {
-    dir: PathBuf,
-    writer: Option<(usize, ObjectWriter)>,
-}
-
-impl StoreWriter {
-    fn close(&mut self) -> vt_core::Result<()> {
-        if let Some((p, w)) = self.writer.take() {
-            w.finish().map_err(|e| vt_core::Error::Source {
-                view: format!("view {p}"),
-                message: e.to_string(),
-            })?;
-        }
-        Ok(())
-    }
-}
-
-impl Observer for StoreWriter {
-    fn object_frame(
-        &mut self,
-        view: usize,
-        _frame: usize,
-        mask: &Mask,
-        raw: &RgbImage,
-    ) -> vt_core::Result<()> {
-        let to_core = |e: vt_io::Error| vt_core::Error::Source {
-            view: format!("view {view}"),
-            message: e.to_string(),
-        };
-        if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
-            self.close()?;
-            let path = self.dir.join(objects_name(view));
-            self.writer = Some((
-                view,
-                ObjectWriter::create(&path, raw.width(), raw.height()).map_err(to_core)?,
-            ));
-        }
-        let (_, w) = self.writer.as_mut().expect("set above");
-        w.push(mask, raw).map_err(to_core)
-    }
-}
 
 /// Analyses in-memory views into a scene directory `dir` (created) exactly as `vt analyze` would
 /// write it, and loads it back for rendering. Returns the analysis, its seconds and the scene.
@@ -80,14 +37,11 @@ pub fn build_scene(
         .iter_mut()
         .map(|s| s as &mut dyn vt_core::analysis::FrameSource)
         .collect();
-    let mut store = StoreWriter {
-        dir: dir.to_path_buf(),
-        writer: None,
-    };
+    let mut store = StoreWriter::new(dir);
     let t = Instant::now();
     let analysis = analyze(&mut refs, points, params, &mut store)?;
     let secs = t.elapsed().as_secs_f64();
-    store.close()?;
+    store.finish()?;
     for (p, v) in analysis.views.iter().enumerate() {
         vt_io::frames::write_png(&dir.join(background_name(p)), &v.background)?;
     }
