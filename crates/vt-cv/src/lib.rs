@@ -22,6 +22,7 @@
 #![deny(missing_docs)]
 
 pub mod blur;
+pub mod cases;
 pub mod convert;
 mod error;
 pub mod homography;

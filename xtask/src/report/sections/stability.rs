@@ -17,23 +17,9 @@ use crate::report::data::synth_a;
 use crate::report::model::{Item, Table};
 use crate::report::Ctx;
 
-fn noise(seed: u64, i: u64) -> f64 {
-    let h = vt_core::rng::hash(&[seed, i]);
-    2.0 * vt_core::rng::unit(h) - 1.0
-}
-
-fn map_points(h: &Matrix3<f64>, pts: &[Point]) -> Vec<Point> {
-    pts.iter()
-        .map(|p| {
-            let v = h * nalgebra::Vector3::new(p.x, p.y, 1.0);
-            Point::new(v.x / v.z, v.y / v.z)
-        })
-        .collect()
-}
-
 /// RMS transfer error of `m` on the points (infinite when a point maps to infinity).
 fn rms(m: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> f64 {
-    let mapped = map_points(m, src);
+    let mapped = vt_cv::cases::map_points(m, src);
     let se: f64 = mapped
         .iter()
         .zip(dst)
@@ -56,106 +42,6 @@ fn short(e: impl std::fmt::Display) -> String {
     out
 }
 
-/// The cross-check's extreme point sets (crates/vt-cv/src/bin/cross-check.rs, `extreme_points`),
-/// plus non-finite, duplicate and too-few points.
-fn point_cases() -> Vec<(String, Vec<Point>, Vec<Point>)> {
-    let base = [
-        (0.0, 0.0),
-        (300.0, 10.0),
-        (280.0, 250.0),
-        (-20.0, 270.0),
-        (150.0, 120.0),
-        (60.0, 200.0),
-    ];
-    let h = Matrix3::new(1.01, 0.02, 5.0, -0.01, 0.99, -3.0, 1e-7, -2e-7, 1.0);
-    let mut cases = Vec::new();
-    let plain: Vec<Point> = base.iter().map(|&(x, y)| Point::new(x, y)).collect();
-    cases.push((
-        "6 pts, well conditioned".to_string(),
-        plain.clone(),
-        map_points(&h, &plain),
-    ));
-    for off in [1e4, 1e5] {
-        let src: Vec<Point> = base
-            .iter()
-            .map(|&(x, y)| Point::new(x + off, y + 0.8 * off))
-            .collect();
-        let dst = map_points(&h, &src);
-        cases.push((
-            format!("6 pts {off:.0e} px from origin"),
-            src.clone(),
-            dst.clone(),
-        ));
-        cases.push((
-            format!("4 pts {off:.0e} px from origin"),
-            src[..4].to_vec(),
-            dst[..4].to_vec(),
-        ));
-        let noisy: Vec<Point> = dst
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                Point::new(
-                    p.x + 0.3 * noise(3, 2 * i as u64),
-                    p.y + 0.3 * noise(3, 2 * i as u64 + 1),
-                )
-            })
-            .collect();
-        cases.push((format!("6 pts {off:.0e} px, noise 0.3"), src, noisy));
-    }
-    for eps in [1e-2, 1e-5, 1e-9] {
-        let src: Vec<Point> = (0..6)
-            .map(|i| Point::new(50.0 * i as f64, 20.0 + 10.0 * i as f64 + eps * noise(5, i)))
-            .collect();
-        let dst: Vec<Point> = (0..6)
-            .map(|i| {
-                Point::new(
-                    40.0 * i as f64 + 3.0,
-                    30.0 + 12.0 * i as f64 + eps * noise(6, i),
-                )
-            })
-            .collect();
-        cases.push((format!("near-collinear, {eps:.0e} px off a line"), src, dst));
-    }
-    for s in [1e-1, 1e-3, 1e-6] {
-        let src: Vec<Point> = base
-            .iter()
-            .map(|&(x, y)| Point::new(320.0 + s * x / 300.0, 180.0 + s * y / 300.0))
-            .collect();
-        let dst = map_points(&h, &src);
-        cases.push((format!("6 pts spread {s:.0e} px"), src, dst));
-    }
-    for eps in [1e-6, 1e-10] {
-        let r = |a: f64| nalgebra::Rotation3::from_euler_angles(a, 0.3 * a, -0.7 * a).into_inner();
-        let m = r(0.4) * Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, eps)) * r(-0.9);
-        let src: Vec<Point> = base
-            .iter()
-            .map(|&(x, y)| Point::new(x * 1e-3, y * 1e-3))
-            .collect();
-        let dst = map_points(&m, &src);
-        cases.push((format!("nearly singular H (cond {eps:.0e})"), src, dst));
-    }
-    let dst = map_points(&h, &plain);
-    for (name, bad) in [
-        ("a NaN coordinate", f64::NAN),
-        ("an infinite coordinate", f64::INFINITY),
-    ] {
-        let mut src = plain.clone();
-        src[2].x = bad;
-        cases.push((format!("6 pts, {name}"), src, dst.clone()));
-    }
-    let mut dup = plain[..4].to_vec();
-    dup[3] = dup[1];
-    cases.push(("4 pts, two identical".into(), dup, dst[..4].to_vec()));
-    cases.push((
-        "3 pts (too few)".into(),
-        plain[..3].to_vec(),
-        dst[..3].to_vec(),
-    ));
-    cases.push(("6 identical pts".into(), vec![plain[1]; 6], vec![dst[1]; 6]));
-    cases
-}
-
 fn homography_table() -> Table {
     let mut t = Table::new(
         "stability-homography",
@@ -174,7 +60,7 @@ fn homography_table() -> Table {
             "vt-core at least as good",
         ],
     );
-    for (name, src, dst) in point_cases() {
+    for vt_cv::cases::PointSet { name, src, dst, .. } in vt_cv::cases::extreme_point_sets() {
         let vt = Homography::from_correspondences(&src, &dst);
         let cv = vt_cv::homography::estimate_matrix(&src, &dst);
         let (vt_what, vt_rms) = match &vt {

@@ -4,84 +4,12 @@
 use super::*;
 
 pub(super) fn extreme_points(t: &mut Table) -> Result<()> {
-    let base = [
-        (0.0, 0.0),
-        (300.0, 10.0),
-        (280.0, 250.0),
-        (-20.0, 270.0),
-        (150.0, 120.0),
-        (60.0, 200.0),
-    ];
-    let h = Matrix3::new(1.01, 0.02, 5.0, -0.01, 0.99, -3.0, 1e-7, -2e-7, 1.0);
-    for off in [1e4, 1e5] {
-        let src: Vec<Point> = base
-            .iter()
-            .map(|&(x, y)| Point::new(x + off, y + 0.8 * off))
-            .collect();
-        let dst = map_points(&h, &src);
-        homography_stability(t, &format!("6 pts {off:.0e} px from origin"), &src, &dst);
-        homography_stability(
-            t,
-            &format!("4 pts {off:.0e} px from origin"),
-            &src[..4],
-            &dst[..4],
-        );
-        let noisy: Vec<Point> = dst
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                Point::new(
-                    p.x + 0.3 * noise(3, 2 * i as u64),
-                    p.y + 0.3 * noise(3, 2 * i as u64 + 1),
-                )
-            })
-            .collect();
-        homography_stability(t, &format!("6 pts {off:.0e} px, noise 0.3"), &src, &noisy);
-    }
-    // Near-collinear: points within `eps` px of a 300 px line.
-    for eps in [1e-2, 1e-5, 1e-9] {
-        let src: Vec<Point> = (0..6)
-            .map(|i| Point::new(50.0 * i as f64, 20.0 + 10.0 * i as f64 + eps * noise(5, i)))
-            .collect();
-        let dst: Vec<Point> = (0..6)
-            .map(|i| {
-                Point::new(
-                    40.0 * i as f64 + 3.0,
-                    30.0 + 12.0 * i as f64 + eps * noise(6, i),
-                )
-            })
-            .collect();
-        homography_stability(
-            t,
-            &format!("near-collinear, {eps:.0e} px off a line"),
-            &src,
-            &dst,
-        );
-    }
-    // Tiny spread: a unit square shrunk to `s` px around (320, 180), mapped by a mild homography.
-    for s in [1e-1, 1e-3, 1e-6] {
-        let src: Vec<Point> = base
-            .iter()
-            .map(|&(x, y)| Point::new(320.0 + s * x / 300.0, 180.0 + s * y / 300.0))
-            .collect();
-        let dst = map_points(&h, &src);
-        homography_stability(t, &format!("6 pts spread {s:.0e} px"), &src, &dst);
-    }
-    // Nearly singular maps: singular values 1, 1, eps (rotations either side).
-    for eps in [1e-6, 1e-10] {
-        let r = |a: f64| nalgebra::Rotation3::from_euler_angles(a, 0.3 * a, -0.7 * a).into_inner();
-        let m = r(0.4) * Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, eps)) * r(-0.9);
-        let src: Vec<Point> = base
-            .iter()
-            .map(|&(x, y)| Point::new(x * 1e-3, y * 1e-3))
-            .collect();
-        let dst = map_points(&m, &src);
-        homography_stability(
-            t,
-            &format!("nearly singular H (cond {eps:.0e})"),
-            &src,
-            &dst,
-        );
+    // The well-formed point sets of vt_cv::cases (far from the origin, noisy, near-collinear,
+    // tiny spread, nearly singular maps); the report shows the same cases, degenerate ones too.
+    for case in vt_cv::cases::extreme_point_sets() {
+        if !case.degenerate && case.name != "6 pts, well conditioned" {
+            homography_stability(t, &case.name, &case.src, &case.dst);
+        }
     }
     Ok(())
 }

@@ -407,16 +407,6 @@ pub(super) fn round_f32(pts: &[Point]) -> Vec<Point> {
         .collect()
 }
 
-/// Deterministic noise in [-1, 1) from the workspace's SplitMix64, so the run needs no RNG crate.
-pub(super) fn noise(seed: u64, i: u64) -> f64 {
-    2.0 * vt_core::rng::unit(vt_core::rng::hash(&[seed, i])) - 1.0
-}
+pub(super) use vt_cv::cases::noise;
 
-pub(super) fn map_points(h: &Matrix3<f64>, pts: &[Point]) -> Vec<Point> {
-    pts.iter()
-        .map(|p| {
-            let v = h * nalgebra::Vector3::new(p.x, p.y, 1.0);
-            Point::new(v.x / v.z, v.y / v.z)
-        })
-        .collect()
-}
+pub(super) use vt_cv::cases::map_points;
