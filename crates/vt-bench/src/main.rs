@@ -13,7 +13,6 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use vt_core::analysis::{analyze, AnalyzeParams, FrameSource, Quiet};
 use vt_core::loops::{find_loop, LoopParams};
-use vt_core::Point;
 use vt_io::frames::VideoSource;
 use vt_synth::{TextureParams, TextureScene};
 
@@ -109,15 +108,7 @@ fn main() -> Result<()> {
             encode(&scene, p, v)?;
         }
     }
-    let points: Vec<Vec<Point>> = (0..params.views)
-        .map(|p| {
-            scene
-                .points(p)
-                .into_iter()
-                .map(|(x, y)| Point::new(x, y))
-                .collect()
-        })
-        .collect();
+    let points = scene.marked_points();
 
     println!(
         "System A analysis, {} views x {} frames x {}x{}, {} threads",

@@ -99,15 +99,7 @@ pub fn write_textures(
             Ok::<_, Error>(())
         })?;
     }
-    let points: Vec<Vec<vt_core::Point>> = (0..params.views)
-        .map(|p| {
-            scene
-                .points(p)
-                .into_iter()
-                .map(|(x, y)| vt_core::Point::new(x, y))
-                .collect()
-        })
-        .collect();
+    let points = scene.marked_points();
     let points_path = root.join("points.txt");
     std::fs::write(&points_path, vt_io::points::format_points(&points))
         .map_err(|e| io(&points_path, e))?;

@@ -253,6 +253,19 @@ impl TextureScene {
             .collect()
     }
 
+    /// Every view's marked points as vt-core points, as a points file holds them (one list per
+    /// view, the same markers in the same order).
+    pub fn marked_points(&self) -> Vec<Vec<vt_core::Point>> {
+        (0..self.cameras.len())
+            .map(|p| {
+                self.points(p)
+                    .into_iter()
+                    .map(|(x, y)| vt_core::Point::new(x, y))
+                    .collect()
+            })
+            .collect()
+    }
+
     /// The true homography of the object plane from view `a`'s image to view `b`'s:
     /// `H = K R_b ((C_a - C_b) n^T + (d - n.C_a) I) R_a^T K^-1`, `n = (0,0,1)`, `d` = object depth.
     pub fn plane_homography(&self, a: f64, b: f64) -> Matrix3<f64> {

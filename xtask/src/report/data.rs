@@ -126,15 +126,7 @@ fn build_synth_a(ctx: &mut Ctx) -> Result<SynthA> {
     let frames: Vec<Vec<RgbImage>> = (0..tp.views)
         .map(|p| (0..tp.frames).map(|s| scene.frame(p, s)).collect())
         .collect();
-    let points: Vec<Vec<Point>> = (0..tp.views)
-        .map(|p| {
-            scene
-                .points(p)
-                .into_iter()
-                .map(|(x, y)| Point::new(x, y))
-                .collect()
-        })
-        .collect();
+    let points = scene.marked_points();
     let mut params = AnalyzeParams::default();
     // Three periods: short enough for the clip, long enough that loops are multiples of it.
     params.loops.min_length = 3 * tp.period;
