@@ -131,12 +131,27 @@ impl RenderScene {
     }
 }
 
-/// `f`, `c` and `qbar` of eq. (3)-(5).
-pub fn split_q(q: f64) -> (usize, usize, usize) {
+/// The views around a viewpoint q, as eq. (3)-(5) name them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct QSplit {
+    /// `f = floor(q)`: the view at or left of q.
+    pub floor: usize,
+    /// `c = ceil(q)`: the view at or right of q.
+    pub ceil: usize,
+    /// `qbar`: the nearest view, the right one at the 0.5 tie; the moving object comes from it.
+    pub nearest: usize,
+}
+
+/// `f`, `c` and `qbar` of eq. (3)-(5) for `q >= 0`.
+pub fn split_q(q: f64) -> QSplit {
     let f = q.floor();
     let c = q.ceil();
     let qbar = if q - f < 0.5 { f } else { c };
-    (f as usize, c as usize, qbar as usize)
+    QSplit {
+        floor: f as usize,
+        ceil: c as usize,
+        nearest: qbar as usize,
+    }
 }
 
 /// What the player did to reach this frame.
@@ -260,7 +275,7 @@ impl Player {
     /// Chooses the source frame for viewpoint `q` (eq. 6).
     pub fn advance(&mut self, scene: &RenderScene, q: f64) -> Result<FrameChoice> {
         scene.check_q(q)?;
-        let (_, _, qbar) = split_q(q);
+        let qbar = split_q(q).nearest;
         // Switch where it matches: keep the current view a little longer if this switch is bad.
         let qbar = match self.state {
             Some((pv, pj)) if pv != qbar && self.postpone(scene, q, pv, pj, qbar) => {
@@ -508,7 +523,11 @@ impl Renderer {
         if self.cached_q == Some(q) {
             return Ok(());
         }
-        let (f, c, qbar) = split_q(q);
+        let QSplit {
+            floor: f,
+            ceil: c,
+            nearest: qbar,
+        } = split_q(q);
         self.h_to_q.iter_mut().for_each(|h| *h = None);
         for p in [f, c, qbar] {
             if self.h_to_q[p].is_none() {
@@ -985,10 +1004,15 @@ mod tests {
 
     #[test]
     fn split_q_tie_and_integers() {
-        assert_eq!(split_q(1.0), (1, 1, 1));
-        assert_eq!(split_q(1.5), (1, 2, 2));
-        assert_eq!(split_q(1.4999999), (1, 2, 1));
-        assert_eq!(split_q(0.0), (0, 0, 0));
+        let s = |floor, ceil, nearest| QSplit {
+            floor,
+            ceil,
+            nearest,
+        };
+        assert_eq!(split_q(1.0), s(1, 1, 1));
+        assert_eq!(split_q(1.5), s(1, 2, 2));
+        assert_eq!(split_q(1.4999999), s(1, 2, 1));
+        assert_eq!(split_q(0.0), s(0, 0, 0));
     }
 
     #[test]

@@ -29,8 +29,6 @@ use serde::Serialize;
 use vt_core::render::{split_q, FrameChoice, Player, RenderParams, Renderer};
 use vt_io::scene::LoadedScene;
 
-
-
 const PAGE: &str = include_str!("view.html");
 
 /// Largest request head (request line and headers), bytes.
@@ -467,7 +465,7 @@ fn render_loop(
             continue;
         }
         let choice = match last {
-            Some((_, _, c)) if !due && c.view == split_q(q).2 => c,
+            Some((_, _, c)) if !due && c.view == split_q(q).nearest => c,
             _ => match player.advance(&scene.render, q) {
                 Ok(c) => c,
                 Err(_) => continue,
