@@ -274,15 +274,16 @@ pub struct Link {
     /// RMS transfer error of the points, pixels.
     pub rms: f64,
     /// `t_{p+1}(s, p)` for every frame `s` of view `p`.
-    pub forward: Vec<Option<usize>>,
+    pub to_next: Vec<Option<usize>>,
     /// `t_p(s, p+1)` for every frame `s` of view `p + 1`.
-    pub backward: Vec<Option<usize>>,
-    /// Mean seam score of the forward and backward switches over the frames on each loop.
+    pub to_prev: Vec<Option<usize>>,
+    /// Mean seam score of the switches both ways over the frames on each loop.
     pub seam: f64,
-    /// Seam score of every forward switch (`s -> forward[s] + 1`), in the target's step unit.
-    pub forward_seam: Vec<f32>,
-    /// Seam score of every backward switch.
-    pub backward_seam: Vec<f32>,
+    /// Seam score of every switch to the next view (`s -> to_next[s] + 1`), in the target's step
+    /// unit.
+    pub to_next_seam: Vec<f32>,
+    /// Seam score of every switch to the previous view.
+    pub to_prev_seam: Vec<f32>,
 }
 
 /// How a link's homography was refined from the backgrounds.
@@ -488,7 +489,7 @@ pub fn analyze(
                     .map(|e| e.map_or(f32::MAX, |(_, c)| seam_score(c, w, to.mean_step) as f32))
                     .collect()
             };
-            let (forward_seam, backward_seam) = (seams_of(&fwd, b), seams_of(&back, a));
+            let (to_next_seam, to_prev_seam) = (seams_of(&fwd, b), seams_of(&back, a));
             let strip =
                 |t: Vec<Option<(usize, u64)>>| t.into_iter().map(|e| e.map(|(t, _)| t)).collect();
             links.push(Link {
@@ -496,11 +497,11 @@ pub fn analyze(
                 points_homography: sel.fits[p].homography,
                 refinement: refinements[p],
                 rms: sel.fits[p].rms,
-                forward: strip(fwd),
-                backward: strip(back),
+                to_next: strip(fwd),
+                to_prev: strip(back),
                 seam,
-                forward_seam,
-                backward_seam,
+                to_next_seam,
+                to_prev_seam,
             });
         }
         observer.finish();
@@ -897,16 +898,16 @@ mod tests {
             assert_eq!(x.masks, y.masks);
             assert_eq!(x.best_loop, y.best_loop);
         }
-        assert_eq!(res.links[0].forward, res2.links[0].forward);
+        assert_eq!(res.links[0].to_next, res2.links[0].to_next);
         for v in &res.views {
             assert_eq!(v.best_loop.len() % 10, 0);
             assert_eq!(v.best_loop.cost, 0);
         }
         // Frame s of view 0 has phase s; frame t of view 1 has phase t + 3.
-        for (s, t) in res.links[0].forward.iter().enumerate() {
+        for (s, t) in res.links[0].to_next.iter().enumerate() {
             assert_eq!((t.unwrap() + 3) % 10, s % 10);
         }
-        for (s, t) in res.links[0].backward.iter().enumerate() {
+        for (s, t) in res.links[0].to_prev.iter().enumerate() {
             assert_eq!(t.unwrap() % 10, (s + 3) % 10);
         }
     }

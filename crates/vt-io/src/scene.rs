@@ -289,11 +289,11 @@ impl SceneFile {
                         }),
                         transitions: Transitions {
                             next: next
-                                .map(|l| l.forward.clone())
+                                .map(|l| l.to_next.clone())
                                 .unwrap_or_else(|| none.clone()),
-                            prev: prev.map(|l| l.backward.clone()).unwrap_or(none),
-                            next_seam: next.map(|l| l.forward_seam.clone()).unwrap_or_default(),
-                            prev_seam: prev.map(|l| l.backward_seam.clone()).unwrap_or_default(),
+                            prev: prev.map(|l| l.to_prev.clone()).unwrap_or(none),
+                            next_seam: next.map(|l| l.to_next_seam.clone()).unwrap_or_default(),
+                            prev_seam: prev.map(|l| l.to_prev_seam.clone()).unwrap_or_default(),
                         },
                         dynamic: v.dynamic_alpha.as_ref().map(|_| dynamic_name(p)),
                         dynamic_fraction: v.dynamic_fraction,

@@ -42,7 +42,7 @@ fn transition_errors(r: &Real, a: &SceneAnalysis) -> (f64, f64) {
     let usable = r.scene.usable();
     let (mut sum, mut n, mut ok) = (0usize, 0usize, 0usize);
     for (p, link) in a.links.iter().enumerate() {
-        for (from, to, table) in [(p, p + 1, &link.forward), (p + 1, p, &link.backward)] {
+        for (from, to, table) in [(p, p + 1, &link.to_next), (p + 1, p, &link.to_prev)] {
             let l = &a.views[from].best_loop;
             for s in l.start + 1..=l.end {
                 if let Some(t) = table[s] {

@@ -65,7 +65,7 @@ fn system_a_table(ctx: &mut Ctx) -> Result<Table> {
         .analysis
         .links
         .iter()
-        .map(|l| (l.forward.clone(), l.backward.clone()))
+        .map(|l| (l.to_next.clone(), l.to_prev.clone()))
         .collect();
     let (err, within) = transition_phase_errors(&sa, &loops, &tables);
     let p = sa.scene.params();
@@ -89,7 +89,7 @@ fn system_a_table(ctx: &mut Ctx) -> Result<Table> {
     let usable = scene.usable();
     let (mut sum, mut n, mut ok) = (0usize, 0usize, 0usize);
     for (p, link) in a.links.iter().enumerate() {
-        for (from, to, table) in [(p, p + 1, &link.forward), (p + 1, p, &link.backward)] {
+        for (from, to, table) in [(p, p + 1, &link.to_next), (p + 1, p, &link.to_prev)] {
             let l = &a.views[from].best_loop;
             for s in l.start + 1..=l.end {
                 if let Some(tt) = table[s] {
