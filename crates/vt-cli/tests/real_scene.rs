@@ -221,7 +221,7 @@ fn transitions_within_one(scene: &LoadedScene, truth: &RealScene) -> f64 {
     let (mut good, mut all) = (0usize, 0usize);
     for p in 0..scene.render.views.len() {
         let v = &scene.render.views[p];
-        for (table, q) in [(&v.next, p + 1), (&v.prev, p.wrapping_sub(1))] {
+        for (table, q) in [(&v.to_next, p + 1), (&v.to_prev, p.wrapping_sub(1))] {
             if q >= scene.render.views.len() {
                 continue;
             }
@@ -314,9 +314,9 @@ fn switch_seams(scene: &LoadedScene, policy: SwitchPolicy) -> (f64, f64, u64) {
         if let (Step::Switch { .. }, Some((pv, next))) = (c.step, c.continuation) {
             let v = &scene.render.views[pv];
             let table = if c.view > pv {
-                &v.next_seam
+                &v.to_next_seam
             } else {
-                &v.prev_seam
+                &v.to_prev_seam
             };
             seams.push(table[next - 1] as f64);
         }

@@ -94,12 +94,12 @@ fn scene(
             background,
             loop_start: 5,
             loop_end: frames - 5,
-            next,
-            prev: vec![Some(10); frames],
+            to_next: next,
+            to_prev: vec![Some(10); frames],
             points,
             dynamic: None,
-            next_seam: Vec::new(),
-            prev_seam: Vec::new(),
+            to_next_seam: Vec::new(),
+            to_prev_seam: Vec::new(),
         });
         objects.push(
             (0..frames)

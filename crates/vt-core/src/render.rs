@@ -43,20 +43,20 @@ pub struct RenderView {
     /// `n_p`.
     pub loop_end: usize,
     /// `t_{p+1}(s, p)` for every frame s.
-    pub next: Vec<Option<usize>>,
+    pub to_next: Vec<Option<usize>>,
     /// `t_{p-1}(s, p)` for every frame s.
-    pub prev: Vec<Option<usize>>,
+    pub to_prev: Vec<Option<usize>>,
     /// The marked points `x_p`.
     pub points: Vec<Point>,
     /// Alpha of the view's dynamic region ([`crate::noise`]): where it is set, the object store
     /// holds the frame's own pixels, shown with this alpha over the background (None: objects
     /// only, the thesis).
     pub dynamic: Option<std::sync::Arc<image::GrayImage>>,
-    /// Seam score of the switch `s -> next[s] + 1` per frame s (empty: unknown, every switch is
+    /// Seam score of the switch `s -> to_next[s] + 1` per frame s (empty: unknown, every switch is
     /// acceptable).
-    pub next_seam: Vec<f32>,
-    /// Seam score of the switch `s -> prev[s] + 1` per frame s (empty: unknown).
-    pub prev_seam: Vec<f32>,
+    pub to_next_seam: Vec<f32>,
+    /// Seam score of the switch `s -> to_prev[s] + 1` per frame s (empty: unknown).
+    pub to_prev_seam: Vec<f32>,
 }
 
 /// Everything the online stage needs from an analysed scene.
@@ -260,9 +260,9 @@ impl Player {
         }
         let v = &scene.views[pv];
         let seams = if qbar > pv {
-            &v.next_seam
+            &v.to_next_seam
         } else {
-            &v.prev_seam
+            &v.to_prev_seam
         };
         seams.get(pj).is_some_and(|&s| s as f64 > pol.max_seam)
     }
@@ -294,7 +294,7 @@ impl Player {
             Some((pv, pj)) if pv == qbar => {
                 if pj == v.loop_end {
                     self.wraps += 1;
-                    let cont = (pj + 1 < v.next.len()).then_some((pv, pj + 1));
+                    let cont = (pj + 1 < v.to_next.len()).then_some((pv, pj + 1));
                     (v.loop_start + 1, Step::Wrap, cont)
                 } else {
                     (pj + 1, Step::Play, None)
@@ -305,9 +305,9 @@ impl Player {
                 let mut p = pv;
                 while p != qbar {
                     let (table, np) = if qbar > p {
-                        (&scene.views[p].next, p + 1)
+                        (&scene.views[p].to_next, p + 1)
                     } else {
-                        (&scene.views[p].prev, p - 1)
+                        (&scene.views[p].to_prev, p - 1)
                     };
                     match table.get(s).copied().flatten() {
                         Some(t) => s = t,
@@ -316,7 +316,7 @@ impl Player {
                     p = np;
                     self.switches += 1;
                 }
-                let cont = (pj + 1 < scene.views[pv].next.len()).then_some((pv, pj + 1));
+                let cont = (pj + 1 < scene.views[pv].to_next.len()).then_some((pv, pj + 1));
                 (
                     s + 1,
                     Step::Switch {
@@ -601,7 +601,7 @@ impl Renderer {
         objects.decode_into(view, choice.frame, &mut self.patch)?;
         let gain = self.gains[view];
         match self.fade {
-            Some((ov, oj, k)) if oj < self.scene.views[ov].next.len() => {
+            Some((ov, oj, k)) if oj < self.scene.views[ov].to_next.len() => {
                 objects.decode_into(ov, oj, &mut self.patch_old)?;
                 let alpha = (k + 1) as f32 / (self.params.crossfade + 1) as f32;
                 let ho = match self.h_to_q[ov] {
@@ -914,12 +914,12 @@ mod tests {
             background: RgbImage::new(4, 4),
             loop_start: m,
             loop_end: n,
-            next,
-            prev,
+            to_next: next,
+            to_prev: prev,
             points: pts(dx),
             dynamic: None,
-            next_seam: Vec::new(),
-            prev_seam: Vec::new(),
+            to_next_seam: Vec::new(),
+            to_prev_seam: Vec::new(),
         };
         let none = vec![None; 8];
         RenderScene {

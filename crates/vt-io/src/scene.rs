@@ -613,10 +613,10 @@ impl LoadedScene {
                 background,
                 loop_start: v.loop_.start,
                 loop_end: v.loop_.end,
-                next: v.transitions.next.clone(),
-                prev: v.transitions.prev.clone(),
-                next_seam: v.transitions.next_seam.clone(),
-                prev_seam: v.transitions.prev_seam.clone(),
+                to_next: v.transitions.next.clone(),
+                to_prev: v.transitions.prev.clone(),
+                to_next_seam: v.transitions.next_seam.clone(),
+                to_prev_seam: v.transitions.prev_seam.clone(),
                 points: v
                     .refined_points
                     .as_ref()
