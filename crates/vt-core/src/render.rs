@@ -445,7 +445,7 @@ pub fn estimate_gains(scene: &RenderScene) -> Result<Vec<[f32; 3]>> {
 
 /// Renders output frames; owns every buffer it needs.
 pub struct Renderer {
-    scene: RenderScene,
+    scene: std::sync::Arc<RenderScene>,
     params: RenderParams,
     gains: Vec<[f32; 3]>,
     width: u32,
@@ -464,9 +464,14 @@ pub struct Renderer {
 pub const MAX_CROSSFADE: usize = 1000;
 
 impl Renderer {
-    /// Prepares a renderer (estimates gains when asked). Errors for a scene without views or a
-    /// crossfade longer than [`MAX_CROSSFADE`] frames.
-    pub fn new(scene: RenderScene, params: RenderParams) -> Result<Self> {
+    /// Prepares a renderer (estimates gains when asked). It takes the scene by `Arc` so callers
+    /// that keep the scene (players, viewers) share its tables and backgrounds instead of copying
+    /// them. Errors for a scene without views or a crossfade longer than [`MAX_CROSSFADE`] frames.
+    pub fn new(
+        scene: impl Into<std::sync::Arc<RenderScene>>,
+        params: RenderParams,
+    ) -> Result<Self> {
+        let scene: std::sync::Arc<RenderScene> = scene.into();
         if params.crossfade > MAX_CROSSFADE {
             return Err(Error::InvalidParameter {
                 name: "crossfade",

@@ -480,8 +480,8 @@ pub fn is_plain_file_name(name: &str) -> bool {
 pub struct LoadedScene {
     /// scene.json.
     pub file: SceneFile,
-    /// Backgrounds, loops, tables, points, model.
-    pub render: vt_core::render::RenderScene,
+    /// Backgrounds, loops, tables, points, model; shared (`Arc`) with the renderers made from it.
+    pub render: std::sync::Arc<vt_core::render::RenderScene>,
     /// Moving-object pixels.
     pub objects: crate::objects::SceneObjects,
 }
@@ -640,7 +640,7 @@ impl LoadedScene {
         }
         Ok(Self {
             file,
-            render: vt_core::render::RenderScene { views, model },
+            render: std::sync::Arc::new(vt_core::render::RenderScene { views, model }),
             objects: crate::objects::SceneObjects { stores },
         })
     }
