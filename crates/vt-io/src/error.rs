@@ -75,6 +75,10 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A value given on the command line or in a file that breaks its rule (the message names
+    /// the flag or file with the number and the rule).
+    #[error("{0}")]
+    Param(String),
     /// An error from the algorithms.
     #[error(transparent)]
     Core(#[from] vt_core::Error),

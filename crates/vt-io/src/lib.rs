@@ -10,6 +10,7 @@ pub mod frames;
 pub mod limits;
 pub mod objects;
 pub mod output;
+pub mod path;
 pub mod points;
 pub mod scene;
 pub mod video;
