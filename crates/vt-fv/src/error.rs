@@ -60,20 +60,6 @@ pub enum Error {
         /// Minimum count.
         need: usize,
     },
-    /// Two images (or an image and a mask) that must share a size do not.
-    #[error("{what}: size mismatch: expected {expected_w}x{expected_h}, got {got_w}x{got_h}")]
-    SizeMismatch {
-        /// What was being combined.
-        what: String,
-        /// Expected width.
-        expected_w: u32,
-        /// Expected height.
-        expected_h: u32,
-        /// Width found.
-        got_w: u32,
-        /// Height found.
-        got_h: u32,
-    },
     /// An image with zero width or height, or one smaller than a patch.
     #[error("{what}: image {w}x{h} is too small (need at least {need}x{need})")]
     ImageTooSmall {

@@ -49,13 +49,14 @@ pub fn build_model(
     }
     for (i, (img, m)) in images.iter().zip(silhouettes).enumerate() {
         if img.dimensions() != (m.width(), m.height()) {
-            return Err(Error::SizeMismatch {
+            return Err(vt_core::Error::SizeMismatch {
                 what: format!("silhouette of view {i} vs its image"),
                 expected_w: img.width(),
                 expected_h: img.height(),
                 got_w: m.width(),
                 got_h: m.height(),
-            });
+            }
+            .into());
         }
     }
     progress("visual hull", 0, 1);

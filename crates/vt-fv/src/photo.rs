@@ -451,13 +451,14 @@ pub fn photo_hull_keeping(
         }
         for (i, (mask, img)) in m.iter().zip(images).enumerate() {
             if (mask.width(), mask.height()) != img.dimensions() {
-                return Err(Error::SizeMismatch {
+                return Err(vt_core::Error::SizeMismatch {
                     what: format!("silhouette of view {i} vs its image"),
                     expected_w: img.width(),
                     expected_h: img.height(),
                     got_w: mask.width(),
                     got_h: mask.height(),
-                });
+                }
+                .into());
             }
         }
     }

@@ -137,13 +137,14 @@ pub(crate) fn check_masks(masks: &[Mask], sizes: &[(u32, u32)], names: &[&str]) 
     }
     for (i, (m, &(w, h))) in masks.iter().zip(sizes).enumerate() {
         if (m.width(), m.height()) != (w, h) {
-            return Err(Error::SizeMismatch {
+            return Err(vt_core::Error::SizeMismatch {
                 what: format!("silhouette of view {i} ({})", names[i]),
                 expected_w: w,
                 expected_h: h,
                 got_w: m.width(),
                 got_h: m.height(),
-            });
+            }
+            .into());
         }
         if m.count_ones() == 0 {
             return Err(Error::EmptySilhouette {
