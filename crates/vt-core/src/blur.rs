@@ -73,9 +73,10 @@ pub fn gaussian_kernel(ksize: usize, sigma: f64) -> Result<Vec<f64>> {
     Ok(k)
 }
 
-/// OpenCV's `borderInterpolate` for `BORDER_REFLECT_101`.
+/// OpenCV's `borderInterpolate` for `BORDER_REFLECT_101`: the index inside `0..len` that
+/// position `i` reads (`len >= 1`).
 #[inline]
-fn reflect101(mut i: isize, len: usize) -> usize {
+pub fn reflect101(mut i: isize, len: usize) -> usize {
     let n = len as isize;
     if n == 1 {
         return 0;

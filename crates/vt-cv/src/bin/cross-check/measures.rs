@@ -170,20 +170,8 @@ pub(super) fn exact_blur(src: &RgbImage, p: &GaussianParams) -> Result<Vec<f64>>
         src.height() as isize,
         (p.ksize / 2) as isize,
     );
-    let reflect = |mut i: isize, n: isize| -> usize {
-        if n == 1 {
-            return 0;
-        }
-        loop {
-            if i < 0 {
-                i = -i;
-            } else if i >= n {
-                i = 2 * n - 2 - i;
-            } else {
-                return i as usize;
-            }
-        }
-    };
+    // The border index rule is OpenCV's borderInterpolate, checked against OpenCV by the blur rows.
+    let reflect = |i: isize, n: isize| vt_core::blur::reflect101(i, n as usize);
     let raw = src.as_raw();
     let mut tmp = vec![0f64; raw.len()];
     for y in 0..h {
