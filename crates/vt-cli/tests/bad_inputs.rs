@@ -568,7 +568,7 @@ fn sigterm_removes_temporaries_and_stale_ones_are_cleaned() {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        wait_for_entry(&w, ".tmp-", &mut child);
+        wait_for_entry(&w, ".vt-tmp-", &mut child);
         std::thread::sleep(Duration::from_millis(300));
         let killed = Command::new("kill")
             .args(["-TERM", &child.id().to_string()])
@@ -588,12 +588,14 @@ fn sigterm_removes_temporaries_and_stale_ones_are_cleaned() {
     // a live process's and a user's look-alike are not.
     let w = root.join("stale");
     std::fs::create_dir(&w).unwrap();
-    std::fs::create_dir(w.join(".scene.tmp-4194305")).unwrap();
-    write(&w.join(".scene.tmp-4194305/half.png"), b"x");
-    write(&w.join(".a.mp4.tmp-4194304"), b"x");
-    write(&w.join(".scene.old-4194303"), b"x");
-    std::fs::create_dir(w.join(".scene.tmp-1")).unwrap();
+    std::fs::create_dir(w.join(".scene.vt-tmp-4194305")).unwrap();
+    write(&w.join(".scene.vt-tmp-4194305/half.png"), b"x");
+    write(&w.join(".a.mp4.vt-tmp-4194304"), b"x");
+    write(&w.join(".scene.vt-old-4194303"), b"x");
+    std::fs::create_dir(w.join(".scene.vt-tmp-1")).unwrap();
     write(&w.join("tmp-notes.txt"), b"mine");
+    // Another program's look-alike temporary of a dead process: not vt's, so it stays.
+    write(&w.join(".notes.tmp-4194302"), b"theirs");
     let out = w.join("a.mp4");
     for _ in 0..2 {
         // Twice: the second run replaces vt's own earlier output.
@@ -601,7 +603,12 @@ fn sigterm_removes_temporaries_and_stale_ones_are_cleaned() {
     }
     assert_eq!(
         names(&w),
-        vec![".scene.tmp-1", "a.mp4", "tmp-notes.txt"],
+        vec![
+            ".notes.tmp-4194302",
+            ".scene.vt-tmp-1",
+            "a.mp4",
+            "tmp-notes.txt"
+        ],
         "stale temporaries of dead processes removed, the rest kept"
     );
     // The scene, analysed again into the same place, is replaced (it is vt's).

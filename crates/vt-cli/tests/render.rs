@@ -329,7 +329,7 @@ fn render_outputs_and_bad_input() {
     let leftovers: Vec<_> = std::fs::read_dir(t)
         .unwrap()
         .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .filter(|e| e.file_name().to_string_lossy().contains(".vt-tmp-"))
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }

@@ -1,7 +1,7 @@
 //! Outputs that cannot destroy: every file or folder vt writes goes through [`Output`].
 //!
 //! Rules, enforced here for every command:
-//! - An output is built under a hidden temporary sibling (`.NAME.tmp-PID`) and renamed into place
+//! - An output is built under a hidden temporary sibling (`.NAME.vt-tmp-PID`) and renamed into place
 //!   only when complete, so a failed or interrupted run leaves the previous output untouched.
 //! - An existing path is replaced only when it is a previous vt output *of the same kind*,
 //!   recognised by a marker vt writes: a `.vt-output` file inside a folder (its first line
@@ -127,6 +127,12 @@ pub fn unregister_child(child: &Arc<Mutex<Child>>) {
 fn remove_path(p: &Path) {
     match std::fs::symlink_metadata(p) {
         Ok(m) if m.is_dir() => {
+            // Rename first: worker threads still writing frames into the old path then fail
+            // instead of refilling the folder while it is being removed. The new name is one
+            // stale cleanup also recognises, should the removal itself be cut short.
+            let p = &discard_name(p)
+                .filter(|d| std::fs::rename(p, d).is_ok())
+                .unwrap_or_else(|| p.to_path_buf());
             // Another thread may still be writing into it: retry a few times.
             for _ in 0..5 {
                 if std::fs::remove_dir_all(p).is_ok() || !p.exists() {
@@ -140,6 +146,17 @@ fn remove_path(p: &Path) {
         }
         Err(_) => {}
     }
+}
+
+/// `.NAME.vt-del-PID` for a vt temporary `.NAME.vt-tmp-PID` (or `.NAME.vt-old-PID`).
+fn discard_name(p: &Path) -> Option<PathBuf> {
+    let name = p.file_name()?.to_str()?;
+    let pid = stale_pid(name)?;
+    let stem = name.strip_suffix(&format!("-{pid}"))?;
+    let base = stem
+        .strip_suffix(".vt-tmp")
+        .or_else(|| stem.strip_suffix(".vt-old"))?;
+    Some(p.with_file_name(format!("{base}.vt-del-{pid}")))
 }
 
 /// Kills this run's encoders and removes its temporaries; later registrations fail. Called by
@@ -313,13 +330,14 @@ impl Drop for Output {
     }
 }
 
-/// `.NAME.WHAT-PID` beside `target`.
+/// `.NAME.vt-WHAT-PID` beside `target`: the `vt-` keeps other programs' look-alike temporaries
+/// (`.NAME.tmp-PID` is a common pattern) out of [`remove_stale_temps`]'s reach.
 fn sibling(target: &Path, what: &str) -> Result<PathBuf> {
     let name = target
         .file_name()
         .ok_or_else(|| out_err(target, "has no file name"))?
         .to_string_lossy();
-    Ok(parent_of(target).join(format!(".{name}.{what}-{}", std::process::id())))
+    Ok(parent_of(target).join(format!(".{name}.vt-{what}-{}", std::process::id())))
 }
 
 fn parent_of(target: &Path) -> PathBuf {
@@ -525,7 +543,8 @@ fn process_alive(pid: u32) -> bool {
     Path::new("/proc").join(pid.to_string()).exists()
 }
 
-/// Removes `.NAME.tmp-PID` / `.NAME.old-PID` entries in `dir` whose process no longer exists.
+/// Removes vt's `.NAME.vt-tmp-PID` / `.NAME.vt-old-PID` entries in `dir` whose process no longer
+/// exists. Nothing else matches: a look-alike without `vt-` is another program's, and kept.
 pub fn remove_stale_temps(dir: &Path) {
     let Ok(rd) = std::fs::read_dir(dir) else {
         return;
@@ -543,11 +562,14 @@ pub fn remove_stale_temps(dir: &Path) {
     }
 }
 
-/// The process id in a vt temporary's name `.NAME.tmp-PID` or `.NAME.old-PID`.
+/// The process id in a vt temporary's name `.NAME.vt-tmp-PID` or `.NAME.vt-old-PID`.
 fn stale_pid(name: &str) -> Option<u32> {
     let rest = name.strip_prefix('.')?;
     let (stem, pid) = rest.rsplit_once('-')?;
-    if !(stem.ends_with(".tmp") || stem.ends_with(".old")) || stem.len() < 5 {
+    let vt_temp = [".vt-tmp", ".vt-old", ".vt-del"]
+        .iter()
+        .any(|suffix| stem.ends_with(suffix));
+    if !vt_temp || stem.len() < 8 {
         return None;
     }
     if pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
@@ -824,32 +846,43 @@ mod tests {
     fn stale_temporaries_of_dead_processes_are_removed() {
         let root = tempfile::tempdir().unwrap();
         // A pid that cannot be running (above Linux's pid_max limit of 2^22).
-        let dead = root.path().join(".scene.tmp-4194305");
+        let dead = root.path().join(".scene.vt-tmp-4194305");
         std::fs::create_dir(&dead).unwrap();
         std::fs::write(dead.join("half"), "x").unwrap();
-        let alive = root.path().join(format!(".scene.tmp-{}", 1));
+        let alive = root.path().join(format!(".scene.vt-tmp-{}", 1));
         std::fs::create_dir(&alive).unwrap();
         let user = root.path().join(".tmp-notes");
         std::fs::write(&user, "x").unwrap();
+        // Another program's temporary of a process that is gone: not vt's, so kept.
+        let other = root.path().join(".scene.tmp-4194305");
+        std::fs::write(&other, "x").unwrap();
         let o = Output::dir(&root.path().join("scene"), OutputKind::Scene, &[]).unwrap();
         o.commit().unwrap();
         let left = entries(root.path());
         if Path::new("/proc/self").exists() {
             assert!(
-                !left.contains(&".scene.tmp-4194305".to_string()),
+                !left.contains(&".scene.vt-tmp-4194305".to_string()),
                 "{left:?}"
             );
         }
         assert!(
-            left.contains(&".scene.tmp-1".to_string()),
+            left.contains(&".scene.vt-tmp-1".to_string()),
             "pid 1 is alive: {left:?}"
         );
         assert!(left.contains(&".tmp-notes".to_string()), "{left:?}");
-        assert_eq!(stale_pid(".a.b.tmp-12"), Some(12));
-        assert_eq!(stale_pid(".a.old-7"), Some(7));
-        assert_eq!(stale_pid(".tmp-7"), None);
-        assert_eq!(stale_pid("a.tmp-7"), None);
-        assert_eq!(stale_pid(".a.tmp-7x"), None);
+        assert!(left.contains(&".scene.tmp-4194305".to_string()), "{left:?}");
+        assert_eq!(stale_pid(".a.b.vt-tmp-12"), Some(12));
+        assert_eq!(stale_pid(".a.vt-old-7"), Some(7));
+        assert_eq!(stale_pid(".a.vt-del-7"), Some(7));
+        assert_eq!(
+            discard_name(Path::new("/x/.a.b.vt-tmp-12")),
+            Some(PathBuf::from("/x/.a.b.vt-del-12"))
+        );
+        assert_eq!(discard_name(Path::new("/x/.a.tmp-12")), None);
+        assert_eq!(stale_pid(".a.tmp-12"), None);
+        assert_eq!(stale_pid(".vt-tmp-7"), None);
+        assert_eq!(stale_pid("a.vt-tmp-7"), None);
+        assert_eq!(stale_pid(".a.vt-tmp-7x"), None);
     }
 
     #[test]

@@ -350,7 +350,7 @@ mod tests {
             .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
             .collect();
         assert!(
-            !names.iter().any(|n| n.contains(".tmp-") || n == "b.mp4"),
+            !names.iter().any(|n| n.contains(".vt-tmp-") || n == "b.mp4"),
             "{names:?}"
         );
     }
