@@ -228,7 +228,11 @@ mod tests {
         f.put_pixel(5, 3, image::Rgb([90, 90, 90]));
         let t = change_thumb(&f, &bg, 2);
         // Shift by 4 px = 2 thumbnail pixels to the right.
-        let (w, valid) = warp_thumbs(std::slice::from_ref(&t), &Homography::translation(4.0, 0.0), 2);
+        let (w, valid) = warp_thumbs(
+            std::slice::from_ref(&t),
+            &Homography::translation(4.0, 0.0),
+            2,
+        );
         assert_eq!(w[0].data[8 + 4], t.data[8 + 2]);
         assert!(!valid[0] && !valid[1] && valid[2]);
     }

@@ -11,7 +11,7 @@ use vt_core::metrics::psnr;
 use vt_core::render::{Player, RenderParams, Renderer};
 use vt_core::Mask;
 use vt_fv::hull::{visual_hull, HullParams};
-use vt_fv::{guided_synthesis, photo_hull, render_rough, PhotoParams, GuidedParams};
+use vt_fv::{guided_synthesis, photo_hull, render_rough, GuidedParams, PhotoParams};
 
 use crate::report::data::{synth_a, synth_b, synth_b_model, tree};
 use crate::report::model::{Gallery, Item};

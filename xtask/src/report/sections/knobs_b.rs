@@ -7,7 +7,7 @@ use anyhow::Result;
 use image::RgbImage;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::{visual_hull, HullParams};
-use vt_fv::{guided_synthesis, photo_hull, render_rough, PhotoParams, GuidedParams};
+use vt_fv::{guided_synthesis, photo_hull, render_rough, GuidedParams, PhotoParams};
 
 use super::Knob;
 use crate::report::data::{synth_b, synth_b_model};
