@@ -23,19 +23,6 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-fn copy_dir(src: &Path, dst: &Path) {
-    std::fs::create_dir_all(dst).unwrap();
-    for e in std::fs::read_dir(src).unwrap() {
-        let e = e.unwrap();
-        let to = dst.join(e.file_name());
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &to);
-        } else {
-            std::fs::copy(e.path(), &to).unwrap();
-        }
-    }
-}
-
 fn write(p: &Path, bytes: impl AsRef<[u8]>) {
     std::fs::write(p, bytes).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
 }
@@ -86,32 +73,8 @@ fn save_png(p: &Path, w: u32, h: u32) {
 
 /// The fixture folder of the catalogue (see the `$F` names in bad_inputs.txt).
 fn build_fixtures(f: &Path) {
+    let scene = small_scene(f);
     let tex = f.join("tex");
-    vt_ok(&[
-        "synth",
-        "textures",
-        "--out",
-        s(&tex),
-        "--frames",
-        "40",
-        "--size",
-        "64x48",
-        "--period",
-        "8",
-    ]);
-    let scene = f.join("scene");
-    vt_ok(&[
-        "analyze",
-        s(&tex.join("view_00")),
-        s(&tex.join("view_01")),
-        s(&tex.join("view_02")),
-        "--points",
-        s(&tex.join("points.txt")),
-        "--out",
-        s(&scene),
-        "--min-length",
-        "8",
-    ]);
     let obj = f.join("obj");
     vt_ok(&[
         "synth",

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use common::*;
 use image::RgbImage;
-use vt_core::render::{Player, RenderParams, Renderer};
+use vt_core::render::RenderParams;
 use vt_io::scene::LoadedScene;
 
 /// Largest per-channel difference a golden render may show (rounding in float arithmetic that
@@ -83,15 +83,7 @@ fn compare_to_golden(name: &str, op: &str, got: &RgbImage) {
 
 /// The first frame a fresh player shows at `q`.
 fn render(scene: &LoadedScene, q: f64, params: RenderParams) -> RgbImage {
-    let mut renderer = Renderer::new(scene.render.clone(), params).unwrap();
-    let mut player = Player::new();
-    let choice = player.advance(&scene.render, q).unwrap();
-    let (w, h) = renderer.size();
-    let mut out = RgbImage::new(w, h);
-    renderer
-        .render_into(&scene.objects, q, &choice, &mut out)
-        .unwrap();
-    out
+    first_frame(scene, q, params).1
 }
 
 #[test]

@@ -44,14 +44,7 @@ fn scene(root: &Path, name: &str, extra: &[&str]) -> (std::path::PathBuf, Textur
 /// PSNR of the render at `q` (first frame of a fresh player) against the ray-cast truth at the
 /// same viewpoint and the source frame's true phase.
 fn psnr_at(scene: &LoadedScene, synth: &TextureScene, q: f64, params: RenderParams) -> f64 {
-    let mut renderer = Renderer::new(scene.render.clone(), params).unwrap();
-    let mut player = Player::new();
-    let choice = player.advance(&scene.render, q).unwrap();
-    let (w, h) = renderer.size();
-    let mut out = RgbImage::new(w, h);
-    renderer
-        .render_into(&scene.objects, q, &choice, &mut out)
-        .unwrap();
+    let (choice, out) = first_frame(scene, q, params);
     let truth = synth.truth(q, synth.phase_of(choice.view, choice.frame));
     if let Some(d) = std::env::var_os("VT_DUMP") {
         let d = Path::new(&d);

@@ -46,47 +46,14 @@ fn empty_mask(what: &str) -> Error {
     }
 }
 
-/// Sum of squared channel differences and the number of channel values, over the mask.
-fn squared_error(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> (f64, u64) {
-    let w = reference.width() as usize;
-    let (mut se, mut n) = (0u64, 0u64);
-    for (i, (pa, pb)) in a
-        .as_raw()
-        .chunks_exact(3)
-        .zip(reference.as_raw().chunks_exact(3))
-        .enumerate()
-    {
-        if mask.is_some_and(|m| !m.get((i % w) as u32, (i / w) as u32)) {
-            continue;
-        }
-        for k in 0..3 {
-            let d = pa[k] as i64 - pb[k] as i64;
-            se += (d * d) as u64;
-        }
-        n += 3;
-    }
-    (se as f64, n)
-}
-
-/// PSNR in dB over all channels of the pixels in `mask` (all pixels without one); infinite for
-/// identical images. Errors for a size mismatch, an empty image or an empty mask.
-pub fn psnr(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
-    check_sizes(a, reference, mask)?;
-    let (se, n) = squared_error(a, reference, mask);
-    if n == 0 {
-        return Err(empty_mask("PSNR"));
-    }
-    let mse = se / n as f64;
-    Ok(if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (255.0f64 * 255.0 / mse).log10()
-    })
-}
-
-/// Mean absolute channel difference (grey levels) over the pixels in `mask` (all without one).
-pub fn mean_abs_diff(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
-    check_sizes(a, reference, mask)?;
+/// Sum of `f(value, reference value)` over every channel of the pixels in `mask` (all pixels
+/// without one), and how many channel values were summed.
+fn masked_sum(
+    a: &RgbImage,
+    reference: &RgbImage,
+    mask: Option<&Mask>,
+    f: impl Fn(u8, u8) -> u64,
+) -> (u64, u64) {
     let w = reference.width() as usize;
     let (mut sum, mut n) = (0u64, 0u64);
     for (i, (pa, pb)) in a
@@ -98,9 +65,32 @@ pub fn mean_abs_diff(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) ->
         if mask.is_some_and(|m| !m.get((i % w) as u32, (i / w) as u32)) {
             continue;
         }
-        sum += (0..3).map(|k| pa[k].abs_diff(pb[k]) as u64).sum::<u64>();
+        sum += (0..3).map(|k| f(pa[k], pb[k])).sum::<u64>();
         n += 3;
     }
+    (sum, n)
+}
+
+/// PSNR in dB over all channels of the pixels in `mask` (all pixels without one); infinite for
+/// identical images. Errors for a size mismatch, an empty image or an empty mask.
+pub fn psnr(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
+    check_sizes(a, reference, mask)?;
+    let (se, n) = masked_sum(a, reference, mask, |x, y| (x.abs_diff(y) as u64).pow(2));
+    if n == 0 {
+        return Err(empty_mask("PSNR"));
+    }
+    let mse = se as f64 / n as f64;
+    Ok(if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    })
+}
+
+/// Mean absolute channel difference (grey levels) over the pixels in `mask` (all without one).
+pub fn mean_abs_diff(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
+    check_sizes(a, reference, mask)?;
+    let (sum, n) = masked_sum(a, reference, mask, |x, y| x.abs_diff(y) as u64);
     if n == 0 {
         return Err(empty_mask("mean absolute difference"));
     }

@@ -111,3 +111,36 @@ pub fn analyze(syn: &Synth, out: &Path, extra: &[&str]) -> Value {
     vt_ok(&args);
     read_json(&out.join("scene.json"))
 }
+
+/// The first frame a fresh player shows at `q`, rendered in-process from a loaded scene, with the
+/// player's choice (view, source frame).
+pub fn first_frame(
+    scene: &vt_io::scene::LoadedScene,
+    q: f64,
+    params: vt_core::render::RenderParams,
+) -> (vt_core::render::FrameChoice, image::RgbImage) {
+    let mut renderer = vt_core::render::Renderer::new(scene.render.clone(), params).unwrap();
+    let choice = vt_core::render::Player::new()
+        .advance(&scene.render, q)
+        .unwrap();
+    let (w, h) = renderer.size();
+    let mut out = image::RgbImage::new(w, h);
+    renderer
+        .render_into(&scene.objects, q, &choice, &mut out)
+        .unwrap();
+    (choice, out)
+}
+
+/// Copies a folder tree.
+pub fn copy_dir(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let e = e.unwrap();
+        let to = dst.join(e.file_name());
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &to);
+        } else {
+            std::fs::copy(e.path(), &to).unwrap();
+        }
+    }
+}
