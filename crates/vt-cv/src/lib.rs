@@ -17,10 +17,12 @@
 //! | [`mask::xor_count`] | `bitwise_xor`, `countNonZero` | `vt_core::mask::xor_count` |
 //! | [`homography::from_correspondences`] | `getPerspectiveTransform` (4 points), `findHomography` (method 0) | `Homography::from_correspondences` |
 //! | [`warp::warp_rgb`], [`warp::warp_mask`] | `warpPerspective` | `vt_core::warp::{warp_rgb, warp_mask}` |
+//! | [`align::align_backgrounds`] | `pyrDown`, `findTransformECC` per level | `vt_core::align::align_backgrounds` |
 //! | [`loops::find_loop`], [`loops::find_loops`] | XOR costs above, `add` + `minMaxLoc` ([`search`]) | `vt_core::loops::{find_loop, find_loops}` (eq. 1) |
 //! | [`transition::warp_masks`], [`transition::transition_table`] | warps and XOR costs above, `add` + `minMaxLoc` ([`search`]) | `vt_core::transition` (eq. 2) |
 #![deny(missing_docs)]
 
+pub mod align;
 pub mod blur;
 pub mod cases;
 pub mod convert;
