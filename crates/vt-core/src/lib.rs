@@ -24,6 +24,7 @@ pub mod model;
 pub mod noise;
 pub mod render;
 pub mod rng;
+mod simd;
 pub mod transition;
 pub mod warp;
 
@@ -49,4 +50,17 @@ pub(crate) fn round_u8(v: f32) -> u8 {
     let r = (x + MAGIC) - MAGIC;
     let floor = if r > x { r - 1.0 } else { r };
     ((floor + MAGIC).to_bits() & 0xff) as u8
+}
+
+/// [`round_u8`] for a value known to lie in `[0, 255.5)` (a convex combination of bytes, up
+/// to `f32` rounding), as a `u32`: the same `floor(v + 0.5)` without the clamps, which change
+/// nothing there.
+#[inline(always)]
+pub(crate) fn round_u8_in_range(v: f32) -> u32 {
+    debug_assert!((0.0..255.5).contains(&v), "{v}");
+    const MAGIC: f32 = 8_388_608.0;
+    let x = v + 0.5;
+    let r = (x + MAGIC) - MAGIC;
+    let floor = if r > x { r - 1.0 } else { r };
+    (floor + MAGIC).to_bits() & 0xff
 }

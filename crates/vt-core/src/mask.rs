@@ -262,55 +262,11 @@ impl Mask {
         if radius == 0 || self.is_empty() {
             return self.clone();
         }
-        let (w, h, r) = (self.width as usize, self.height as usize, radius as usize);
-        let wpr = w.div_ceil(64);
-        let fill = if erode { u64::MAX } else { 0 };
-        let combine = |a: u64, b: u64| if erode { a & b } else { a | b };
-        // A row with `pad` fill words on each side, so every shift reads inside the buffer.
-        let pad = r.div_ceil(64) + 1;
-        let mut ext = vec![fill; wpr + 2 * pad];
-        let mut horizontal = vec![0u64; wpr * h];
-        let tail = w - (wpr - 1) * 64; // pixels in a row's last word, 1..=64
-        let tail_mask = if tail == 64 {
-            u64::MAX
-        } else {
-            (1u64 << tail) - 1
-        };
-        for (y, out_row) in horizontal.chunks_exact_mut(wpr).enumerate() {
-            for j in 0..wpr {
-                ext[pad + j] = bits_at(&self.words, y * w + j * 64);
-            }
-            ext[pad + wpr - 1] = (ext[pad + wpr - 1] & tail_mask) | (fill & !tail_mask);
-            for (j, o) in out_row.iter_mut().enumerate() {
-                let at = (pad + j) * 64;
-                let mut acc = ext[pad + j];
-                for d in 1..=r {
-                    acc = combine(acc, bits_at(&ext, at - d));
-                    acc = combine(acc, bits_at(&ext, at + d));
-                }
-                *o = acc;
-            }
-        }
-        // Vertical pass: rows outside the image are the identity of `combine`, so skipped.
-        let mut out = Mask::new(self.width, self.height);
-        let mut acc_row = vec![0u64; wpr];
-        for y in 0..h {
-            let (lo, hi) = (y.saturating_sub(r), (y + r).min(h - 1));
-            acc_row.copy_from_slice(&horizontal[lo * wpr..(lo + 1) * wpr]);
-            for yy in lo + 1..=hi {
-                for (a, &b) in acc_row
-                    .iter_mut()
-                    .zip(&horizontal[yy * wpr..(yy + 1) * wpr])
-                {
-                    *a = combine(*a, b);
-                }
-            }
-            acc_row[wpr - 1] &= tail_mask;
-            for (j, &bits) in acc_row.iter().enumerate() {
-                out.or_bits(y * w + j * 64, bits);
-            }
-        }
-        out
+        crate::simd::dispatch(Morph {
+            mask: self,
+            r: radius as usize,
+            erode,
+        })
     }
 
     /// Background subtraction (SPEC A-1): a `width x height` mask set where
@@ -390,6 +346,106 @@ fn pack_bytes(px: &[u8; 64]) -> u64 {
         bits |= (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (k * 8);
     }
     bits
+}
+
+/// [`Mask::morph`] as a [`crate::simd::Kernel`].
+struct Morph<'a> {
+    mask: &'a Mask,
+    r: usize,
+    erode: bool,
+}
+
+impl crate::simd::Kernel for Morph<'_> {
+    type Output = Mask;
+
+    #[inline(always)]
+    fn run(self) -> Mask {
+        let Morph { mask, r, erode } = self;
+        let (w, h) = (mask.width as usize, mask.height as usize);
+        let wpr = w.div_ceil(64);
+        let fill = if erode { u64::MAX } else { 0 };
+        let combine = |a: u64, b: u64| if erode { a & b } else { a | b };
+        // Rows start on word boundaries: whole words in and out, no bit shifting.
+        let aligned = w % 64 == 0;
+        // A row with `pad` fill words on each side, so every shift reads inside the buffer.
+        let pad = r.div_ceil(64) + 1;
+        let mut ext = vec![fill; wpr + 2 * pad];
+        let mut horizontal = vec![0u64; wpr * h];
+        let tail = w - (wpr - 1) * 64; // pixels in a row's last word, 1..=64
+        let tail_mask = if tail == 64 {
+            u64::MAX
+        } else {
+            (1u64 << tail) - 1
+        };
+        for (y, out_row) in horizontal.chunks_exact_mut(wpr).enumerate() {
+            if aligned {
+                ext[pad..pad + wpr].copy_from_slice(&mask.words[y * wpr..(y + 1) * wpr]);
+            } else {
+                for j in 0..wpr {
+                    ext[pad + j] = bits_at(&mask.words, y * w + j * 64);
+                }
+            }
+            ext[pad + wpr - 1] = (ext[pad + wpr - 1] & tail_mask) | (fill & !tail_mask);
+            // Pixel x + d is bit d of the (word, next word) pair shifted right by d; the
+            // usual radii unrolled (constant shifts, vectorised across words).
+            macro_rules! shifts {
+                ($rr:expr) => {
+                    for (j, o) in out_row.iter_mut().enumerate() {
+                        let (p, c, n) = (ext[pad + j - 1], ext[pad + j], ext[pad + j + 1]);
+                        let mut acc = c;
+                        for d in 1..=$rr {
+                            acc = combine(acc, (c >> d) | (n << (64 - d)));
+                            acc = combine(acc, (c << d) | (p >> (64 - d)));
+                        }
+                        *o = acc;
+                    }
+                };
+            }
+            if r < 64 {
+                match r {
+                    1 => shifts!(1),
+                    2 => shifts!(2),
+                    3 => shifts!(3),
+                    4 => shifts!(4),
+                    _ => shifts!(r),
+                }
+            } else {
+                for (j, o) in out_row.iter_mut().enumerate() {
+                    let at = (pad + j) * 64;
+                    let mut acc = ext[pad + j];
+                    for d in 1..=r {
+                        acc = combine(acc, bits_at(&ext, at - d));
+                        acc = combine(acc, bits_at(&ext, at + d));
+                    }
+                    *o = acc;
+                }
+            }
+        }
+        // Vertical pass: rows outside the image are the identity of `combine`, so skipped.
+        let mut out = Mask::new(mask.width, mask.height);
+        let mut acc_row = vec![0u64; wpr];
+        for y in 0..h {
+            let (lo, hi) = (y.saturating_sub(r), (y + r).min(h - 1));
+            acc_row.copy_from_slice(&horizontal[lo * wpr..(lo + 1) * wpr]);
+            for yy in lo + 1..=hi {
+                for (a, &b) in acc_row
+                    .iter_mut()
+                    .zip(&horizontal[yy * wpr..(yy + 1) * wpr])
+                {
+                    *a = combine(*a, b);
+                }
+            }
+            acc_row[wpr - 1] &= tail_mask;
+            if aligned {
+                out.words[y * wpr..(y + 1) * wpr].copy_from_slice(&acc_row);
+            } else {
+                for (j, &bits) in acc_row.iter().enumerate() {
+                    out.or_bits(y * w + j * 64, bits);
+                }
+            }
+        }
+        out
+    }
 }
 
 /// The 64 bits of `words` starting at bit `at` (bits past the end read as 0).

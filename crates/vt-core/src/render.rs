@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use crate::model::{fit_model, MotionModel};
 use crate::round_u8;
 use crate::warp::{
-    interleave, state, Border, Interpolation, Mapping, Run, Sampler, CHUNK, ROWS_PER_JOB,
+    state, write_packed, Border, Interpolation, Mapping, Run, Sampler, CHUNK, ROWS_PER_JOB,
 };
 use crate::{Error, Homography, Point, Result};
 
@@ -692,52 +692,86 @@ fn blend_warps<'a>(sources: &[Source<'a>], interp: Interpolation, out: &mut RgbI
         .par_chunks_mut(w * 3 * ROWS_PER_JOB)
         .enumerate()
         .for_each(|(band, rows)| {
-            // On the stack, once per band: rayon's per-job init would allocate.
-            let (r0, r1) = (&mut Run::default(), &mut Run::default());
-            let mut bytes = [[0u8; CHUNK]; 3];
-            for (r, row) in rows.chunks_mut(w * 3).enumerate() {
-                let y = band * ROWS_PER_JOB + r;
-                for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
-                    let n = px.len() / 3;
-                    first.0.run(y, c * CHUNK, n, r0);
-                    let (wg1, weight1) = match &second {
-                        Some(s) => {
-                            s.0.run(y, c * CHUNK, n, r1);
-                            (s.1, s.2)
-                        }
-                        None => ([0.0; 3], 0.0),
-                    };
-                    if second.is_none() {
-                        r1.state = [state::NONE; CHUNK];
-                    }
-                    let (wg0, weight0) = (first.1, first.2);
-                    // Per pixel, as a sum over the sources in order (vectorised across pixels):
-                    // v = weight * gain_inv * sample; acc over the sources whose sample is
-                    // inside, acc_all over all with a sample; divide by the matching weight sum.
-                    for k in 0..3 {
-                        for i in 0..CHUNK {
-                            let (s0, s1) = (r0.state[i], r1.state[i]);
-                            let (v0, v1) = (wg0[k] * r0.value[k][i], wg1[k] * r1.value[k][i]);
-                            // Selects instead of branches (so it vectorises); `0 + v` and
-                            // `v + 0` are `v`, so the sums equal the branchy ones bit for bit.
-                            let pick = |c: bool, v: f32| if c { v } else { 0.0 };
-                            let (in0, in1) = (s0 == state::INSIDE, s1 == state::INSIDE);
-                            let (has0, has1) = (s0 != state::NONE, s1 != state::NONE);
-                            let acc_in = (0.0 + pick(in0, v0)) + pick(in1, v1);
-                            let ws_in = (0.0 + pick(in0, weight0)) + pick(in1, weight1);
-                            let acc_all = (0.0 + pick(has0, v0)) + pick(has1, v1);
-                            let ws_all = (0.0 + pick(has0, weight0)) + pick(has1, weight1);
-                            let use_in = ws_in > 0.0;
-                            let acc = if use_in { acc_in } else { acc_all };
-                            let ws = if use_in { ws_in } else { ws_all };
-                            let v = round_u8(acc / ws);
-                            bytes[k][i] = if ws > 0.0 { v } else { 0 };
-                        }
-                    }
-                    interleave(&bytes, px);
-                }
-            }
+            crate::simd::dispatch(BlendBand {
+                first: &first,
+                second: second.as_ref(),
+                y0: band * ROWS_PER_JOB,
+                rows,
+                w,
+            })
         });
+}
+
+/// A sampler with its weights times inverse gains, and its weight.
+type Weighted<'a> = (Sampler<'a>, [f32; 3], f32);
+
+/// Rows of [`blend_warps`] as a [`crate::simd::Kernel`].
+struct BlendBand<'a, 'b> {
+    first: &'a Weighted<'b>,
+    second: Option<&'a Weighted<'b>>,
+    y0: usize,
+    rows: &'a mut [u8],
+    w: usize,
+}
+
+impl crate::simd::Kernel for BlendBand<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let BlendBand {
+            first,
+            second,
+            y0,
+            rows,
+            w,
+        } = self;
+        // On the stack, once per band: rayon's per-job init would allocate.
+        let (r0, r1) = (&mut Run::default(), &mut Run::default());
+        for (r, row) in rows.chunks_mut(w * 3).enumerate() {
+            let y = y0 + r;
+            for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
+                let n = px.len() / 3;
+                first.0.run(y, c * CHUNK, n, r0);
+                let (wg1, weight1) = match &second {
+                    Some(s) => {
+                        s.0.run(y, c * CHUNK, n, r1);
+                        (s.1, s.2)
+                    }
+                    None => ([0.0; 3], 0.0),
+                };
+                if second.is_none() {
+                    r1.state = [state::NONE; CHUNK];
+                }
+                let (wg0, weight0) = (first.1, first.2);
+                // Per pixel, as a sum over the sources in order (vectorised across pixels):
+                // v = weight * gain_inv * sample; acc over the sources whose sample is
+                // inside, acc_all over all with a sample; divide by the matching weight sum.
+                let mut packed = [0u32; CHUNK];
+                for k in 0..3 {
+                    for i in 0..CHUNK {
+                        let (s0, s1) = (r0.state[i], r1.state[i]);
+                        let (v0, v1) = (wg0[k] * r0.value[k][i], wg1[k] * r1.value[k][i]);
+                        // Selects instead of branches (so it vectorises); `0 + v` and
+                        // `v + 0` are `v`, so the sums equal the branchy ones bit for bit.
+                        let pick = |c: bool, v: f32| if c { v } else { 0.0 };
+                        let (in0, in1) = (s0 == state::INSIDE, s1 == state::INSIDE);
+                        let (has0, has1) = (s0 != state::NONE, s1 != state::NONE);
+                        let acc_in = (0.0 + pick(in0, v0)) + pick(in1, v1);
+                        let ws_in = (0.0 + pick(in0, weight0)) + pick(in1, weight1);
+                        let acc_all = (0.0 + pick(has0, v0)) + pick(has1, v1);
+                        let ws_all = (0.0 + pick(has0, weight0)) + pick(has1, weight1);
+                        let use_in = ws_in > 0.0;
+                        let acc = if use_in { acc_in } else { acc_all };
+                        let ws = if use_in { ws_in } else { ws_all };
+                        let v = round_u8(acc / ws);
+                        packed[i] |= (if ws > 0.0 { v } else { 0 } as u32) << (8 * k);
+                    }
+                }
+                write_packed(&packed, px);
+            }
+        }
+    }
 }
 
 /// Warps the object patch by `h` (inverse mapping over the forward image of the box) and writes

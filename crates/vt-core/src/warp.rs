@@ -17,7 +17,7 @@
 use image::RgbImage;
 use rayon::prelude::*;
 
-use crate::round_u8;
+use crate::round_u8_in_range;
 use crate::{Homography, Mask, Point};
 
 /// Output pixels per run of the sampler (coordinates of a run are computed together).
@@ -195,20 +195,22 @@ fn map_fixed(
 ) {
     let yf = y as f64;
     let (cx, cy, cw) = (m[1] * yf, m[4] * yf, m[7] * yf);
-    let (mut xb_f, mut x1_f) = ([0f64; CHUNK], [0f64; CHUNK]);
-    let (mut xb, mut x1) = (x0 / block_w * block_w, x0 % block_w);
-    for i in 0..CHUNK {
-        xb_f[i] = xb as f64;
-        x1_f[i] = x1 as f64;
-        x1 += 1;
-        if x1 == block_w {
-            xb += block_w;
-            x1 = 0;
-        }
-    }
+    // The run starts in block `xb0` at column `x1_0`; pixel `split` (if below CHUNK) starts the
+    // next block, and with `block_w >= CHUNK` no run reaches a third. A narrower block is a
+    // whole row (`block_w = width < CHUNK`): the lanes past it are not used.
+    let (xb0, x1_0) = (x0 / block_w * block_w, x0 % block_w);
+    let split = (block_w - x1_0) as f64;
+    let (xb0, x1_0, bwf) = (xb0 as f64, x1_0 as f64, block_w as f64);
+    debug_assert!(block_w >= CHUNK || x0 == 0);
     let (lo, hi) = (i32::MIN as f64, i32::MAX as f64);
     for i in 0..CHUNK {
-        let (xb, x1) = (xb_f[i], x1_f[i]);
+        let first = IOTA[i] < split;
+        let xb = if first { xb0 } else { xb0 + bwf };
+        let x1 = if first {
+            x1_0 + IOTA[i]
+        } else {
+            IOTA[i] - split
+        };
         let (bx, by, bw) = (
             m[0] * xb + cx + m[2],
             m[3] * xb + cy + m[5],
@@ -216,8 +218,8 @@ fn map_fixed(
         );
         let w = bw + m[6] * x1;
         let w = if w != 0.0 { 32.0 / w } else { 0.0 };
-        qx[i] = round_even(clamp_nan_lo((bx + m[0] * x1) * w, lo, hi)) as i32;
-        qy[i] = round_even(clamp_nan_lo((by + m[3] * x1) * w, lo, hi)) as i32;
+        qx[i] = int_bits(round_even(clamp_nan_lo((bx + m[0] * x1) * w, lo, hi)));
+        qy[i] = int_bits(round_even(clamp_nan_lo((by + m[3] * x1) * w, lo, hi)));
     }
 }
 
@@ -258,11 +260,11 @@ pub enum Border {
 /// Per-pixel outcome of [`Sampler::run`].
 pub(crate) mod state {
     /// No sample: the coordinate is not finite (or beyond 1e9 px for the plain warp).
-    pub const NONE: u8 = 0;
+    pub const NONE: u32 = 0;
     /// A sample, from a coordinate outside the source's pixel area.
-    pub const OUTSIDE: u8 = 1;
+    pub const OUTSIDE: u32 = 1;
     /// A sample from inside `-0.5 <= x < w - 0.5`, `-0.5 <= y < h - 0.5`.
-    pub const INSIDE: u8 = 2;
+    pub const INSIDE: u32 = 2;
 }
 
 /// Which formula maps output pixels to source coordinates (they differ in the last bit).
@@ -280,17 +282,19 @@ pub(crate) struct Run {
     /// Per channel, per pixel (structure of arrays, so the callers' loops vectorise).
     pub value: [[f32; CHUNK]; 3],
     /// Per pixel, one of [`state`].
-    pub state: [u8; CHUNK],
+    pub state: [u32; CHUNK],
     sx: [f64; CHUNK],
     sy: [f64; CHUNK],
     ix: [i32; CHUNK],
     iy: [i32; CHUNK],
     fx: [f32; CHUNK],
     fy: [f32; CHUNK],
-    /// Per pixel, the bytes `a b` (the 2x2 block's upper row, 6 bytes of RGB) and `c d` (its
-    /// lower row), little-endian: channel `k` of `a` is byte `k`, of `b` byte `k + 3`.
-    upper: [u64; CHUNK],
-    lower: [u64; CHUNK],
+    /// Fixed point: the 1/32 fractions.
+    wx: [i32; CHUNK],
+    wy: [i32; CHUNK],
+    /// Per pixel, the taps `a b / c d` of the 2x2 block (nearest: `a` only), each an RGB pixel
+    /// in the low three bytes of a `u32` (little-endian; the top byte is not used).
+    taps: [[u32; CHUNK]; 4],
 }
 
 impl Default for Run {
@@ -304,16 +308,39 @@ impl Default for Run {
             iy: [0; CHUNK],
             fx: [0.0; CHUNK],
             fy: [0.0; CHUNK],
-            upper: [0; CHUNK],
-            lower: [0; CHUNK],
+            wx: [0; CHUNK],
+            wy: [0; CHUNK],
+            taps: [[0; CHUNK]; 4],
         }
     }
 }
 
 /// Byte `k` of `v` (little-endian).
 #[inline(always)]
-fn byte(v: u64, k: usize) -> u32 {
-    (v >> (8 * k)) as u32 & 0xff
+fn byte(v: u32, k: usize) -> i32 {
+    ((v >> (8 * k)) & 0xff) as i32
+}
+
+/// Channel `k` of pixel `i`, exact bilinear: `top + (bottom - top) * fy`.
+#[inline(always)]
+fn lerp2(run: &Run, i: usize, k: usize) -> f32 {
+    let [ta, tb, tc, td] = &run.taps;
+    let (a, b) = (byte(ta[i], k) as f32, byte(tb[i], k) as f32);
+    let (c, d) = (byte(tc[i], k) as f32, byte(td[i], k) as f32);
+    let top = a + (b - a) * run.fx[i];
+    let bottom = c + (d - c) * run.fx[i];
+    top + (bottom - top) * run.fy[i]
+}
+
+/// Channel `k` of pixel `i`, OpenCV's fixed point: `sum = (32 - ay)(32 - ax) a + ...` (the
+/// value times 1024, below 2^18).
+#[inline(always)]
+fn fixed_sum(run: &Run, i: usize, k: usize) -> i32 {
+    let [ta, tb, tc, td] = &run.taps;
+    let (ax, ay) = (run.wx[i], run.wy[i]);
+    let top = byte(ta[i], k) * (32 - ax) + byte(tb[i], k) * ax;
+    let bottom = byte(tc[i], k) * (32 - ax) + byte(td[i], k) * ax;
+    top * (32 - ay) + bottom * ay
 }
 
 /// `floor(v)` for `|v| < 2^51` as an exact `f64`, by the rounding trick (vectorises).
@@ -377,23 +404,106 @@ impl<'a> Sampler<'a> {
     /// `top + (bottom - top) * fy` with `top = a + (b - a) * fx`, `bottom = c + (d - c) * fx`;
     /// [`Interpolation::BilinearFixed`] gives `sum / 1024` of OpenCV's integer sum (see there).
     /// Taps outside read 0 ([`Border::Constant`]) or the clamped pixel ([`Border::Replicate`]).
-    #[inline]
+    #[inline(always)]
     pub fn run(&self, y: usize, x0: usize, n: usize, run: &mut Run) {
+        if !self.taps(y, x0, n, run) {
+            return;
+        }
+        match self.interp {
+            Interpolation::Nearest => {
+                for k in 0..3 {
+                    for i in 0..CHUNK {
+                        run.value[k][i] = byte(run.taps[0][i], k) as f32;
+                    }
+                }
+            }
+            Interpolation::Bilinear => {
+                for k in 0..3 {
+                    for i in 0..CHUNK {
+                        run.value[k][i] = lerp2(run, i, k);
+                    }
+                }
+            }
+            Interpolation::BilinearFixed => {
+                for k in 0..3 {
+                    for i in 0..CHUNK {
+                        // OpenCV's sum over (32 - ay)(32 - ax) a + ..., exact in f32 (< 2^18);
+                        // rounding it half up gives OpenCV's (sum + 512) >> 10.
+                        run.value[k][i] = fixed_sum(run, i, k) as f32 * (1.0 / 1024.0);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The bytes of [`Sampler::run`] rounded (half up, saturating) and packed one RGB pixel per
+    /// `u32` (channel `k` in byte `k`), black where the state is [`state::NONE`]: what the
+    /// plain warps write.
+    #[inline(always)]
+    pub fn run_packed(&self, y: usize, x0: usize, n: usize, run: &mut Run, out: &mut [u32; CHUNK]) {
+        if !self.taps(y, x0, n, run) {
+            out.fill(0);
+            return;
+        }
+        match self.interp {
+            Interpolation::Nearest => {
+                for i in 0..CHUNK {
+                    let keep = if run.state[i] != state::NONE {
+                        0xff_ffff
+                    } else {
+                        0
+                    };
+                    out[i] = run.taps[0][i] & keep;
+                }
+            }
+            Interpolation::Bilinear => {
+                for i in 0..CHUNK {
+                    let keep = if run.state[i] != state::NONE { !0 } else { 0 };
+                    let mut p = 0u32;
+                    for k in 0..3 {
+                        // A bilinear blend stays in [0, 255]: each step of `lerp2` lies between its
+                        // operands, whose bounds are representable.
+                        p |= round_u8_in_range(lerp2(run, i, k)) << (8 * k);
+                    }
+                    out[i] = p & keep;
+                }
+            }
+            Interpolation::BilinearFixed => {
+                // Every pixel has a sample; the sum is below 2^18, so (sum + 512) >> 10 <= 255.
+                for i in 0..CHUNK {
+                    let mut p = 0u32;
+                    for k in 0..3 {
+                        p |= (((fixed_sum(run, i, k) + 512) >> 10) as u32) << (8 * k);
+                    }
+                    out[i] = p;
+                }
+            }
+        }
+    }
+
+    /// Coordinates, states, weights and taps of a run; false (and states NONE, values 0) for
+    /// an empty source.
+    #[inline(always)]
+    fn taps(&self, y: usize, x0: usize, n: usize, run: &mut Run) -> bool {
         debug_assert!(n <= CHUNK);
         if self.sw == 0 || self.sh == 0 {
             run.state[..n].fill(state::NONE);
             for v in &mut run.value {
                 v[..n].fill(0.0);
             }
-            return;
+            return false;
         }
         match self.interp {
-            Interpolation::BilinearFixed => self.run_fixed(y, x0, n, run),
-            Interpolation::Nearest | Interpolation::Bilinear => self.run_float(y, x0, n, run),
+            Interpolation::BilinearFixed => self.coords_fixed(y, x0, run),
+            Interpolation::Nearest => self.coords_float::<true>(y, x0, run),
+            Interpolation::Bilinear => self.coords_float::<false>(y, x0, run),
         }
+        self.gather(n, run, self.interp != Interpolation::Nearest);
+        true
     }
 
-    fn run_float(&self, y: usize, x0: usize, n: usize, run: &mut Run) {
+    #[inline(always)]
+    fn coords_float<const NEAREST: bool>(&self, y: usize, x0: usize, run: &mut Run) {
         match self.mapping {
             Mapping::Reciprocal => map_reciprocal(&self.m, y, x0, &mut run.sx, &mut run.sy),
             Mapping::Division => map_division(&self.m, y, x0, &mut run.sx, &mut run.sy),
@@ -403,7 +513,6 @@ impl<'a> Sampler<'a> {
             Mapping::Reciprocal => 1e9,
             Mapping::Division => f64::MAX,
         };
-        let nearest = self.interp == Interpolation::Nearest;
         // States, then coordinates clamped to [-1, w] (which changes no sample: beyond it every
         // tap is outside, or the same clamped edge pixel), floored (bilinear) or rounded.
         for i in 0..CHUNK {
@@ -418,43 +527,24 @@ impl<'a> Sampler<'a> {
                 state::OUTSIDE
             };
             let (cx, cy) = (clamp_nan_lo(sx, -1.0, swf), clamp_nan_lo(sy, -1.0, shf));
-            let (bx, by) = if nearest {
+            let (bx, by) = if NEAREST {
                 (round_even(cx), round_even(cy))
             } else {
                 (floor_exact(cx), floor_exact(cy))
             };
             run.ix[i] = int_bits(bx);
             run.iy[i] = int_bits(by);
-            run.fx[i] = (cx - bx) as f32;
-            run.fy[i] = (cy - by) as f32;
-        }
-        if nearest {
-            self.gather(n, run, false);
-            for k in 0..3 {
-                for i in 0..CHUNK {
-                    run.value[k][i] = byte(run.upper[i], k) as f32;
-                }
-            }
-            return;
-        }
-        self.gather(n, run, true);
-        for k in 0..3 {
-            for i in 0..CHUNK {
-                let (t, u) = (run.upper[i], run.lower[i]);
-                let (a, b) = (byte(t, k) as f32, byte(t, k + 3) as f32);
-                let (c, d) = (byte(u, k) as f32, byte(u, k + 3) as f32);
-                let top = a + (b - a) * run.fx[i];
-                let bottom = c + (d - c) * run.fx[i];
-                run.value[k][i] = top + (bottom - top) * run.fy[i];
+            if !NEAREST {
+                run.fx[i] = (cx - bx) as f32;
+                run.fy[i] = (cy - by) as f32;
             }
         }
     }
 
-    fn run_fixed(&self, y: usize, x0: usize, n: usize, run: &mut Run) {
+    #[inline(always)]
+    fn coords_fixed(&self, y: usize, x0: usize, run: &mut Run) {
         map_fixed(&self.m, y, x0, self.block_w, &mut run.ix, &mut run.iy);
         let (swq, shq) = (self.sw as i32 * 32 - 16, self.sh as i32 * 32 - 16);
-        let mut wx = [0i32; CHUNK];
-        let mut wy = [0i32; CHUNK];
         for i in 0..CHUNK {
             let (qx, qy) = (run.ix[i], run.iy[i]);
             let inside = qx >= -16 && qy >= -16 && qx < swq && qy < shq;
@@ -466,27 +556,14 @@ impl<'a> Sampler<'a> {
             // saturate_cast<short>(X >> INTER_BITS), and the fraction X & 31.
             run.ix[i] = (qx >> 5).clamp(-32768, 32767);
             run.iy[i] = (qy >> 5).clamp(-32768, 32767);
-            wx[i] = qx & 31;
-            wy[i] = qy & 31;
-        }
-        self.gather(n, run, true);
-        for k in 0..3 {
-            for i in 0..CHUNK {
-                let (ax, ay) = (wx[i], wy[i]);
-                let (t, u) = (run.upper[i], run.lower[i]);
-                let top = byte(t, k) as i32 * (32 - ax) + byte(t, k + 3) as i32 * ax;
-                let bottom = byte(u, k) as i32 * (32 - ax) + byte(u, k + 3) as i32 * ax;
-                // OpenCV's sum over (32 - ay)(32 - ax) a + ..., exact in f32 (< 2^18);
-                // rounding it half up gives OpenCV's (sum + 512) >> 10.
-                let sum = top * (32 - ay) + bottom * ay;
-                run.value[k][i] = sum as f32 * (1.0 / 1024.0);
-            }
+            run.wx[i] = qx & 31;
+            run.wy[i] = qy & 31;
         }
     }
 
-    /// Loads the taps of pixels `0..n` (`ix`, `iy` set) into `run.upper` / `run.lower`: the
-    /// pixel itself (`block` false, into `upper`) or the 2x2 block to its lower right. The
-    /// interior is two unaligned 8-byte reads; the border goes through [`Sampler::tap`].
+    /// Loads the taps of pixels `0..n` (`ix`, `iy` set) into `run.taps`: the pixel itself
+    /// (`block` false) or the 2x2 block to its lower right. The interior is two unaligned
+    /// 8-byte reads; the border goes through [`Sampler::tap`].
     #[inline(always)]
     fn gather(&self, n: usize, run: &mut Run, block: bool) {
         let stride = self.sw * 3;
@@ -494,27 +571,32 @@ impl<'a> Sampler<'a> {
         let len = self.raw.len();
         let read8 =
             |at: usize| u64::from_le_bytes(self.raw[at..at + 8].try_into().expect("8 bytes"));
-        let pack =
-            |p: [u8; 3], q: [u8; 3]| u64::from_le_bytes([p[0], p[1], p[2], q[0], q[1], q[2], 0, 0]);
+        let pack = |p: [u8; 3]| u32::from_le_bytes([p[0], p[1], p[2], 0]);
+        let [ta, tb, tc, td] = &mut run.taps;
         for i in 0..n {
             let (x, y) = (run.ix[i], run.iy[i]);
             let a = (y as usize)
                 .wrapping_mul(stride)
                 .wrapping_add((x as usize).wrapping_mul(3));
             if !block {
-                run.upper[i] = if (x as u32) <= wi && (y as u32) <= hi && a + 8 <= len {
-                    read8(a)
+                ta[i] = if (x as u32) <= wi && (y as u32) <= hi && a + 8 <= len {
+                    read8(a) as u32
                 } else {
-                    pack(self.tap(x, y), [0; 3])
+                    pack(self.tap(x, y))
                 };
                 continue;
             }
             if (x as u32) < wi && (y as u32) < hi && a + stride + 8 <= len {
-                run.upper[i] = read8(a);
-                run.lower[i] = read8(a + stride);
+                let (u, l) = (read8(a), read8(a + stride));
+                ta[i] = u as u32;
+                tb[i] = (u >> 24) as u32;
+                tc[i] = l as u32;
+                td[i] = (l >> 24) as u32;
             } else {
-                run.upper[i] = pack(self.tap(x, y), self.tap(x + 1, y));
-                run.lower[i] = pack(self.tap(x, y + 1), self.tap(x + 1, y + 1));
+                ta[i] = pack(self.tap(x, y));
+                tb[i] = pack(self.tap(x + 1, y));
+                tc[i] = pack(self.tap(x, y + 1));
+                td[i] = pack(self.tap(x + 1, y + 1));
             }
         }
     }
@@ -580,41 +662,62 @@ pub fn warp_rgb_into(
         .par_chunks_mut(ow * 3 * ROWS_PER_JOB)
         .enumerate()
         .for_each(|(band, rows)| {
-            let run = &mut Run::default();
-            let mut bytes = [[0u8; CHUNK]; 3];
-            for (r, row) in rows.chunks_mut(ow * 3).enumerate() {
-                let y = band * ROWS_PER_JOB + r;
-                for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
-                    let n = px.len() / 3;
-                    sampler.run(y, c * CHUNK, n, run);
-                    for k in 0..3 {
-                        for i in 0..CHUNK {
-                            let keep = (run.state[i] != state::NONE) as u8 as f32;
-                            bytes[k][i] = round_u8(run.value[k][i] * keep);
-                        }
-                    }
-                    interleave(&bytes, px);
-                }
-            }
+            crate::simd::dispatch(WarpBand {
+                sampler: &sampler,
+                y0: band * ROWS_PER_JOB,
+                rows,
+                ow,
+            })
         });
+}
+
+/// Rows of [`warp_rgb_into`] as a [`crate::simd::Kernel`].
+struct WarpBand<'a, 'b> {
+    sampler: &'a Sampler<'b>,
+    y0: usize,
+    rows: &'a mut [u8],
+    ow: usize,
+}
+
+impl crate::simd::Kernel for WarpBand<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let run = &mut Run::default();
+        let mut packed = [0u32; CHUNK];
+        for (r, row) in self.rows.chunks_mut(self.ow * 3).enumerate() {
+            for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
+                let n = px.len() / 3;
+                self.sampler
+                    .run_packed(self.y0 + r, c * CHUNK, n, run, &mut packed);
+                write_packed(&packed, px);
+            }
+        }
+    }
+}
+
+/// Writes packed pixels (RGB in the low three bytes) as interleaved RGB (`px.len() / 3` pixels).
+#[inline(always)]
+pub(crate) fn write_packed(packed: &[u32; CHUNK], px: &mut [u8]) {
+    let n = px.len() / 3;
+    if n == 0 {
+        return;
+    }
+    // Four bytes per pixel, the fourth overwritten by the next pixel; the last one exactly.
+    for i in 0..n - 1 {
+        px[3 * i..3 * i + 4].copy_from_slice(&packed[i].to_le_bytes());
+    }
+    px[3 * (n - 1)..3 * n].copy_from_slice(&packed[n - 1].to_le_bytes()[..3]);
 }
 
 /// Rows per parallel job of the row passes (warps, the renderer's blend).
 pub(crate) const ROWS_PER_JOB: usize = 4;
 
-/// Writes per-channel bytes back as interleaved RGB (`px.len() / 3` pixels).
-#[inline(always)]
-pub(crate) fn interleave(bytes: &[[u8; CHUNK]; 3], px: &mut [u8]) {
-    for (i, o) in px.chunks_exact_mut(3).enumerate() {
-        o[0] = bytes[0][i];
-        o[1] = bytes[1][i];
-        o[2] = bytes[2][i];
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::round_u8;
     use nalgebra::Matrix3;
     use proptest::prelude::*;
 
