@@ -29,7 +29,8 @@ use rayon::prelude::*;
 use crate::model::{fit_model, MotionModel};
 use crate::round_u8;
 use crate::warp::{
-    state, write_packed, Border, Interpolation, Mapping, Run, Sampler, CHUNK, ROWS_PER_JOB,
+    sample_value, state, write_packed, Border, Interpolation, Mapping, Run, Sampler, BILINEAR,
+    BILINEAR_FIXED, CHUNK, NEAREST, ROWS_PER_JOB,
 };
 use crate::{Error, Homography, Point, Result};
 
@@ -719,6 +720,18 @@ impl crate::simd::Kernel for BlendBand<'_, '_> {
 
     #[inline(always)]
     fn run(self) {
+        match self.first.0.interpolation() {
+            Interpolation::Nearest => self.blend::<NEAREST>(),
+            Interpolation::Bilinear => self.blend::<BILINEAR>(),
+            Interpolation::BilinearFixed => self.blend::<BILINEAR_FIXED>(),
+        }
+    }
+}
+
+impl BlendBand<'_, '_> {
+    /// The band's rows, sampled and blended in one pass per run of pixels.
+    #[inline(always)]
+    fn blend<const MODE: u8>(self) {
         let BlendBand {
             first,
             second,
@@ -728,44 +741,48 @@ impl crate::simd::Kernel for BlendBand<'_, '_> {
         } = self;
         // On the stack, once per band: rayon's per-job init would allocate.
         let (r0, r1) = (&mut Run::default(), &mut Run::default());
+        let (wg0, weight0) = (first.1, first.2);
+        let (wg1, weight1) = second.map_or(([0.0; 3], 0.0), |s| (s.1, s.2));
+        let (mut sel0, mut sel1, mut ws) = ([false; CHUNK], [false; CHUNK], [0f32; CHUNK]);
         for (r, row) in rows.chunks_mut(w * 3).enumerate() {
             let y = y0 + r;
             for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
                 let n = px.len() / 3;
-                first.0.run(y, c * CHUNK, n, r0);
-                let (wg1, weight1) = match &second {
+                // A source without a sample (empty image, or no second source) has states NONE
+                // and is never selected below, whatever its taps hold.
+                first.0.taps(y, c * CHUNK, n, r0);
+                match second {
                     Some(s) => {
-                        s.0.run(y, c * CHUNK, n, r1);
-                        (s.1, s.2)
+                        s.0.taps(y, c * CHUNK, n, r1);
                     }
-                    None => ([0.0; 3], 0.0),
-                };
-                if second.is_none() {
-                    r1.state = [state::NONE; CHUNK];
+                    None => r1.state = [state::NONE; CHUNK],
                 }
-                let (wg0, weight0) = (first.1, first.2);
-                // Per pixel, as a sum over the sources in order (vectorised across pixels):
-                // v = weight * gain_inv * sample; acc over the sources whose sample is
-                // inside, acc_all over all with a sample; divide by the matching weight sum.
+                // Per pixel: the sum runs over the sources whose sample is inside if any
+                // weight is there, else over all with a sample; divided by their weights' sum.
+                for i in 0..CHUNK {
+                    let pick = |c: bool, v: f32| if c { v } else { 0.0 };
+                    let (s0, s1) = (r0.state[i], r1.state[i]);
+                    let (in0, in1) = (s0 == state::INSIDE, s1 == state::INSIDE);
+                    let (has0, has1) = (s0 != state::NONE, s1 != state::NONE);
+                    let ws_in = (0.0 + pick(in0, weight0)) + pick(in1, weight1);
+                    let ws_all = (0.0 + pick(has0, weight0)) + pick(has1, weight1);
+                    let use_in = ws_in > 0.0;
+                    sel0[i] = if use_in { in0 } else { has0 };
+                    sel1[i] = if use_in { in1 } else { has1 };
+                    ws[i] = if use_in { ws_in } else { ws_all };
+                }
                 let mut packed = [0u32; CHUNK];
                 for k in 0..3 {
                     for i in 0..CHUNK {
-                        let (s0, s1) = (r0.state[i], r1.state[i]);
-                        let (v0, v1) = (wg0[k] * r0.value[k][i], wg1[k] * r1.value[k][i]);
-                        // Selects instead of branches (so it vectorises); `0 + v` and
-                        // `v + 0` are `v`, so the sums equal the branchy ones bit for bit.
+                        // v = weight * gain_inv * sample, summed over the selected sources in
+                        // order. Selects instead of branches (so it vectorises); `0 + v` and
+                        // `v + 0` are `v`, so the sum equals the branchy one bit for bit.
                         let pick = |c: bool, v: f32| if c { v } else { 0.0 };
-                        let (in0, in1) = (s0 == state::INSIDE, s1 == state::INSIDE);
-                        let (has0, has1) = (s0 != state::NONE, s1 != state::NONE);
-                        let acc_in = (0.0 + pick(in0, v0)) + pick(in1, v1);
-                        let ws_in = (0.0 + pick(in0, weight0)) + pick(in1, weight1);
-                        let acc_all = (0.0 + pick(has0, v0)) + pick(has1, v1);
-                        let ws_all = (0.0 + pick(has0, weight0)) + pick(has1, weight1);
-                        let use_in = ws_in > 0.0;
-                        let acc = if use_in { acc_in } else { acc_all };
-                        let ws = if use_in { ws_in } else { ws_all };
-                        let v = round_u8(acc / ws);
-                        packed[i] |= (if ws > 0.0 { v } else { 0 } as u32) << (8 * k);
+                        let v0 = wg0[k] * sample_value::<MODE>(r0, i, k);
+                        let v1 = wg1[k] * sample_value::<MODE>(r1, i, k);
+                        let acc = (0.0 + pick(sel0[i], v0)) + pick(sel1[i], v1);
+                        let v = round_u8(acc / ws[i]);
+                        packed[i] |= (if ws[i] > 0.0 { v } else { 0 } as u32) << (8 * k);
                     }
                 }
                 write_packed(&packed, px);
@@ -826,7 +843,8 @@ fn composite(
         );
     }
     let inv = h.raw().1;
-    let raw = out.as_mut();
+    let row_len = ow as usize * 3;
+    let rows = &mut out.as_mut()[region.1 as usize * row_len..region.3 as usize * row_len];
     let sample = |x: i64, y: i64| -> Option<usize> {
         let (lx, ly) = (x - patch.x0 as i64, y - patch.y0 as i64);
         if lx < 0 || ly < 0 || lx >= pw || ly >= ph {
@@ -835,86 +853,91 @@ fn composite(
         let i = (ly * pw + lx) as usize;
         (patch.mask[i] != 0).then_some(i)
     };
-    for y in region.1..region.3 {
-        let yf = y as f64;
-        for x in region.0..region.2 {
-            let xf = x as f64;
-            let w = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
-            if w == 0.0 {
-                continue;
-            }
-            let sx = (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / w;
-            let sy = (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / w;
-            if !(sx.is_finite() && sy.is_finite())
-                || sx < x0 - 1.0
-                || sy < y0 - 1.0
-                || sx > x0 + pw as f64
-                || sy > y0 + ph as f64
-            {
-                continue;
-            }
-            let mut colour = [0f32; 3];
-            match interp {
-                Interpolation::Nearest => {
-                    let Some(i) = sample(sx.round_ties_even() as i64, sy.round_ties_even() as i64)
-                    else {
-                        continue;
-                    };
-                    for c in 0..3 {
-                        colour[c] = patch.rgb[i * 3 + c] as f32;
-                    }
+    // Rows in parallel (each pixel is its own computation, so the same bytes).
+    rows.par_chunks_mut(row_len)
+        .enumerate()
+        .for_each(|(r, raw)| {
+            let y = region.1 + r as u32;
+            let yf = y as f64;
+            for x in region.0..region.2 {
+                let xf = x as f64;
+                let w = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
+                if w == 0.0 {
+                    continue;
                 }
-                Interpolation::Bilinear | Interpolation::BilinearFixed => {
-                    let (fx0, fy0) = (sx.floor(), sy.floor());
-                    let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
-                    let (ix, iy) = (fx0 as i64, fy0 as i64);
-                    let taps = [
-                        (ix, iy, (1.0 - fx) * (1.0 - fy)),
-                        (ix + 1, iy, fx * (1.0 - fy)),
-                        (ix, iy + 1, (1.0 - fx) * fy),
-                        (ix + 1, iy + 1, fx * fy),
-                    ];
-                    let mut cover = 0f32;
-                    for &(tx, ty, wt) in &taps {
-                        if let Some(i) = sample(tx, ty) {
-                            cover += wt;
-                            for c in 0..3 {
-                                colour[c] += wt * patch.rgb[i * 3 + c] as f32;
-                            }
+                let sx = (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / w;
+                let sy = (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / w;
+                if !(sx.is_finite() && sy.is_finite())
+                    || sx < x0 - 1.0
+                    || sy < y0 - 1.0
+                    || sx > x0 + pw as f64
+                    || sy > y0 + ph as f64
+                {
+                    continue;
+                }
+                let mut colour = [0f32; 3];
+                match interp {
+                    Interpolation::Nearest => {
+                        let Some(i) =
+                            sample(sx.round_ties_even() as i64, sy.round_ties_even() as i64)
+                        else {
+                            continue;
+                        };
+                        for c in 0..3 {
+                            colour[c] = patch.rgb[i * 3 + c] as f32;
                         }
                     }
-                    if cover < 0.5 {
-                        continue;
-                    }
-                    for v in &mut colour {
-                        *v /= cover;
+                    Interpolation::Bilinear | Interpolation::BilinearFixed => {
+                        let (fx0, fy0) = (sx.floor(), sy.floor());
+                        let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
+                        let (ix, iy) = (fx0 as i64, fy0 as i64);
+                        let taps = [
+                            (ix, iy, (1.0 - fx) * (1.0 - fy)),
+                            (ix + 1, iy, fx * (1.0 - fy)),
+                            (ix, iy + 1, (1.0 - fx) * fy),
+                            (ix + 1, iy + 1, fx * fy),
+                        ];
+                        let mut cover = 0f32;
+                        for &(tx, ty, wt) in &taps {
+                            if let Some(i) = sample(tx, ty) {
+                                cover += wt;
+                                for c in 0..3 {
+                                    colour[c] += wt * patch.rgb[i * 3 + c] as f32;
+                                }
+                            }
+                        }
+                        if cover < 0.5 {
+                            continue;
+                        }
+                        for v in &mut colour {
+                            *v /= cover;
+                        }
                     }
                 }
-            }
-            let o = (y as usize * ow as usize + x as usize) * 3;
-            let alpha = match dynamic {
-                Some(d) => {
-                    let (dw, dh) = (d.width() as i64, d.height() as i64);
-                    let (ax, ay) = (
-                        (sx.round_ties_even() as i64).clamp(0, dw - 1),
-                        (sy.round_ties_even() as i64).clamp(0, dh - 1),
-                    );
-                    let a = d.as_raw()[(ay * dw + ax) as usize];
-                    if a > 0 {
-                        alpha * a as f32 / 255.0
-                    } else {
-                        alpha
+                let o = x as usize * 3;
+                let alpha = match dynamic {
+                    Some(d) => {
+                        let (dw, dh) = (d.width() as i64, d.height() as i64);
+                        let (ax, ay) = (
+                            (sx.round_ties_even() as i64).clamp(0, dw - 1),
+                            (sy.round_ties_even() as i64).clamp(0, dh - 1),
+                        );
+                        let a = d.as_raw()[(ay * dw + ax) as usize];
+                        if a > 0 {
+                            alpha * a as f32 / 255.0
+                        } else {
+                            alpha
+                        }
                     }
+                    None => alpha,
+                };
+                for c in 0..3 {
+                    let v = colour[c] / gain[c];
+                    let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
+                    raw[o + c] = round_u8(blended);
                 }
-                None => alpha,
-            };
-            for c in 0..3 {
-                let v = colour[c] / gain[c];
-                let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
-                raw[o + c] = round_u8(blended);
             }
-        }
-    }
+        });
 }
 
 #[cfg(test)]
