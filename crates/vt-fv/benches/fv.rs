@@ -9,14 +9,18 @@ use std::time::Instant;
 use criterion::{criterion_group, criterion_main, Criterion};
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::{visual_hull, HullParams};
-use vt_fv::synth::{generate, SceneParams, SynthData};
-use vt_fv::{photo_hull, render_rough, GuidedParams, PhotoParams, VoxelModel};
+use vt_synth::object::{generate, SceneParams};
+
+type SynthData = vt_synth::object::SynthData<Camera>;
+use vt_fv::{photo_hull, render_rough, Camera, GuidedParams, PhotoParams, VoxelModel};
 
 fn data() -> SynthData {
     generate(&SceneParams {
         extra_angles_deg: vec![5.0, 10.0],
         ..Default::default()
     })
+    .unwrap()
+    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
     .unwrap()
 }
 

@@ -4,7 +4,8 @@
 //! (photo hull by voxel colouring, colours for unseen voxels) -> [`render`] (rough view of the
 //! coloured voxels from a new [`camera`]) -> [`guided`] (guided texture synthesis with
 //! [`patchmatch`], the rough view as guide and a reference photo as input) -> [`eval`].
-//! [`synth`] makes a ray-cast synthetic object with ground truth for tests and benchmarks.
+//! Tests and benchmarks measure against `vt_synth::object`, a ray-cast synthetic object with
+//! ground truth computed with its own camera maths.
 //!
 //! Images are the `image` crate's [`image::RgbImage`]; pixel centres sit at integer coordinates
 //! `(x, y) = (column, row)`, origin top-left, as in the Middlebury camera files. No I/O except
@@ -25,7 +26,6 @@ pub use silhouette::Mask;
 pub mod photo;
 pub mod render;
 pub mod rng;
-pub mod synth;
 
 pub use photo::{photo_hull, photo_hull_keeping, PhotoParams, SurfaceVoxel, VoxelModel};
 pub use render::{render_rough, Rendered};

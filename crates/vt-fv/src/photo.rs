@@ -53,7 +53,7 @@ pub struct PhotoParams {
 impl Default for PhotoParams {
     fn default() -> Self {
         Self {
-            threshold: 20.0,
+            threshold: 15.0,
             max_passes: 1000,
             splat_scale: 1.5,
             fill_radius: 8,
@@ -889,13 +889,15 @@ mod tests {
 
     #[test]
     fn incremental_passes_match_full_re_renders() {
-        let d = crate::synth::generate(&crate::synth::SceneParams {
+        let d = vt_synth::object::generate(&vt_synth::object::SceneParams {
             n_views: 6,
             width: 120,
             height: 120,
             extra_angles_deg: vec![],
             ..Default::default()
         })
+        .unwrap()
+        .try_map_cameras(|c| crate::Camera::new(c.name.clone(), c.k, c.r, c.t))
         .unwrap();
         let vh = crate::hull::visual_hull(
             &d.cameras,

@@ -8,8 +8,8 @@
 use std::time::Instant;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::HullParams;
-use vt_fv::synth::{generate, SceneParams};
-use vt_fv::{build_model, novel_view, GuidedParams, PhotoParams, ViewParams};
+use vt_fv::{build_model, novel_view, Camera, GuidedParams, PhotoParams, ViewParams};
+use vt_synth::object::{generate, SceneParams};
 
 #[test]
 fn guided_synthesis_beats_rough_render_on_synthetic_object() {
@@ -20,6 +20,8 @@ fn guided_synthesis_beats_rough_render_on_synthetic_object() {
         supersample: 2,
         ..Default::default()
     })
+    .unwrap()
+    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
     .unwrap();
     let model = build_model(
         &d.cameras,
@@ -104,6 +106,8 @@ fn synthesis_stage_keeps_large_patches_on_the_guide() {
         extra_angles_deg: vec![5.0],
         ..Default::default()
     })
+    .unwrap()
+    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
     .unwrap();
     let model = build_model(
         &d.cameras,
@@ -158,6 +162,8 @@ fn textured_view_beats_rough_render_on_synthetic_object() {
         supersample: 2,
         ..Default::default()
     })
+    .unwrap()
+    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
     .unwrap();
     let model = build_model(
         &d.cameras,

@@ -3,10 +3,10 @@
 
 use nalgebra::Vector3;
 use vt_fv::hull::{visual_hull, visual_hull_naive, Aabb, HullParams};
-use vt_fv::synth::{generate, SceneParams};
 use vt_fv::{Camera, Error, Mask};
+use vt_synth::object::{generate, SceneParams};
 
-fn small() -> vt_fv::synth::SynthData {
+fn small() -> vt_synth::object::SynthData<Camera> {
     generate(&SceneParams {
         width: 160,
         height: 160,
@@ -14,6 +14,8 @@ fn small() -> vt_fv::synth::SynthData {
         supersample: 1,
         ..Default::default()
     })
+    .unwrap()
+    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
     .unwrap()
 }
 
@@ -106,7 +108,7 @@ fn bad_inputs_are_refused() {
     .unwrap();
     let params = HullParams {
         dims: [32; 3],
-        bounds: Some(d.object.bounds()),
+        bounds: Some(Aabb::new(d.object.bounds().min, d.object.bounds().max)),
         ..Default::default()
     };
     let e = visual_hull(&cams, &d.masks, &params).unwrap_err();

@@ -3,8 +3,8 @@
 use std::time::Instant;
 use vt_fv::eval::psnr;
 use vt_fv::hull::HullParams;
-use vt_fv::synth::{generate, SceneParams};
-use vt_fv::{build_model, render_rough, PhotoParams};
+use vt_fv::{build_model, render_rough, Camera, PhotoParams};
+use vt_synth::object::{generate, SceneParams};
 
 #[test]
 fn photo_hull_is_tighter_and_renders_close_to_truth() {
@@ -15,6 +15,8 @@ fn photo_hull_is_tighter_and_renders_close_to_truth() {
         supersample: 2,
         ..Default::default()
     })
+    .unwrap()
+    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
     .unwrap();
     let hull = HullParams {
         dims: [96; 3],

@@ -7,9 +7,14 @@
 //! real depth (a far wall and two pillars, so off-plane parallax exists), with sensor noise and a
 //! small per-view exposure difference. Everything is a pure function of the parameters and seed:
 //! same seed, same pixels.
+//!
+//! [`object`] is System B's: a textured object ray cast from calibrated cameras on a ring, with
+//! its own pinhole camera maths. [`real`] builds System A scenes from a real video; [`files`]
+//! writes the scenes with their truth and checks an analysis against it.
 #![deny(missing_docs)]
 
 pub mod files;
+pub mod object;
 pub mod real;
 
 use image::RgbImage;
@@ -26,6 +31,26 @@ pub enum Rig {
     /// Each camera turns to look at the object's centre: views differ by a general homography.
     Converging,
 }
+
+impl std::str::FromStr for Rig {
+    type Err = String;
+
+    /// `parallel` or `converging`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "parallel" => Ok(Rig::Parallel),
+            "converging" => Ok(Rig::Converging),
+            _ => Err(format!("rig '{s}' is not parallel or converging")),
+        }
+    }
+}
+
+/// Most pixels in one synthetic frame (3840 x 2160).
+pub const MAX_PIXELS: u64 = 3840 * 2160;
+/// Most views of a synthetic texture scene.
+pub const MAX_VIEWS: usize = 64;
+/// Most frames of a synthetic texture scene, all views together.
+pub const MAX_FRAMES: usize = 100_000;
 
 /// Parameters of [`TextureScene`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -141,6 +166,31 @@ fn lerp3(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
         a[1] + (b[1] - a[1]) * t,
         a[2] + (b[2] - a[2]) * t,
     ]
+}
+
+impl TextureParams {
+    /// Checks the sizes against [`MAX_PIXELS`], [`MAX_VIEWS`] and [`MAX_FRAMES`] before anything
+    /// is allocated; messages name the values as `vt synth textures`'s flags.
+    pub fn check_limits(&self) -> Result<(), String> {
+        let px = self.width as u64 * self.height as u64;
+        if px > MAX_PIXELS {
+            return Err(format!(
+                "--size {}x{} is {px} pixels per frame, more than {MAX_PIXELS} (3840x2160)",
+                self.width, self.height
+            ));
+        }
+        if self.views == 0 || self.views > MAX_VIEWS {
+            return Err(format!("--views {} must be in 1..={MAX_VIEWS}", self.views));
+        }
+        let total = self.views.saturating_mul(self.frames);
+        if self.frames == 0 || total > MAX_FRAMES {
+            return Err(format!(
+                "--views {} x --frames {} = {total} frames, more than {MAX_FRAMES} (or no frames)",
+                self.views, self.frames
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl TextureScene {

@@ -173,10 +173,10 @@ fn build_synth_a(ctx: &mut Ctx) -> Result<SynthA> {
     })
 }
 
-/// System B's synthetic object (vt-fv's ray-cast sphere + box) with truth at extra angles.
+/// System B's synthetic object (vt-synth's ray-cast sphere + box) with truth at extra angles.
 pub struct SynthB {
-    /// Photos, cameras, masks, and truth for extra viewpoints.
-    pub data: vt_fv::synth::SynthData,
+    /// Photos, cameras (as vt-fv's), masks, and truth for extra viewpoints.
+    pub data: vt_synth::object::SynthData<vt_fv::Camera>,
     /// Angles (degrees from camera 0) of the extra viewpoints.
     pub angles: Vec<f64>,
 }
@@ -184,12 +184,14 @@ pub struct SynthB {
 fn build_synth_b(ctx: &mut Ctx) -> Result<SynthB> {
     let size = ctx.pick(200, 400);
     let angles = vec![5.0, 10.0];
-    let data = vt_fv::synth::generate(&vt_fv::synth::SceneParams {
+    let data = vt_synth::object::generate(&vt_synth::object::SceneParams {
         width: size,
         height: size,
         extra_angles_deg: angles.clone(),
         ..Default::default()
-    })?;
+    })
+    .map_err(anyhow::Error::msg)?
+    .try_map_cameras(|c| vt_fv::Camera::new(c.name.clone(), c.k, c.r, c.t))?;
     Ok(SynthB { data, angles })
 }
 

@@ -53,7 +53,10 @@ fn iou(a: &vt_fv::Mask, b: &vt_fv::Mask) -> f64 {
 }
 
 /// Mean PSNR, SSIM and IoU of rough renders of `model` at the extra viewpoints.
-fn rough_scores(d: &vt_fv::synth::SynthData, model: &vt_fv::VoxelModel) -> Result<(f64, f64, f64)> {
+fn rough_scores(
+    d: &vt_synth::object::SynthData<vt_fv::Camera>,
+    model: &vt_fv::VoxelModel,
+) -> Result<(f64, f64, f64)> {
     let (w, h) = d.photos[0].dimensions();
     let (mut p, mut s, mut i) = (0.0, 0.0, 0.0);
     for (k, cam) in d.extra_cameras.iter().enumerate() {

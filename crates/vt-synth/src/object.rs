@@ -1,15 +1,135 @@
-//! A synthetic textured object (sphere and box union) ray cast from cameras on a ring, with
-//! ground truth, for tests and benchmarks. Independent of the voxel code: pixels come from
-//! analytic ray-primitive intersections.
+//! System B's synthetic scene: a textured object (the union of a sphere and a box) photographed
+//! by pinhole cameras on a ring, with exact masks and ground truth for extra viewpoints.
+//!
+//! The truth is independent of vt-fv: pixels come from analytic ray-primitive intersections,
+//! and the cameras are [`PinholeCamera`]s whose projection and back-projection are written here
+//! (Middlebury's conventions: `x ~ K [R | t] X`, pixel centres at integer coordinates), not
+//! vt-fv's `Camera`. A test in vt-fv checks the two agree on the temple's real cameras; callers
+//! turn the cameras into vt-fv's with [`SynthData::try_map_cameras`] or through the par file.
 
 use image::{Rgb, RgbImage};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
+use vt_core::Mask;
 
-use crate::camera::Camera;
-use crate::hull::Aabb;
-use crate::silhouette::Mask;
-use crate::{Error, Result};
+/// A calibrated pinhole camera, `x ~ K [R | t] X`, with `K` upper triangular.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PinholeCamera {
+    /// Name (the image file name in a par file).
+    pub name: String,
+    /// Intrinsics, upper triangular.
+    pub k: Matrix3<f64>,
+    /// World-to-camera rotation.
+    pub r: Matrix3<f64>,
+    /// World-to-camera translation.
+    pub t: Vector3<f64>,
+}
+
+impl PinholeCamera {
+    /// A camera from its parts; fails unless `K` is upper triangular with a non-zero diagonal
+    /// and every entry is finite (the back-projection below solves with `K` by substitution).
+    pub fn new(
+        name: impl Into<String>,
+        k: Matrix3<f64>,
+        r: Matrix3<f64>,
+        t: Vector3<f64>,
+    ) -> Result<Self, String> {
+        let name = name.into();
+        let finite = k
+            .iter()
+            .chain(r.iter())
+            .chain(t.iter())
+            .all(|v| v.is_finite());
+        let triangular = k[(1, 0)] == 0.0 && k[(2, 0)] == 0.0 && k[(2, 1)] == 0.0;
+        let diagonal = (0..3).all(|i| k[(i, i)] != 0.0);
+        if !(finite && triangular && diagonal) {
+            return Err(format!(
+                "camera {name}: K must be finite and upper triangular with a non-zero diagonal"
+            ));
+        }
+        Ok(Self { name, k, r, t })
+    }
+
+    /// The camera at `centre` whose optical axis points at `target`, turned about that axis so
+    /// the image's downward direction is as close as possible to the world direction `down`.
+    pub fn looking_at(
+        name: impl Into<String>,
+        k: Matrix3<f64>,
+        centre: Vector3<f64>,
+        target: Vector3<f64>,
+        down: Vector3<f64>,
+    ) -> Result<Self, String> {
+        let name = name.into();
+        let axis = (target - centre)
+            .try_normalize(1e-12)
+            .ok_or_else(|| format!("camera {name}: centre and target coincide"))?;
+        // Image rows grow along `down` with its component along the axis removed.
+        let row_dir = (down - axis * axis.dot(&down))
+            .try_normalize(1e-9)
+            .ok_or_else(|| format!("camera {name}: `down` is parallel to the optical axis"))?;
+        let col_dir = row_dir.cross(&axis);
+        // World-to-camera: the camera's axes in world coordinates are the rows.
+        let mut r = Matrix3::zeros();
+        for (i, a) in [col_dir, row_dir, axis].iter().enumerate() {
+            for j in 0..3 {
+                r[(i, j)] = a[j];
+            }
+        }
+        let t = -(r * centre);
+        Self::new(name, k, r, t)
+    }
+
+    /// Pixel `(u, v)` of a world point, `None` unless it is in front of the camera.
+    pub fn project(&self, x: &Vector3<f64>) -> Option<(f64, f64)> {
+        let c = self.r * x + self.t;
+        if c.z <= 0.0 {
+            return None;
+        }
+        let h = self.k * c;
+        Some((h.x / h.z, h.y / h.z))
+    }
+
+    /// The centre in world coordinates: the point `C` with `R C + t = 0`.
+    pub fn centre(&self) -> Vector3<f64> {
+        -(self.r.transpose() * self.t)
+    }
+
+    /// The unit world direction of the ray through pixel `(u, v)`: `R^T K^-1 (u, v, 1)`, with
+    /// `K^-1` applied by back substitution (K is upper triangular).
+    pub fn ray(&self, u: f64, v: f64) -> Vector3<f64> {
+        let k = &self.k;
+        let z = 1.0 / k[(2, 2)];
+        let y = (v - k[(1, 2)] * z) / k[(1, 1)];
+        let x = (u - k[(0, 1)] * y - k[(0, 2)] * z) / k[(0, 0)];
+        (self.r.transpose() * Vector3::new(x, y, z)).normalize()
+    }
+}
+
+/// Cameras in the Middlebury `*_par.txt` format: the count, then per camera its name and `K`,
+/// `R` (row by row) and `t`, written here rather than by vt-fv so its parser is checked too.
+pub fn format_par(cams: &[PinholeCamera]) -> String {
+    let mut out = format!("{}\n", cams.len());
+    for cam in cams {
+        let rows = |m: &Matrix3<f64>| (0..9).map(move |i| m[(i / 3, i % 3)]).collect::<Vec<_>>();
+        let numbers: Vec<String> = rows(&cam.k)
+            .into_iter()
+            .chain(rows(&cam.r))
+            .chain(cam.t.iter().copied())
+            .map(|v| format!("{v:.17e}"))
+            .collect();
+        out.push_str(&format!("{} {}\n", cam.name, numbers.join(" ")));
+    }
+    out
+}
+
+/// An axis-aligned box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cuboid {
+    /// Smallest corner.
+    pub min: Vector3<f64>,
+    /// Largest corner.
+    pub max: Vector3<f64>,
+}
 
 /// The union of a sphere and an axis-aligned box, with a procedural colour texture defined on
 /// world coordinates (so every view sees the same colour at a surface point: exactly
@@ -22,7 +142,7 @@ pub struct SynthObject {
     /// Sphere radius.
     pub sphere_radius: f64,
     /// The box.
-    pub cuboid: Aabb,
+    pub cuboid: Cuboid,
 }
 
 impl Default for SynthObject {
@@ -31,10 +151,10 @@ impl Default for SynthObject {
         Self {
             sphere_centre: Vector3::zeros(),
             sphere_radius: 0.5,
-            cuboid: Aabb::new(
-                Vector3::new(-0.75, -0.22, -0.4),
-                Vector3::new(0.6, 0.25, 0.0),
-            ),
+            cuboid: Cuboid {
+                min: Vector3::new(-0.75, -0.22, -0.4),
+                max: Vector3::new(0.6, 0.25, 0.0),
+            },
         }
     }
 }
@@ -47,10 +167,13 @@ impl SynthObject {
     }
 
     /// A box holding the whole object.
-    pub fn bounds(&self) -> Aabb {
+    pub fn bounds(&self) -> Cuboid {
         let r = Vector3::repeat(self.sphere_radius);
         let (a, b) = (self.sphere_centre - r, self.sphere_centre + r);
-        Aabb::new(a.inf(&self.cuboid.min), b.sup(&self.cuboid.max))
+        Cuboid {
+            min: a.inf(&self.cuboid.min),
+            max: b.sup(&self.cuboid.max),
+        }
     }
 
     /// First intersection `t > 0` of the ray `o + t d` with the solid (camera outside it).
@@ -79,7 +202,7 @@ impl SynthObject {
 
     /// Renders a view: colour (averaging `ss x ss` samples per pixel, black background) and the
     /// object mask (hit at the pixel centre).
-    pub fn render(&self, cam: &Camera, w: u32, h: u32, ss: u32) -> (RgbImage, Mask) {
+    pub fn render(&self, cam: &PinholeCamera, w: u32, h: u32, ss: u32) -> (RgbImage, Mask) {
         let ss = ss.max(1);
         let o = cam.centre();
         let rows: Vec<(Vec<[u8; 3]>, Vec<bool>)> = (0..h)
@@ -123,7 +246,7 @@ impl SynthObject {
     /// `n` points on the true surface (deterministic for a `seed`), split between the sphere and
     /// the box in proportion to their areas, keeping only points not inside the other solid.
     pub fn surface_samples(&self, n: usize, seed: u64) -> Vec<Vector3<f64>> {
-        let mut rng = crate::rng::Rng::new(seed);
+        let mut rng = vt_core::rng::Rng::new(seed);
         let e = self.cuboid.max - self.cuboid.min;
         let faces = [
             e.y * e.z,
@@ -209,11 +332,11 @@ impl SynthObject {
     }
 }
 
-fn in_box(b: &Aabb, p: &Vector3<f64>) -> bool {
+fn in_box(b: &Cuboid, p: &Vector3<f64>) -> bool {
     (0..3).all(|i| p[i] >= b.min[i] && p[i] <= b.max[i])
 }
 
-fn in_box_strict(b: &Aabb, p: &Vector3<f64>) -> bool {
+fn in_box_strict(b: &Cuboid, p: &Vector3<f64>) -> bool {
     (0..3).all(|i| p[i] > b.min[i] && p[i] < b.max[i])
 }
 
@@ -228,7 +351,7 @@ fn sphere_entry(c: &Vector3<f64>, r: f64, o: &Vector3<f64>, d: &Vector3<f64>) ->
     (t > 0.0).then_some(t)
 }
 
-fn box_entry(bx: &Aabb, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
+fn box_entry(bx: &Cuboid, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
     let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
     for i in 0..3 {
         if d[i].abs() < 1e-300 {
@@ -284,42 +407,55 @@ impl Default for SceneParams {
     }
 }
 
-/// Photos of the synthetic object with their cameras, masks and ground truth for extra views.
+/// Photos of the synthetic object with their cameras (vt-synth's own [`PinholeCamera`], or any
+/// camera type after [`SynthData::try_map_cameras`]), masks and ground truth for extra views.
 #[derive(Debug, Clone)]
-pub struct SynthData {
+pub struct SynthData<C = PinholeCamera> {
     /// The object.
     pub object: SynthObject,
     /// Reference cameras.
-    pub cameras: Vec<Camera>,
+    pub cameras: Vec<C>,
     /// Reference photos.
     pub photos: Vec<RgbImage>,
     /// Exact object masks of the reference photos.
     pub masks: Vec<Mask>,
     /// Cameras of the extra viewpoints.
-    pub extra_cameras: Vec<Camera>,
+    pub extra_cameras: Vec<C>,
     /// Ground-truth photos of the extra viewpoints.
     pub extra_truth: Vec<RgbImage>,
     /// Exact object masks of the extra viewpoints.
     pub extra_masks: Vec<Mask>,
 }
 
-/// The camera at `angle_deg` on the synthetic ring.
-pub fn ring_camera(p: &SceneParams, angle_deg: f64) -> Result<Camera> {
+impl<C> SynthData<C> {
+    /// The same data with every camera converted by `f` (e.g. into vt-fv's `Camera`).
+    pub fn try_map_cameras<D, E>(self, f: impl Fn(&C) -> Result<D, E>) -> Result<SynthData<D>, E> {
+        let cameras = self.cameras.iter().map(&f).collect::<Result<_, _>>()?;
+        let extra_cameras = self
+            .extra_cameras
+            .iter()
+            .map(&f)
+            .collect::<Result<_, _>>()?;
+        Ok(SynthData {
+            object: self.object,
+            cameras,
+            photos: self.photos,
+            masks: self.masks,
+            extra_cameras,
+            extra_truth: self.extra_truth,
+            extra_masks: self.extra_masks,
+        })
+    }
+}
+
+/// The camera at `angle_deg` on the synthetic ring, looking at the origin with world `-z` down.
+pub fn ring_camera(p: &SceneParams, angle_deg: f64) -> Result<PinholeCamera, String> {
     let f = p.focal_factor * p.width as f64;
-    let k = Matrix3::new(
-        f,
-        0.0,
-        (p.width as f64 - 1.0) / 2.0,
-        0.0,
-        f,
-        (p.height as f64 - 1.0) / 2.0,
-        0.0,
-        0.0,
-        1.0,
-    );
+    let (cx, cy) = ((p.width as f64 - 1.0) / 2.0, (p.height as f64 - 1.0) / 2.0);
+    let k = Matrix3::new(f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0);
     let (a, e) = (angle_deg.to_radians(), p.elevation_deg.to_radians());
     let c = Vector3::new(a.cos() * e.cos(), a.sin() * e.cos(), e.sin()) * p.distance;
-    Camera::look_at(
+    PinholeCamera::looking_at(
         format!("synth{angle_deg:.1}"),
         k,
         c,
@@ -329,24 +465,15 @@ pub fn ring_camera(p: &SceneParams, angle_deg: f64) -> Result<Camera> {
 }
 
 /// Ray casts the default [`SynthObject`] from `n_views` ring cameras and the extra viewpoints.
-pub fn generate(p: &SceneParams) -> Result<SynthData> {
-    if p.n_views == 0 {
-        return Err(Error::TooFew {
-            what: "synthetic views".into(),
-            got: 0,
-            need: 1,
-        });
-    }
-    if p.width == 0 || p.height == 0 {
-        return Err(Error::ImageTooSmall {
-            what: "synthetic view".into(),
-            w: p.width,
-            h: p.height,
-            need: 1,
-        });
+pub fn generate(p: &SceneParams) -> Result<SynthData, String> {
+    if p.n_views == 0 || p.width == 0 || p.height == 0 {
+        return Err(format!(
+            "synthetic object: {} views of {}x{} (need at least one view of at least 1x1)",
+            p.n_views, p.width, p.height
+        ));
     }
     let object = SynthObject::default();
-    let shoot = |angles: &[f64]| -> Result<(Vec<Camera>, Vec<RgbImage>, Vec<Mask>)> {
+    let shoot = |angles: &[f64]| -> Result<(Vec<PinholeCamera>, Vec<RgbImage>, Vec<Mask>), String> {
         let mut out = (Vec::new(), Vec::new(), Vec::new());
         for &a in angles {
             let cam = ring_camera(p, a)?;
@@ -376,6 +503,75 @@ pub fn generate(p: &SceneParams) -> Result<SynthData> {
         extra_truth,
         extra_masks,
     })
+}
+
+/// Most pixels of a synthetic object's photos and truth images together (2 x views + 1 images).
+pub const MAX_OBJECT_PIXELS: u64 = 1 << 28;
+
+/// What `vt synth object` writes ([`crate::files::write_object`]): `views` cameras on the ring,
+/// square images of side `size`, and the ring turned by a seed-determined angle (seed 0: the
+/// first camera at angle 0). Truth is rendered at each midpoint between cameras and 10 degrees
+/// past the first (or half the spacing, when that is less).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RingParams {
+    /// Cameras on the ring (3..=360; paper: 8).
+    pub views: usize,
+    /// Square image side, pixels (16..=4096; paper: 400).
+    pub size: u32,
+    /// Seed of the ring's starting angle.
+    pub seed: u64,
+}
+
+impl RingParams {
+    /// Checks the ranges and the memory the images take (all held at once) against
+    /// [`MAX_OBJECT_PIXELS`]; messages name the values as `vt synth object`'s flags.
+    pub fn check(&self) -> Result<(), String> {
+        if self.views < 3 || self.views > 360 {
+            return Err(format!("--views {} must be in 3..=360", self.views));
+        }
+        if self.size < 16 || self.size > 4096 {
+            return Err(format!("--size {} must be in 16..=4096", self.size));
+        }
+        let pixels = (2 * self.views as u64 + 1) * self.size as u64 * self.size as u64;
+        if pixels > MAX_OBJECT_PIXELS {
+            return Err(format!(
+                "--views {} at --size {} is {pixels} pixels of photos and truth, more than {MAX_OBJECT_PIXELS}",
+                self.views, self.size
+            ));
+        }
+        Ok(())
+    }
+
+    /// Degrees between neighbouring cameras.
+    pub fn spacing(&self) -> f64 {
+        360.0 / self.views as f64
+    }
+
+    /// Ring angle of the first camera, degrees: SplitMix64 of the seed as a fraction of the
+    /// spacing; seed 0 keeps angle 0.
+    pub fn start_angle(&self) -> f64 {
+        if self.seed == 0 {
+            0.0
+        } else {
+            vt_core::rng::unit(vt_core::rng::mix(self.seed)) * self.spacing()
+        }
+    }
+
+    /// The scene to ray cast: the cameras and the truth viewpoints, relative to the first.
+    pub fn scene(&self) -> SceneParams {
+        let spacing = self.spacing();
+        let mut extra = vec![10.0f64.min(spacing / 2.0)];
+        extra.extend((0..self.views).map(|i| (i as f64 + 0.5) * spacing));
+        extra.dedup_by(|x, y| (*x - *y).abs() < 1e-9);
+        SceneParams {
+            n_views: self.views,
+            width: self.size,
+            height: self.size,
+            extra_angles_deg: extra,
+            start_angle_deg: self.start_angle(),
+            ..Default::default()
+        }
+    }
 }
 
 #[cfg(test)]
@@ -416,5 +612,63 @@ mod tests {
                 && dirs.iter().any(|d| !obj.contains(&(s + d * 1e-6)));
             assert!(near_surface, "{s} is not on the surface");
         }
+    }
+
+    #[test]
+    fn ray_and_projection_are_inverse() {
+        let p = SceneParams::default();
+        for angle in [0.0, 37.0, 200.0] {
+            let cam = ring_camera(&p, angle).unwrap();
+            // The ring cameras look at the origin: it projects to the principal point.
+            let (u, v) = cam.project(&Vector3::zeros()).unwrap();
+            assert!(
+                (u - 199.5).abs() < 1e-9 && (v - 199.5).abs() < 1e-9,
+                "({u}, {v})"
+            );
+            for (u, v) in [(0.0, 0.0), (123.0, 301.5), (399.0, 17.0)] {
+                let x = cam.centre() + cam.ray(u, v) * 2.5;
+                let (pu, pv) = cam.project(&x).unwrap();
+                assert!(
+                    (pu - u).abs() < 1e-9 && (pv - v).abs() < 1e-9,
+                    "{angle}: ({u}, {v})"
+                );
+            }
+            // R is a rotation and world -z points down the image.
+            assert!((cam.r * cam.r.transpose() - Matrix3::identity()).norm() < 1e-12);
+            assert!((cam.r.determinant() - 1.0).abs() < 1e-12);
+            let below = cam.project(&Vector3::new(0.0, 0.0, -0.1)).unwrap();
+            assert!(below.1 > v_of_origin(&cam));
+        }
+    }
+
+    fn v_of_origin(cam: &PinholeCamera) -> f64 {
+        cam.project(&Vector3::zeros()).unwrap().1
+    }
+
+    #[test]
+    fn ring_params_check_and_angles() {
+        let ok = RingParams {
+            views: 8,
+            size: 400,
+            seed: 0,
+        };
+        assert_eq!(ok.check(), Ok(()));
+        assert_eq!(ok.start_angle(), 0.0);
+        assert_eq!(ok.scene().extra_angles_deg[..3], [10.0, 22.5, 67.5]);
+        let turned = RingParams { seed: 5, ..ok };
+        assert!((0.0..45.0).contains(&turned.start_angle()) && turned.start_angle() > 0.0);
+        let errors = [
+            RingParams { views: 2, ..ok },
+            RingParams { size: 8, ..ok },
+            RingParams {
+                views: 360,
+                size: 4096,
+                seed: 0,
+            },
+        ]
+        .map(|p| p.check().unwrap_err());
+        assert_eq!(errors[0], "--views 2 must be in 3..=360");
+        assert_eq!(errors[1], "--size 8 must be in 16..=4096");
+        assert!(errors[2].contains("more than 268435456"), "{}", errors[2]);
     }
 }
