@@ -9,6 +9,7 @@ mod synth;
 mod synth_real;
 mod view;
 
+use std::ffi::OsString;
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
@@ -94,7 +95,7 @@ fn main() {
     let result = match cli.command {
         Command::Synth { what } => synth::run(what),
         Command::Analyze(args) => analyze::run(args).map(|_| ()),
-        Command::Render(args) => render::run(args).map(|_| ()),
+        Command::Render(args) => render::run(args),
         Command::View(args) => view::run(args),
         Command::Fv { what } => fv::run(what),
         Command::Demo { out, frames } => demo(out, frames),
@@ -158,6 +159,17 @@ fn usage_error_line(text: &str) -> String {
         .join("'")
 }
 
+/// A command's arguments from `args` as a user would type them after its name, so `vt demo`
+/// runs `analyze` and `render` with their own defaults.
+fn parse_args<T: clap::Args + clap::FromArgMatches>(
+    name: &'static str,
+    args: Vec<OsString>,
+) -> anyhow::Result<T> {
+    let cmd = T::augment_args(clap::Command::new(name));
+    let matches = cmd.try_get_matches_from(std::iter::once(OsString::from(name)).chain(args))?;
+    Ok(T::from_arg_matches(&matches)?)
+}
+
 /// `vt demo`: synthesise, analyse, and compare with the truth. The whole folder is one vt
 /// output: built under a temporary name and moved into place only when every step succeeded.
 fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
@@ -183,22 +195,19 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     synth::write_textures(&data, &params)?;
     let scene = root.join("scene");
     eprintln!("2/3 analysing it into {}", out.join("scene").display());
-    let views: Vec<PathBuf> = (0..params.views)
-        .map(|p| data.join(vt_synth::files::view_dir(p)))
+    let mut args: Vec<OsString> = (0..params.views)
+        .map(|p| data.join(vt_synth::files::view_dir(p)).into())
         .collect();
-    let args =
-        analyze::AnalyzeArgs::for_demo(views, data.join("points.txt"), scene.clone(), frames);
+    let min_length = (frames / 2).clamp(4, 100).to_string();
+    args.extend(["--points".into(), data.join("points.txt").into()]);
+    args.extend(["--out".into(), scene.clone().into()]);
+    args.extend(["--min-length", &min_length, "--alternatives", "2"].map(OsString::from));
+    let args = parse_args::<analyze::AnalyzeArgs>("analyze", args)?;
     let result = analyze::run(args)?;
-    let report = analyze::check_against_truth(&data.join("truth.json"), &result)?;
+    let report = vt_synth::files::check_scene(&data.join("truth.json"), &result)?;
     println!("{report}");
     // A sweep across all views; mp4 when ffmpeg is there, PNG frames otherwise.
-    let has_ffmpeg = std::process::Command::new("ffmpeg")
-        .arg("-version")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    let video_name = if has_ffmpeg {
+    let video_name = if vt_io::video::ffmpeg_available() {
         "sweep.mp4"
     } else {
         "sweep_frames"
@@ -207,7 +216,9 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
         "3/3 rendering a sweep across all views to {}",
         out.join(video_name).display()
     );
-    render::run(render::RenderArgs::demo_sweep(scene, root.join(video_name)))?;
+    let mut args: Vec<OsString> = vec![scene.into(), "--out".into(), root.join(video_name).into()];
+    args.extend(["--path", "sweep:0.5", "--fps", "30"].map(OsString::from));
+    render::run(parse_args::<render::RenderArgs>("render", args)?)?;
     output.commit()?;
     println!("scene: {}", out.join("scene").display());
     println!("video: {}", out.join(video_name).display());

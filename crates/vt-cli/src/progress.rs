@@ -56,16 +56,9 @@ impl AnalysisObserver {
 
 impl Observer for AnalysisObserver {
     fn start(&mut self, stage: Stage, view: Option<usize>, total: Option<u64>) {
-        let name = match stage {
-            Stage::Background => "decode + median",
-            Stage::Masks => "masks",
-            Stage::Loop => "loop search",
-            Stage::Homographies => "model + homographies",
-            Stage::Transitions => "transitions",
-        };
         let msg = match view {
-            Some(p) => format!("view {p}: {name}"),
-            None => name.to_string(),
+            Some(p) => format!("view {p}: {stage}"),
+            None => stage.to_string(),
         };
         self.current = Some(match total {
             Some(t) => bar(t, &msg),

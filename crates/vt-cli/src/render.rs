@@ -4,8 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
 use clap::Args;
-use image::RgbImage;
-use vt_core::render::{Player, RenderParams, Renderer, Step};
+use vt_core::render::RenderParams;
 use vt_core::warp::Interpolation;
 use vt_io::scene::LoadedScene;
 use vt_io::writer::FrameWriter;
@@ -83,44 +82,10 @@ impl RenderOptions {
     }
 }
 
-impl RenderArgs {
-    /// The demo's sweep across all views.
-    pub fn demo_sweep(scene: PathBuf, out: PathBuf) -> Self {
-        Self {
-            scene,
-            path: "sweep:0.5".into(),
-            out,
-            fps: Some(30.0),
-            duration: None,
-            long: false,
-            options: RenderOptions {
-                nearest: false,
-                crossfade: 0,
-                gain_compensation: true,
-                no_gain_compensation: false,
-            },
-        }
-    }
-}
-
-/// Counts and seams of a render.
-pub struct RenderSummary {
-    pub frames: usize,
-    pub wraps: u64,
-    pub switches: u64,
-    pub mean_seam: f64,
-}
-
-pub fn run(args: RenderArgs) -> Result<RenderSummary> {
+pub fn run(args: RenderArgs) -> Result<()> {
     args.options.check()?;
     let scene = LoadedScene::open(&args.scene)?;
-    let fps = args
-        .fps
-        .or(scene
-            .file
-            .fps
-            .filter(|f| f.is_finite() && *f > 0.0 && *f <= 1000.0))
-        .unwrap_or(30.0);
+    let fps = args.fps.unwrap_or_else(|| scene.source_fps(1000.0));
     let qs = vt_io::path::viewpoints(
         &args.path,
         scene.render.views.len(),
@@ -128,46 +93,26 @@ pub fn run(args: RenderArgs) -> Result<RenderSummary> {
         args.duration,
         args.long,
     )?;
-    let mut renderer = Renderer::new(scene.render.clone(), args.options.params())?;
-    let (w, h) = renderer.size();
+    let (w, h) = (scene.file.width, scene.file.height);
     let mut inputs: Vec<&Path> = vec![args.scene.as_path()];
     if let Some(f) = args.path.strip_prefix('@') {
         inputs.push(Path::new(f));
     }
     let mut sink = FrameWriter::create(&args.out, &inputs, w, h, fps)?;
-    let mut player = Player::new();
-    let mut frame = RgbImage::new(w, h);
-    let mut seams = Vec::new();
-    let mask_steps = scene.mask_steps();
     let pb = bar(qs.len() as u64, "render");
-    // On a rayon worker, the renderer's parallel passes queue locally: no allocation per frame.
-    rayon::scope(|_| -> Result<()> {
-        for &q in &qs {
-            let choice = player.advance(&scene.render, q)?;
-            if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
-                seams.extend(scene.jump_seam(&choice, &mask_steps));
-            }
-            renderer.render_into(&scene.objects, q, &choice, &mut frame)?;
-            sink.write(&frame)?;
-            pb.inc(1);
-        }
-        Ok(())
+    let played = scene.play(&qs, args.options.params(), &mut |frame| {
+        pb.inc(1);
+        sink.write(frame)
     })?;
     pb.finish_and_clear();
     sink.finish()?;
-    let summary = RenderSummary {
-        frames: qs.len(),
-        wraps: player.wraps,
-        switches: player.switches,
-        mean_seam: seams.iter().sum::<f64>() / seams.len().max(1) as f64,
-    };
     println!(
         "rendered {} frames to {} ({} loop wraps, {} view switches, mean seam score {:.3})",
-        summary.frames,
+        played.frames,
         args.out.display(),
-        summary.wraps,
-        summary.switches,
-        summary.mean_seam
+        played.wraps,
+        played.switches,
+        played.mean_seam
     );
-    Ok(summary)
+    Ok(())
 }

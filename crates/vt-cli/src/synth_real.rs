@@ -1,16 +1,13 @@
 //! `vt synth real`: a System A test scene with truth made from one real video
-//! ([`vt_synth::real`]): `view_NN.mp4` (H.264) or `view_NN/` PNG folders, `points.txt` (marked
-//! points, with the asked marking noise), `truth.json` ([`vt_synth::real::RealTruth`]) and
-//! `truth/` with ideal views at half-view steps.
+//! ([`vt_synth::real`], written by [`vt_synth::files::write_real`]).
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::Args;
-use image::RgbImage;
-use vt_io::atomic::AtomicDir;
-use vt_io::frames::{write_png, ViewSource};
-use vt_synth::real::{rows, IdealView, RealParams, RealScene};
+use vt_io::frames::ViewSource;
+use vt_synth::files::{write_real, RealFiles};
+use vt_synth::real::{RealParams, RealScene};
 
 use crate::progress::bar;
 
@@ -59,19 +56,8 @@ pub struct RealArgs {
     png: bool,
 }
 
-/// Decodes every frame of a video or frame folder.
-pub fn read_all_frames(path: &std::path::Path) -> Result<Vec<RgbImage>> {
-    let mut src = ViewSource::open(path)?;
-    let mut frames = Vec::new();
-    src.as_source().for_each_frame(&mut |_, f| {
-        frames.push(f.clone());
-        Ok(())
-    })?;
-    Ok(frames)
-}
-
 pub fn run(a: &RealArgs) -> Result<()> {
-    let frames = read_all_frames(&a.source)?;
+    let frames = ViewSource::open(&a.source)?.read_all()?;
     let n_source = frames.len();
     let fps = match a.fps {
         Some(f) if f.is_finite() && f > 0.0 && f <= 1000.0 => f,
@@ -93,71 +79,16 @@ pub fn run(a: &RealArgs) -> Result<()> {
     };
     let scene = RealScene::new(frames, params)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.source.display()))?;
-    let (w, h) = scene.size();
-    let dir = AtomicDir::create(&a.out)?;
-    let root = dir.path().to_path_buf();
-    let pb = bar((a.views * a.frames) as u64, "synth real views");
-    for p in 0..a.views {
-        if a.png {
-            let vdir = root.join(vt_synth::files::view_dir(p));
-            std::fs::create_dir(&vdir).with_context(|| vdir.display().to_string())?;
-            for s in 0..a.frames {
-                write_png(&vdir.join(format!("frame_{s:05}.png")), &scene.frame(p, s))?;
-                pb.inc(1);
-            }
-        } else {
-            let file = root.join(format!("{}.mp4", vt_synth::files::view_dir(p)));
-            vt_io::video::encode_h264(&file, w, h, fps, a.crf, a.frames, &mut |s| {
-                pb.inc(1);
-                Ok(scene.frame(p, s))
-            })?;
-        }
-    }
-    pb.finish_and_clear();
-    let to_points = |pts: Vec<(f64, f64)>| -> Vec<vt_core::Point> {
-        pts.into_iter()
-            .map(|(x, y)| vt_core::Point::new(x, y))
-            .collect()
+    let files = RealFiles {
+        fps,
+        crf: a.crf,
+        png: a.png,
     };
-    let marked: Vec<_> = (0..a.views)
-        .map(|p| to_points(scene.marked_points(p)))
-        .collect();
-    std::fs::write(
-        root.join("points.txt"),
-        vt_io::points::format_points(&marked),
-    )
-    .context("points.txt")?;
-    let tdir = root.join("truth");
-    std::fs::create_dir(&tdir).context("truth/")?;
-    let exact: Vec<_> = (0..a.views)
-        .map(|p| to_points(scene.true_points(p)))
-        .collect();
-    std::fs::write(
-        tdir.join("points_true.txt"),
-        vt_io::points::format_points(&exact),
-    )
-    .context("truth/points_true.txt")?;
-    let mut truth = scene.truth(&a.source.display().to_string(), fps);
-    let m = a.views;
-    for i in 0..(2 * m - 1).max(1) {
-        let q = i as f64 * 0.5;
-        for source_frame in [0, scene.usable() / 2] {
-            let file = format!("truth/ideal_q{q:05.2}_src{source_frame:04}.png");
-            write_png(&root.join(&file), &scene.ideal(q, source_frame))?;
-            truth.ideals.push(IdealView {
-                q,
-                homography: rows(&scene.ideal_homography(q)),
-                source_frame,
-                file,
-            });
-        }
-    }
-    std::fs::write(
-        root.join("truth.json"),
-        serde_json::to_string_pretty(&truth)?,
-    )
-    .context("truth.json")?;
-    dir.commit()?;
+    let pb = bar((a.views * a.frames) as u64, "synth real views");
+    let source = a.source.display().to_string();
+    write_real(&a.out, &scene, &source, &files, &|| pb.inc(1))?;
+    pb.finish_and_clear();
+    let (w, h) = scene.size();
     println!(
         "wrote {} views x {} frames ({}x{}, {:.3} fps, from {} source frames of {}) to {}",
         a.views,
@@ -166,7 +97,7 @@ pub fn run(a: &RealArgs) -> Result<()> {
         h,
         fps,
         scene.usable().min(n_source),
-        a.source.display(),
+        source,
         a.out.display()
     );
     Ok(())

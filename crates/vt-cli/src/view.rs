@@ -4,15 +4,12 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, Result};
 use clap::Args;
 use vt_io::scene::LoadedScene;
-use vt_view::{Viewer, ViewerParams};
+use vt_view::{Viewer, ViewerParams, MAX_FPS};
 
 use crate::render::RenderOptions;
-
-/// Fastest frame rate the viewer streams at speed 1.
-const MAX_FPS: f64 = 240.0;
 
 #[derive(Args)]
 pub struct ViewArgs {
@@ -35,50 +32,26 @@ pub struct ViewArgs {
 }
 
 pub fn run(args: ViewArgs) -> Result<()> {
-    use vt_io::output::num;
-    if let Some(fps) = args
-        .fps
-        .filter(|f| !(f.is_finite() && *f > 0.0 && *f <= MAX_FPS))
-    {
-        bail!("--fps {} must be in (0, {MAX_FPS}]", num(fps));
-    }
-    if !(1..=100).contains(&args.quality) {
-        bail!("--quality {} must be in 1..=100", args.quality);
-    }
     args.options.check()?;
     let scene = LoadedScene::open(&args.scene)?;
-    if scene.render.check_q(args.q).is_err() {
-        bail!(
-            "--q {} is outside [0, {}] (the scene has {} views)",
-            num(args.q),
-            scene.render.q_max(),
-            scene.render.views.len()
-        );
-    }
-    let fps = args
-        .fps
-        .or(scene
-            .file
-            .fps
-            .filter(|f| f.is_finite() && *f > 0.0 && *f <= MAX_FPS))
-        .unwrap_or(30.0);
     let params = ViewerParams {
         port: args.port,
-        fps,
+        fps: args.fps.unwrap_or_else(|| scene.source_fps(MAX_FPS)),
         q: args.q,
         quality: args.quality,
         render: args.options.params(),
     };
-    let viewer =
-        Viewer::bind(scene, &args.scene.display().to_string(), &params).map_err(|e| match e {
-            vt_view::Error::Listen { port, cause } => {
-                anyhow::anyhow!("--port {port}: cannot listen on 127.0.0.1: {cause}")
-            }
-            e => e.into(),
-        })?;
+    let name = args.scene.display().to_string();
+    // The viewer checks its parameters; they are this command's flags of the same names.
+    let viewer = Viewer::bind(scene, &name, &params).map_err(|e| match e {
+        vt_view::Error::Param { name, value, why } => anyhow!("--{name} {value} {why}"),
+        vt_view::Error::Listen { port, cause } => {
+            anyhow!("--port {port}: cannot listen on 127.0.0.1: {cause}")
+        }
+        e => e.into(),
+    })?;
     println!(
-        "vt view: serving {} at http://127.0.0.1:{}/ (Ctrl-C to stop)",
-        args.scene.display(),
+        "vt view: serving {name} at http://127.0.0.1:{}/ (Ctrl-C to stop)",
         viewer.port()
     );
     std::io::stdout().flush().ok();

@@ -150,6 +150,74 @@ fn default_cache() -> usize {
     768 << 20
 }
 
+/// Largest Gaussian kernel size of the analysis (OpenCV allows any odd size; beyond this the
+/// kernel is wider than any useful smoothing and its cost grows with it).
+pub const MAX_BLUR_SIZE: usize = 255;
+/// Largest Gaussian sigma of the analysis, pixels.
+pub const MAX_BLUR_SIGMA: f64 = 1000.0;
+/// Largest window w of eq. (1) and (2).
+pub const MAX_WINDOW: usize = 1000;
+/// Largest mask opening or closing radius, pixels.
+pub const MAX_RADIUS: u32 = 255;
+/// Most alternative loops per view.
+pub const MAX_ALTERNATIVES: usize = 100;
+
+impl AnalyzeParams {
+    /// Checks every value against its rule and the limits above; [`analyze`] calls it first.
+    /// Errors are [`Error::InvalidParameter`] named by the field's path (`"blur.ksize"`).
+    pub fn check(&self) -> Result<()> {
+        let bad =
+            |name, value: String, why: String| Err(Error::InvalidParameter { name, value, why });
+        let (ksize, sigma) = (self.blur.ksize, self.blur.sigma);
+        if ksize.is_multiple_of(2) || ksize > MAX_BLUR_SIZE {
+            return bad(
+                "blur.ksize",
+                ksize.to_string(),
+                format!("odd and at most {MAX_BLUR_SIZE}"),
+            );
+        }
+        if !(sigma.is_finite() && sigma <= MAX_BLUR_SIGMA) {
+            let why = format!("a finite number of pixels, at most {MAX_BLUR_SIGMA} (<= 0: derived from the kernel size)");
+            return bad("blur.sigma", sigma.to_string(), why);
+        }
+        if self.loops.window > MAX_WINDOW {
+            return bad(
+                "loops.window",
+                self.loops.window.to_string(),
+                format!("at most {MAX_WINDOW}"),
+            );
+        }
+        for (name, r) in [
+            ("mask.open_radius", self.mask.open_radius),
+            ("mask.close_radius", self.mask.close_radius),
+        ] {
+            if r > MAX_RADIUS {
+                return bad(name, r.to_string(), format!("at most {MAX_RADIUS} pixels"));
+            }
+        }
+        if self.alternative_loops > MAX_ALTERNATIVES {
+            return bad(
+                "alternative_loops",
+                self.alternative_loops.to_string(),
+                format!("at most {MAX_ALTERNATIVES}"),
+            );
+        }
+        if !(self.model.sigma.is_finite() && self.model.sigma > 0.0) {
+            return bad(
+                "model.sigma",
+                self.model.sigma.to_string(),
+                "a positive number of pixels".into(),
+            );
+        }
+        self.noise.check()?;
+        if !(self.appearance.is_finite() && (0.0..=1000.0).contains(&self.appearance)) {
+            let why = "the appearance weight must be in 0..=1000 (0 = masks only)";
+            return bad("appearance", self.appearance.to_string(), why.into());
+        }
+        Ok(())
+    }
+}
+
 impl Default for AnalyzeParams {
     fn default() -> Self {
         Self {
@@ -179,6 +247,19 @@ pub enum Stage {
     Homographies,
     /// Eq. (2).
     Transitions,
+}
+
+impl std::fmt::Display for Stage {
+    /// What the stage does, in a few words (progress bars name it so).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Stage::Background => "decode + median",
+            Stage::Masks => "masks",
+            Stage::Loop => "loop search",
+            Stage::Homographies => "model + homographies",
+            Stage::Transitions => "transitions",
+        })
+    }
 }
 
 /// Receives progress and the per-frame object data. All methods default to doing nothing.
@@ -361,14 +442,7 @@ pub fn analyze(
             )));
         }
     }
-    params.noise.check()?;
-    if !(params.appearance.is_finite() && (0.0..=1000.0).contains(&params.appearance)) {
-        return Err(Error::InvalidParameter {
-            name: "appearance",
-            value: params.appearance.to_string(),
-            why: "the appearance weight must be in 0..=1000 (0 = masks only)".into(),
-        });
-    }
+    params.check()?;
     let mut timings = Timings::default();
     // The points are cheap to check: select the model and fit homographies before any decoding.
     let mut selection = None;

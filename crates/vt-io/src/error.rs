@@ -49,12 +49,12 @@ pub enum Error {
         /// What went wrong.
         message: String,
     },
-    /// A malformed points file.
-    #[error("{}:{line}: {message}", path.display())]
+    /// A malformed points file, or points that do not fit the views.
+    #[error("{}{}: {message}", path.display(), if *line == 0 { String::new() } else { format!(":{line}") })]
     Points {
         /// The points file.
         path: PathBuf,
-        /// 1-based line number (0 for the whole file).
+        /// 1-based line number (0 for the whole file, then not printed).
         line: usize,
         /// What is wrong.
         message: String,
@@ -74,6 +74,23 @@ pub enum Error {
         path: PathBuf,
         /// What is wrong.
         message: String,
+    },
+    /// Views whose frames differ in size (refused before any decoding).
+    #[error(
+        "views have different sizes: view 0 ({}) is {}x{}, view {view} ({}) is {}x{}",
+        first.display(), first_size.0, first_size.1, path.display(), size.0, size.1
+    )]
+    ViewSizes {
+        /// View 0's path.
+        first: PathBuf,
+        /// View 0's frame size.
+        first_size: (u32, u32),
+        /// The first view of another size.
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+        /// Its frame size.
+        size: (u32, u32),
     },
     /// A value given on the command line or in a file that breaks its rule (the message names
     /// the flag or file with the number and the rule).

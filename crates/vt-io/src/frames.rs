@@ -73,6 +73,17 @@ impl ViewSource {
             ViewSource::Folder(f) => f,
         }
     }
+
+    /// Decodes every frame into memory, for short inputs used whole (`vt synth real`'s
+    /// source, tests); analysis streams views instead.
+    pub fn read_all(&mut self) -> Result<Vec<RgbImage>> {
+        let mut frames = Vec::new();
+        self.as_source().for_each_frame(&mut |_, f| {
+            frames.push(f.clone());
+            Ok(())
+        })?;
+        Ok(frames)
+    }
 }
 
 /// A video decoded by the `ffmpeg` program into raw RGB frames through a pipe.
@@ -390,6 +401,22 @@ impl FrameSource for FolderSource {
             }
         }
         Ok(n)
+    }
+}
+
+/// The frame size shared by every view (`sources[p]` opened from `paths[p]`), or
+/// [`Error::ViewSizes`] naming the first view of another size.
+pub fn common_size(paths: &[PathBuf], sources: &[ViewSource]) -> Result<(u32, u32)> {
+    let first_size = sources.first().map_or((0, 0), ViewSource::size);
+    match sources.iter().position(|s| s.size() != first_size) {
+        None => Ok(first_size),
+        Some(view) => Err(Error::ViewSizes {
+            first: paths[0].clone(),
+            first_size,
+            view,
+            path: paths[view].clone(),
+            size: sources[view].size(),
+        }),
     }
 }
 

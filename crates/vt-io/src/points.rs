@@ -103,6 +103,43 @@ pub fn read_points(path: &Path) -> Result<Vec<Vec<Point>>> {
     parse_points(&text, path)
 }
 
+/// How far beyond the frame's edges a marked point may lie, as a fraction of the frame's side.
+pub const POINT_MARGIN: f64 = 0.1;
+
+/// Reads the points file of `n_views` views of `size` (width, height): one line per view, and
+/// every point inside the frame or at most [`POINT_MARGIN`] of its side beyond an edge.
+pub fn read_for_views(path: &Path, n_views: usize, size: (u32, u32)) -> Result<Vec<Vec<Point>>> {
+    let err = |message: String| Error::Points {
+        path: path.to_path_buf(),
+        line: 0,
+        message,
+    };
+    let points = read_points(path)?;
+    if points.len() != n_views {
+        return Err(err(format!(
+            "{} lines of points, but {n_views} views were given (one line per view)",
+            points.len()
+        )));
+    }
+    let (w, h) = (size.0 as f64, size.1 as f64);
+    let (mx, my) = (POINT_MARGIN * w, POINT_MARGIN * h);
+    for (p, view) in points.iter().enumerate() {
+        for (k, pt) in view.iter().enumerate() {
+            if pt.x < -0.5 - mx || pt.x > w - 0.5 + mx || pt.y < -0.5 - my || pt.y > h - 0.5 + my {
+                return Err(err(format!(
+                    "view {p} point {k} ({}, {}) is outside the {}x{} frame (at most {:.0}% beyond its edges)",
+                    crate::output::num(pt.x),
+                    crate::output::num(pt.y),
+                    size.0,
+                    size.1,
+                    100.0 * POINT_MARGIN
+                )));
+            }
+        }
+    }
+    Ok(points)
+}
+
 /// Formats points in the file format (3 decimals).
 pub fn format_points(views: &[Vec<Point>]) -> String {
     let mut s = String::from(
@@ -154,7 +191,7 @@ mod tests {
         );
         check(
             "# nothing\n",
-            "p.txt:0: no points: expected one line of x y pairs per view",
+            "p.txt: no points: expected one line of x y pairs per view",
         );
     }
 

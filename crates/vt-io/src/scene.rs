@@ -204,7 +204,7 @@ fn nalgebra_matrix(h: &[[f64; 3]; 3]) -> nalgebra::Matrix3<f64> {
 }
 
 /// Eq. (2) tables, one entry per frame of this view.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct Transitions {
     /// `t_{p+1}(s, p)`: all null for the last view.
     pub next: Vec<Option<usize>>,
@@ -477,8 +477,10 @@ pub fn is_plain_file_name(name: &str) -> bool {
 }
 
 /// A scene loaded for rendering: its file, the renderer's view of it, and the object stores.
+/// Every table is held once: the transition tables move from `file` into `render`.
 pub struct LoadedScene {
-    /// scene.json.
+    /// scene.json, less its transition tables (each view's `transitions` is empty: the tables
+    /// are `render`'s `to_next`/`to_prev` and their seams).
     pub file: SceneFile,
     /// Backgrounds, loops, tables, points, model; shared (`Arc`) with the renderers made from it.
     pub render: std::sync::Arc<vt_core::render::RenderScene>,
@@ -540,6 +542,51 @@ impl LoadedScene {
         ))
     }
 
+    /// The frame rate to play at: the source's (scene.json's `fps`) when it is known and at most
+    /// `max`, else 30.
+    pub fn source_fps(&self, max: f64) -> f64 {
+        self.file
+            .fps
+            .filter(|f| f.is_finite() && *f > 0.0 && *f <= max)
+            .unwrap_or(30.0)
+    }
+
+    /// Plays the viewpoint path `qs` (one viewpoint per output frame) with a renderer of
+    /// `params`, handing every frame to `sink`, and scores each jump's seam
+    /// ([`LoadedScene::jump_seam`]). Frames are `file.width x file.height`.
+    pub fn play(
+        &self,
+        qs: &[f64],
+        params: vt_core::render::RenderParams,
+        sink: &mut (dyn FnMut(&image::RgbImage) -> Result<()> + Send),
+    ) -> Result<Playback> {
+        use vt_core::render::{Player, Renderer, Step};
+        let mut renderer = Renderer::new(self.render.clone(), params)?;
+        let (w, h) = renderer.size();
+        let mut player = Player::new();
+        let mut frame = image::RgbImage::new(w, h);
+        let mut seams = Vec::new();
+        let mask_steps = self.mask_steps();
+        // On a rayon worker, the renderer's parallel passes queue locally: no allocation per frame.
+        rayon::scope(|_| -> Result<()> {
+            for &q in qs {
+                let choice = player.advance(&self.render, q)?;
+                if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
+                    seams.extend(self.jump_seam(&choice, &mask_steps));
+                }
+                renderer.render_into(&self.objects, q, &choice, &mut frame)?;
+                sink(&frame)?;
+            }
+            Ok(())
+        })?;
+        Ok(Playback {
+            frames: qs.len(),
+            wraps: player.wraps,
+            switches: player.switches,
+            mean_seam: seams.iter().sum::<f64>() / seams.len().max(1) as f64,
+        })
+    }
+
     /// Loads and cross-checks every part of a scene directory.
     pub fn open(dir: &Path) -> Result<Self> {
         if !dir.is_dir() {
@@ -548,7 +595,7 @@ impl LoadedScene {
                 message: "not a scene directory (run `vt analyze` first)".into(),
             });
         }
-        let file = SceneFile::read(dir)?;
+        let mut file = SceneFile::read(dir)?;
         let mut views = Vec::new();
         let mut stores = Vec::new();
         for v in &file.views {
@@ -613,10 +660,11 @@ impl LoadedScene {
                 background,
                 loop_start: v.loop_.start,
                 loop_end: v.loop_.end,
-                to_next: v.transitions.next.clone(),
-                to_prev: v.transitions.prev.clone(),
-                to_next_seam: v.transitions.next_seam.clone(),
-                to_prev_seam: v.transitions.prev_seam.clone(),
+                // Moved in below, once the file is checked.
+                to_next: Vec::new(),
+                to_prev: Vec::new(),
+                to_next_seam: Vec::new(),
+                to_prev_seam: Vec::new(),
                 points: v
                     .refined_points
                     .as_ref()
@@ -638,10 +686,138 @@ impl LoadedScene {
                 message: "corrupted: views without points".into(),
             });
         }
+        for (view, entry) in views.iter_mut().zip(&mut file.views) {
+            let t = std::mem::take(&mut entry.transitions);
+            (view.to_next, view.to_prev) = (t.next, t.prev);
+            (view.to_next_seam, view.to_prev_seam) = (t.next_seam, t.prev_seam);
+        }
         Ok(Self {
             file,
             render: std::sync::Arc::new(vt_core::render::RenderScene { views, model }),
             objects: crate::objects::SceneObjects { stores },
         })
+    }
+}
+
+/// What [`LoadedScene::play`] played.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Playback {
+    /// Frames rendered.
+    pub frames: usize,
+    /// Loop wraps of the player.
+    pub wraps: u64,
+    /// View switches of the player.
+    pub switches: u64,
+    /// Mean seam score of the wraps and switches (0 when there were none).
+    pub mean_seam: f64,
+}
+
+/// `vt analyze`'s summary of an analysis: one table row per view (frames, loop, cost, seams,
+/// moving share, model, point rms), the seam score, motion kept, the model selection and the
+/// time per stage.
+pub struct AnalysisSummary<'a> {
+    /// The analysis.
+    pub analysis: &'a vt_core::analysis::SceneAnalysis,
+    /// Its scene.json (seams and point residuals of the links).
+    pub scene: &'a SceneFile,
+    /// Wall time of the whole run, seconds.
+    pub total_secs: f64,
+}
+
+impl std::fmt::Display for AnalysisSummary<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (a, scene, total_s) = (self.analysis, self.scene, self.total_secs);
+        writeln!(
+            f,
+            "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>9}  {:>11}  {:>7}  {:>9}  {:>8}",
+            "view",
+            "frames",
+            "loop (m, n)",
+            "length",
+            "cost",
+            "loop seam",
+            "switch seam",
+            "moving",
+            "model",
+            "rms px"
+        )?;
+        let model = a.model().map(|m| m.name()).unwrap_or("-");
+        for (p, v) in a.views.iter().enumerate() {
+            let rms = scene.views[p]
+                .to_next
+                .as_ref()
+                .map(|l| format!("{:.3}", l.rms))
+                .unwrap_or_else(|| "-".into());
+            let switch = scene.views[p]
+                .to_next
+                .as_ref()
+                .map(|l| format!("{:.3}", l.seam))
+                .unwrap_or_else(|| "-".into());
+            writeln!(
+                f,
+                "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>9.3}  {:>11}  {:>6.1}%  {:>9}  {:>8}",
+                p,
+                v.n_frames,
+                format!("({}, {})", v.best_loop.start, v.best_loop.end),
+                v.best_loop.len(),
+                v.best_loop.cost,
+                v.loop_seam,
+                switch,
+                100.0 * v.moving_fraction,
+                if p + 1 < a.views.len() { model } else { "-" },
+                rms
+            )?;
+        }
+        writeln!(f,
+        "seam score (mean over wraps and switches; 0 = invisible, 1 = one ordinary frame step): {:.3}",
+        scene.seam_score
+    )?;
+        let kept: Vec<String> = a
+            .views
+            .iter()
+            .map(|v| format!("{:.1}%", 100.0 * v.motion_kept))
+            .collect();
+        let dynamic: Vec<String> = a
+            .views
+            .iter()
+            .map(|v| format!("{:.1}%", 100.0 * v.dynamic_fraction))
+            .collect();
+        writeln!(f,
+        "motion kept (share of the real frame-to-frame change shown at each view): {}; dynamic region: {} of the image",
+        kept.join(" "),
+        dynamic.join(" ")
+    )?;
+        if let Some(sel) = &a.selection {
+            let scores: Vec<String> = sel
+                .scores
+                .iter()
+                .map(|(m, s)| format!("{m} {s:.1}"))
+                .collect();
+            writeln!(
+                f,
+                "model: {}{} (GRIC: {})",
+                sel.model,
+                if sel.forced { ", forced" } else { "" },
+                scores.join(", ")
+            )?;
+        }
+        let vt_core::analysis::Timings {
+            decode,
+            median,
+            masks,
+            loops,
+            homographies,
+            transitions,
+        } = a.timings;
+        writeln!(f,
+        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2})",
+        decode.as_secs_f64(),
+        median.as_secs_f64(),
+        masks.as_secs_f64(),
+        loops.as_secs_f64(),
+        homographies.as_secs_f64(),
+        transitions.as_secs_f64()
+    )?;
+        Ok(())
     }
 }

@@ -29,6 +29,31 @@ fn spawn_err(tool: &str, path: &Path, e: std::io::Error) -> Error {
     )
 }
 
+/// Whether the `ffmpeg` program runs (`ffmpeg -version` succeeds).
+pub fn ffmpeg_available() -> bool {
+    Command::new("ffmpeg")
+        .arg("-version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// The frame rate of a scene's views: the median of each video's [`median_frame_rate`] (None
+/// for frame folders, or when no video has timestamps).
+pub fn views_frame_rate(views: &[std::path::PathBuf]) -> Option<f64> {
+    let mut rates: Vec<f64> = views
+        .iter()
+        .filter(|v| v.is_file())
+        .filter_map(|v| median_frame_rate(v).ok().flatten())
+        .collect();
+    if rates.is_empty() {
+        return None;
+    }
+    rates.sort_by(f64::total_cmp);
+    Some(rates[(rates.len() - 1) / 2])
+}
+
 /// Frames per second of a video: one over the median interval between consecutive frame
 /// timestamps (packets, in presentation order). None when the video has fewer than two frames
 /// or no usable timestamps.

@@ -288,12 +288,7 @@ mod tests {
     use super::*;
 
     fn has_ffmpeg() -> bool {
-        Command::new("ffmpeg")
-            .arg("-version")
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success())
+        crate::video::ffmpeg_available()
     }
 
     #[test]

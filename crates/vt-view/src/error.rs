@@ -6,9 +6,17 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// What can stop the viewer from starting.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// A viewer parameter out of its range (the message names it with its value).
-    #[error("{0}")]
-    Param(String),
+    /// A viewer parameter out of its range: [`ViewerParams`](crate::ViewerParams)'s field
+    /// `name` (also `vt view`'s flag), its value and the rule it breaks.
+    #[error("{name} {value} {why}")]
+    Param {
+        /// The field.
+        name: &'static str,
+        /// Its value, formatted.
+        value: String,
+        /// The rule, e.g. "must be in 1..=100".
+        why: String,
+    },
     /// The port cannot be listened on. The OS error is part of the message, not also `source()`.
     #[error("port {port}: cannot listen on 127.0.0.1: {cause}")]
     Listen {

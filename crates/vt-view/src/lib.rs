@@ -79,8 +79,12 @@ struct Shared {
     fresh: Condvar,
 }
 
+/// Fastest frame rate the viewer streams at speed 1.
+pub const MAX_FPS: f64 = 240.0;
+
 /// What the viewer shows and how: the scene's renderer settings, the starting viewpoint, the
-/// frame rate at speed 1 and the JPEG quality. Checked by [`Viewer::bind`].
+/// frame rate at speed 1 (at most [`MAX_FPS`]) and the JPEG quality. Checked by
+/// [`Viewer::bind`].
 #[derive(Debug, Clone)]
 pub struct ViewerParams {
     /// Port on 127.0.0.1 (0 = any free port; [`Viewer::port`] says which).
@@ -108,25 +112,22 @@ impl Viewer {
     /// Checks the parameters, starts the render thread and binds 127.0.0.1:`port`. `name` is the
     /// scene's name as the page shows it.
     pub fn bind(scene: LoadedScene, name: &str, params: &ViewerParams) -> Result<Self> {
-        if !(params.fps.is_finite() && params.fps > 0.0 && params.fps <= 240.0) {
-            return Err(Error::Param(format!(
-                "frame rate {} must be in (0, 240]",
-                vt_io::output::num(params.fps)
-            )));
+        let num = vt_io::output::num;
+        let bad = |name, value, why: String| Err(Error::Param { name, value, why });
+        if !(params.fps.is_finite() && params.fps > 0.0 && params.fps <= MAX_FPS) {
+            return bad("fps", num(params.fps), format!("must be in (0, {MAX_FPS}]"));
         }
         if !(1..=100).contains(&params.quality) {
-            return Err(Error::Param(format!(
-                "JPEG quality {} must be in 1..=100",
-                params.quality
-            )));
+            return bad(
+                "quality",
+                params.quality.to_string(),
+                "must be in 1..=100".into(),
+            );
         }
         if scene.render.check_q(params.q).is_err() {
-            return Err(Error::Param(format!(
-                "viewpoint {} is outside [0, {}] (the scene has {} views)",
-                vt_io::output::num(params.q),
-                scene.render.q_max(),
-                scene.render.views.len()
-            )));
+            let (q_max, n) = (scene.render.q_max(), scene.render.views.len());
+            let why = format!("is outside [0, {q_max}] (the scene has {n} views)");
+            return bad("q", num(params.q), why);
         }
         let q_max = scene.render.q_max();
         let renderer = Renderer::new(scene.render.clone(), params.render)?;
