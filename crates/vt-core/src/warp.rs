@@ -462,7 +462,7 @@ impl<'a> Sampler<'a> {
     /// plain warps write.
     #[inline(always)]
     pub fn run_packed(&self, y: usize, x0: usize, n: usize, run: &mut Run, out: &mut [u32; CHUNK]) {
-        if !self.taps(y, x0, n, run) {
+        if !self.taps_with::<false>(y, x0, n, run) {
             out.fill(0);
             return;
         }
@@ -506,22 +506,34 @@ impl<'a> Sampler<'a> {
     /// source. [`sample_value`] then gives the values of [`Sampler::run`].
     #[inline(always)]
     pub fn taps(&self, y: usize, x0: usize, n: usize, run: &mut Run) -> bool {
+        self.taps_with::<true>(y, x0, n, run)
+    }
+
+    /// [`Sampler::taps`]; without `INSIDE` the states only tell [`state::NONE`] from a sample
+    /// ([`state::OUTSIDE`] for every sample), which is all the plain warps need.
+    #[inline(always)]
+    fn taps_with<const INSIDE: bool>(&self, y: usize, x0: usize, n: usize, run: &mut Run) -> bool {
         debug_assert!(n <= CHUNK);
         if self.sw == 0 || self.sh == 0 {
             run.state[..n].fill(state::NONE);
             return false;
         }
         match self.interp {
-            Interpolation::BilinearFixed => self.coords_fixed(y, x0, run),
-            Interpolation::Nearest => self.coords_float::<true>(y, x0, run),
-            Interpolation::Bilinear => self.coords_float::<false>(y, x0, run),
+            Interpolation::BilinearFixed => self.coords_fixed::<INSIDE>(y, x0, run),
+            Interpolation::Nearest => self.coords_float::<true, INSIDE>(y, x0, run),
+            Interpolation::Bilinear => self.coords_float::<false, INSIDE>(y, x0, run),
         }
         self.gather(n, run, self.interp != Interpolation::Nearest);
         true
     }
 
     #[inline(always)]
-    fn coords_float<const NEAREST: bool>(&self, y: usize, x0: usize, run: &mut Run) {
+    fn coords_float<const NEAREST: bool, const INSIDE: bool>(
+        &self,
+        y: usize,
+        x0: usize,
+        run: &mut Run,
+    ) {
         match self.mapping {
             Mapping::Reciprocal => map_reciprocal(&self.m, y, x0, &mut run.sx, &mut run.sy),
             Mapping::Division => map_division(&self.m, y, x0, &mut run.sx, &mut run.sy),
@@ -536,7 +548,7 @@ impl<'a> Sampler<'a> {
         for i in 0..CHUNK {
             let (sx, sy) = (run.sx[i], run.sy[i]);
             let valid = sx.abs() <= limit && sy.abs() <= limit;
-            let inside = sx >= -0.5 && sy >= -0.5 && sx < swf - 0.5 && sy < shf - 0.5;
+            let inside = INSIDE && sx >= -0.5 && sy >= -0.5 && sx < swf - 0.5 && sy < shf - 0.5;
             run.state[i] = if !valid {
                 state::NONE
             } else if inside {
@@ -560,12 +572,12 @@ impl<'a> Sampler<'a> {
     }
 
     #[inline(always)]
-    fn coords_fixed(&self, y: usize, x0: usize, run: &mut Run) {
+    fn coords_fixed<const INSIDE: bool>(&self, y: usize, x0: usize, run: &mut Run) {
         map_fixed(&self.m, y, x0, self.block_w, &mut run.ix, &mut run.iy);
         let (swq, shq) = (self.sw as i32 * 32 - 16, self.sh as i32 * 32 - 16);
         for i in 0..CHUNK {
             let (qx, qy) = (run.ix[i], run.iy[i]);
-            let inside = qx >= -16 && qy >= -16 && qx < swq && qy < shq;
+            let inside = INSIDE && qx >= -16 && qy >= -16 && qx < swq && qy < shq;
             run.state[i] = if inside {
                 state::INSIDE
             } else {
