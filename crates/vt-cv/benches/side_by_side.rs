@@ -1,6 +1,8 @@
 //! vt-core and vt-cv (OpenCV) side by side on the same inputs, one criterion group per
 //! operation, then a table of time ratios (vt-core / OpenCV) from a short `Instant` loop
-//! (median of several runs), so the ratio can be read without digging in criterion's files.
+//! (median of several runs), so the ratio can be read without digging in criterion's files:
+//! wall-clock and CPU time (all threads, from the scheduler's counters) per call, with the load
+//! average, since on a shared machine the CPU times are the figures the load does not move.
 //!
 //! Inputs follow the thesis's scale: 640x360 frames, a 3x3 Gaussian, 100 frames for the median
 //! (at 320x180 to bound memory), 200 masks for the XOR cost matrix.
@@ -58,18 +60,41 @@ fn homography() -> Homography {
     .expect("well-conditioned")
 }
 
-/// Median of 11 runs of `f` (after one warm-up run).
-fn time(mut f: impl FnMut()) -> Duration {
+/// CPU time of this process so far, nanoseconds (all threads: rayon's and OpenCV's pools
+/// alike), from the scheduler's counters.
+fn cpu_ns() -> u64 {
+    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
+        return 0;
+    };
+    tasks
+        .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("schedstat")).ok())
+        .filter_map(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+        .sum()
+}
+
+/// Median wall time and median CPU time (all threads) per call of `f`, over 11 samples of
+/// enough calls to last about 5 ms each (after warm-up calls).
+fn time(mut f: impl FnMut()) -> (Duration, Duration) {
+    let t = Instant::now();
     f();
-    let mut v: Vec<Duration> = (0..11)
+    f();
+    let once = t.elapsed() / 2;
+    let reps = (5_000_000 / once.as_nanos().max(1)).clamp(1, 1000) as u32;
+    let (mut wall, mut cpu): (Vec<Duration>, Vec<Duration>) = (0..11)
         .map(|_| {
-            let t = Instant::now();
-            f();
-            t.elapsed()
+            let (t, c) = (Instant::now(), cpu_ns());
+            for _ in 0..reps {
+                f();
+            }
+            (
+                t.elapsed() / reps,
+                Duration::from_nanos((cpu_ns() - c) / reps as u64),
+            )
         })
-        .collect();
-    v.sort();
-    v[5]
+        .unzip();
+    wall.sort();
+    cpu.sort();
+    (wall[5], cpu[5])
 }
 
 struct Case {
@@ -254,9 +279,19 @@ fn side_by_side(c: &mut Criterion) {
 }
 
 fn ratios() {
-    println!("\nvt-core / OpenCV time ratio (median of 11 runs each; > 1 means vt-core is slower)");
-    println!("| operation | vt-core | OpenCV | ratio |");
-    println!("| --- | --- | --- | --- |");
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    let load: Vec<&str> = load.split_whitespace().take(3).collect();
+    println!(
+        "\nvt-core / OpenCV time ratio (median of 11 samples each; > 1 means vt-core is slower); \
+         load average {}",
+        load.join(" ")
+    );
+    println!(
+        "wall: elapsed time per call (both sides use every core); cpu: CPU time per call summed \
+         over all threads, which the other processes on a shared machine do not inflate"
+    );
+    println!("| operation | vt-core | OpenCV | ratio | vt-core cpu | OpenCV cpu | cpu ratio |");
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
     // A filter argument (as for criterion: `cargo bench -p vt-cv -- blur`) limits the table too.
     let filter: Vec<String> = std::env::args()
         .skip(1)
@@ -266,13 +301,16 @@ fn ratios() {
         if !filter.is_empty() && !filter.iter().any(|f| case.name.contains(f.as_str())) {
             continue;
         }
-        let (a, b) = (time(&mut case.vt), time(&mut case.cv));
+        let ((a, ac), (b, bc)) = (time(&mut case.vt), time(&mut case.cv));
         println!(
-            "| {} | {:.2?} | {:.2?} | {:.2} |",
+            "| {} | {:.2?} | {:.2?} | {:.2} | {:.2?} | {:.2?} | {:.2} |",
             case.name,
             a,
             b,
-            a.as_secs_f64() / b.as_secs_f64()
+            a.as_secs_f64() / b.as_secs_f64(),
+            ac,
+            bc,
+            ac.as_secs_f64() / bc.as_secs_f64()
         );
     }
 }
