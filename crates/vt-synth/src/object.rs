@@ -464,6 +464,9 @@ pub fn ring_camera(p: &SceneParams, angle_deg: f64) -> Result<PinholeCamera, Str
     )
 }
 
+/// Cameras, photos and masks of a set of viewpoints.
+type Shots = (Vec<PinholeCamera>, Vec<RgbImage>, Vec<Mask>);
+
 /// Ray casts the default [`SynthObject`] from `n_views` ring cameras and the extra viewpoints.
 pub fn generate(p: &SceneParams) -> Result<SynthData, String> {
     if p.n_views == 0 || p.width == 0 || p.height == 0 {
@@ -473,7 +476,7 @@ pub fn generate(p: &SceneParams) -> Result<SynthData, String> {
         ));
     }
     let object = SynthObject::default();
-    let shoot = |angles: &[f64]| -> Result<(Vec<PinholeCamera>, Vec<RgbImage>, Vec<Mask>), String> {
+    let shoot = |angles: &[f64]| -> Result<Shots, String> {
         let mut out = (Vec::new(), Vec::new(), Vec::new());
         for &a in angles {
             let cam = ring_camera(p, a)?;
