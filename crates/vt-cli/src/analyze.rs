@@ -9,9 +9,9 @@ use vt_core::analysis::{analyze, AnalyzeParams, MaskParams};
 use vt_core::blur::GaussianParams;
 use vt_core::loops::LoopParams;
 use vt_core::model::{ModelParams, MotionModel};
-use vt_io::frames::{write_png, ViewSource};
+use vt_io::frames::ViewSource;
 use vt_io::output::{Output, OutputKind};
-use vt_io::scene::{background_name, AnalysisSummary, SceneFile};
+use vt_io::scene::{write_analysis, AnalysisSummary, SceneFile};
 
 use crate::progress::AnalysisObserver;
 
@@ -203,13 +203,8 @@ pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
         _ => e.into(),
     })?;
     observer.finish_objects()?;
-    for (p, v) in analysis.views.iter().enumerate() {
-        write_png(&dir.path().join(background_name(p)), &v.background)?;
-    }
-    vt_io::scene::write_dynamic(dir.path(), &analysis)?;
-    let mut scene = SceneFile::from_analysis(&analysis, &points, &params);
-    scene.fps = vt_io::video::views_frame_rate(&args.views);
-    scene.write(dir.path())?;
+    let fps = vt_io::video::views_frame_rate(&args.views);
+    let scene = write_analysis(dir.path(), &analysis, &points, &params, fps)?;
     dir.commit()?;
     let total_secs = started.elapsed().as_secs_f64();
     print!(

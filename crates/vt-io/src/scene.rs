@@ -229,6 +229,26 @@ pub fn dynamic_name(p: usize) -> String {
     format!("dynamic_{p:03}.png")
 }
 
+/// Writes an analysis into a scene directory (whose object stores
+/// [`crate::objects::StoreWriter`] wrote as the masks arrived): each view's median background,
+/// its dynamic-region alpha, and scene.json with the views' source frame rate `fps`.
+pub fn write_analysis(
+    dir: &Path,
+    a: &SceneAnalysis,
+    points: &[Vec<Point>],
+    params: &AnalyzeParams,
+    fps: Option<f64>,
+) -> Result<SceneFile> {
+    for (p, v) in a.views.iter().enumerate() {
+        crate::frames::write_png(&dir.join(background_name(p)), &v.background)?;
+    }
+    write_dynamic(dir, a)?;
+    let mut scene = SceneFile::from_analysis(a, points, params);
+    scene.fps = fps;
+    scene.write(dir)?;
+    Ok(scene)
+}
+
 /// Writes the dynamic-region alpha images of an analysis into a scene directory.
 pub fn write_dynamic(dir: &Path, a: &SceneAnalysis) -> Result<()> {
     for (p, v) in a.views.iter().enumerate() {

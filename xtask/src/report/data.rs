@@ -11,7 +11,7 @@ use image::RgbImage;
 use vt_core::analysis::{analyze, AnalyzeParams, MemorySource, SceneAnalysis};
 use vt_core::{Mask, Point};
 use vt_io::objects::StoreWriter;
-use vt_io::scene::{background_name, LoadedScene, SceneFile};
+use vt_io::scene::LoadedScene;
 use vt_synth::{TextureParams, TextureScene};
 
 use super::Ctx;
@@ -42,11 +42,7 @@ pub fn build_scene(
     let analysis = analyze(&mut refs, points, params, &mut store)?;
     let secs = t.elapsed().as_secs_f64();
     store.finish()?;
-    for (p, v) in analysis.views.iter().enumerate() {
-        vt_io::frames::write_png(&dir.join(background_name(p)), &v.background)?;
-    }
-    vt_io::scene::write_dynamic(dir, &analysis)?;
-    SceneFile::from_analysis(&analysis, points, params).write(dir)?;
+    vt_io::scene::write_analysis(dir, &analysis, points, params, None)?;
     let loaded = LoadedScene::open(dir)?;
     Ok((analysis, secs, loaded))
 }
