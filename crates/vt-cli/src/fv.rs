@@ -46,14 +46,13 @@ pub struct DataArgs {
     /// when it exists, else threshold the photos.
     #[arg(long)]
     masks: Option<PathBuf>,
-    /// Threshold silhouettes at this fraction of full scale (Middlebury: 0.19; then dilate 10 px,
-    /// erode 7 px).
+    /// Threshold the silhouettes the model is carved from at this fraction of full scale
+    /// (Middlebury: 0.19).
     #[arg(long, default_value_t = 0.19)]
     threshold: f64,
     /// Thresholded silhouettes the model is carved from: dilate by this many pixels (the
     /// Middlebury recipe's 10 px dilation then 7 px erosion closes the gaps between the
-    /// temple's columns, so carving keeps them filled; scores are always measured inside the
-    /// recipe's silhouettes).
+    /// temple's columns, so carving keeps them filled).
     #[arg(long, default_value_t = 3)]
     carve_dilate: u32,
     /// Thresholded silhouettes the model is carved from: then erode by this many pixels.
@@ -62,6 +61,17 @@ pub struct DataArgs {
     /// Scale the photos (and cameras) by this factor first, e.g. 0.5 for half size.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
+    /// Thresholded silhouettes scores are measured inside (eval): threshold as a fraction of
+    /// full scale (0.25 leaves out the temple's lit background cloth, which 0.19 takes in; the
+    /// Middlebury recipe is 0.19 with dilate 10, erode 7).
+    #[arg(long, default_value_t = 0.25)]
+    score_threshold: f64,
+    /// Scoring silhouettes: dilate by this many pixels.
+    #[arg(long, default_value_t = 5)]
+    score_dilate: u32,
+    /// Scoring silhouettes: then erode by this many pixels.
+    #[arg(long, default_value_t = 5)]
+    score_erode: u32,
 }
 
 /// How to build the voxel model.
@@ -238,6 +248,11 @@ impl DataArgs {
             carve_dilate: self.carve_dilate,
             carve_erode: self.carve_erode,
             scale: self.scale,
+            score: vt_fv::silhouette::SilhouetteParams {
+                threshold: self.score_threshold,
+                dilate: self.score_dilate,
+                erode: self.score_erode,
+            },
         };
         opt.check().map_err(flag)?;
         if let Some(d) = self.masks.as_ref().filter(|d| !d.is_dir()) {

@@ -4,8 +4,9 @@
 //! cargo run --release -p vt-fv --example loo -- DATA VIEWS GRID [CONFIG...]
 //! ```
 //!
-//! DATA: a folder with one `*_par.txt` and its images (silhouettes by the Middlebury
-//! threshold); VIEWS: `1,2,3` (0-based); GRID: voxels along the longest side; CONFIG:
+//! DATA: a folder with one `*_par.txt` and its images (scored inside
+//! `SilhouetteParams::scoring()` unless the keys `sthr`, `sdil`, `sero` say otherwise, carved
+//! from `SilhouetteParams::carving()` unless `dil`/`ero`/`thr` say otherwise); VIEWS: `1,2,3` (0-based); GRID: voxels along the longest side; CONFIG:
 //! `name:key=value,...` with keys `method` (textured|paper|refine), `refs`, `smooth`, `sweep`,
 //! `step`, `window`, `fill`, `tol`, `threshold`, `keep` (0|1), `patch`. Prints one row per view
 //! and configuration, then the means.
@@ -36,10 +37,6 @@ fn main() {
         .iter()
         .map(|c| image::open(dir.join(&c.name)).unwrap().to_rgb8())
         .collect();
-    let masks: Vec<_> = images
-        .iter()
-        .map(|i| threshold_silhouette(i, &SilhouetteParams::default()))
-        .collect();
     let views: Vec<usize> = args[2].split(',').map(|v| v.parse().unwrap()).collect();
     let grid: usize = args[3].parse().unwrap();
     let configs: Vec<String> = if args.len() > 4 {
@@ -52,13 +49,14 @@ fn main() {
         let (name, kv) = cfg.split_once(':').unwrap_or((cfg, ""));
         let mut view = ViewParams::default();
         let mut photo = PhotoParams::default();
-        let mut sil = SilhouetteParams::default();
+        let mut sil = SilhouetteParams::carving();
+        let mut scoring = SilhouetteParams::scoring();
         for pair in kv.split(',').filter(|p| !p.is_empty()) {
             let (k, v) = pair.split_once('=').expect("key=value");
             let f = || v.parse::<f64>().unwrap();
             match k {
                 "method" => match v {
-                    "paper" => view.method = Method::Paper,
+                    "paper" => view = ViewParams::paper(view.guided.clone()),
                     "refine" => view.refine = true,
                     _ => view.method = Method::Textured,
                 },
@@ -75,12 +73,26 @@ fn main() {
                 "threshold" => photo.threshold = f(),
                 "keep" => photo.keep_silhouettes = f() != 0.0,
                 "dil" => sil.dilate = f() as u32,
+                "thr" => sil.threshold = f(),
+                "sthr" => scoring.threshold = f(),
+                "sdil" => scoring.dilate = f() as u32,
+                "sero" => scoring.erode = f() as u32,
+                "clip" => {
+                    if f() == 0.0 {
+                        view.clip = None
+                    }
+                }
+                "pthr" => photo.threshold = f(),
                 "ero" => sil.erode = f() as u32,
                 "patch" => view.guided = GuidedParams::fast_for(f() as usize),
                 _ => panic!("unknown key {k}"),
             }
         }
-        // Silhouettes for the model (the scored view keeps the Middlebury recipe's).
+        let masks: Vec<_> = images
+            .iter()
+            .map(|i| threshold_silhouette(i, &scoring))
+            .collect();
+        // Silhouettes for the model (the scored view keeps the scoring ones).
         let model_masks: Vec<_> = images
             .iter()
             .map(|i| threshold_silhouette(i, &sil))
@@ -100,18 +112,6 @@ fn main() {
                 ..Default::default()
             };
             let (r, imgs) = leave_one_out(&cams, &images, &mm, k, &hull, &photo, &view).unwrap();
-            for sigma in [1.0] {
-                let b = vt_core::blur::gaussian_blur(
-                    &imgs.guided,
-                    &vt_core::blur::GaussianParams { ksize: 13, sigma },
-                )
-                .unwrap();
-                let sc = vt_fv::pipeline::score(&b, &imgs.truth, &masks[k]).unwrap();
-                println!(
-                    "   guided blurred sigma {sigma}: {:.2} dB {:.3}",
-                    sc.inside.psnr, sc.inside.ssim
-                );
-            }
             if let Ok(out) = std::env::var("VT_SAVE") {
                 let e = vt_fv::pipeline::error_map(&imgs.guided, &imgs.truth, &masks[k]);
                 e.save(format!("{out}/{name}_{k}_error.png")).unwrap();

@@ -59,7 +59,8 @@ pub struct DataOptions {
     /// Folder of silhouette images named like the photos (non-zero = object). `None`: the data
     /// folder's `masks/` when it exists, else threshold the photos.
     pub masks: Option<PathBuf>,
-    /// Threshold of the Middlebury recipe, a fraction of full scale (0.19).
+    /// Threshold of the silhouettes the model is carved from, a fraction of full scale (0.19,
+    /// the Middlebury recipe's).
     pub threshold: f64,
     /// Thresholded silhouettes the model is carved from: dilation radius (3).
     pub carve_dilate: u32,
@@ -67,6 +68,10 @@ pub struct DataOptions {
     pub carve_erode: u32,
     /// Scale factor applied to photos, silhouettes and cameras (1).
     pub scale: f64,
+    /// Thresholded silhouettes scores are measured inside
+    /// ([`SilhouetteParams::scoring`]: 0.25, dilate 5, erode 5; the Middlebury recipe is 0.19,
+    /// 10, 7).
+    pub score: SilhouetteParams,
 }
 
 impl Default for DataOptions {
@@ -78,6 +83,7 @@ impl Default for DataOptions {
             carve_dilate: carving.dilate,
             carve_erode: carving.erode,
             scale: 1.0,
+            score: SilhouetteParams::scoring(),
         }
     }
 }
@@ -99,13 +105,20 @@ impl DataOptions {
         for (name, r) in [
             ("carve_dilate", self.carve_dilate),
             ("carve_erode", self.carve_erode),
+            ("score_dilate", self.score.dilate),
+            ("score_erode", self.score.erode),
         ] {
             if r > 100 {
                 return Err(bad(name, r, "at most 100 pixels"));
             }
         }
-        if !(0.0..1.0).contains(&self.threshold) {
-            return Err(bad("threshold", self.threshold, "must be in [0, 1)"));
+        for (name, t) in [
+            ("threshold", self.threshold),
+            ("score_threshold", self.score.threshold),
+        ] {
+            if !(0.0..1.0).contains(&t) {
+                return Err(bad(name, t, "must be in [0, 1)"));
+            }
         }
         Ok(())
     }
@@ -122,7 +135,7 @@ pub struct Dataset {
     pub images: Vec<RgbImage>,
     /// Silhouettes the model is carved from.
     pub masks: Vec<Mask>,
-    /// Silhouettes scores are measured inside (the Middlebury recipe when thresholding; the
+    /// Silhouettes scores are measured inside ([`DataOptions::score`] when thresholding; the
     /// same as `masks` for supplied mask images).
     pub score_masks: Vec<Mask>,
     /// Where the silhouettes came from, in words.
@@ -230,18 +243,20 @@ impl Dataset {
         let silhouettes = match &mask_dir {
             Some(d) => format!("mask images in {}", d.display()),
             None => format!(
-                "photos thresholded at {} (carving: dilate {}, erode {}; scoring: dilate 10, erode 7)",
-                opt.threshold, opt.carve_dilate, opt.carve_erode
+                "photos thresholded (carving: at {}, dilate {}, erode {}; scoring: at {}, dilate {}, erode {})",
+                opt.threshold,
+                opt.carve_dilate,
+                opt.carve_erode,
+                opt.score.threshold,
+                opt.score.dilate,
+                opt.score.erode
             ),
         };
-        let recipe = SilhouetteParams {
-            threshold: opt.threshold,
-            ..Default::default()
-        };
+        let scoring = opt.score.clone();
         let carve = SilhouetteParams {
+            threshold: opt.threshold,
             dilate: opt.carve_dilate,
             erode: opt.carve_erode,
-            ..recipe.clone()
         };
         let loaded: Vec<(RgbImage, Mask, Mask)> = cams
             .par_iter()
@@ -255,7 +270,7 @@ impl Dataset {
                     }
                     None => (
                         threshold_silhouette(&img, &carve),
-                        threshold_silhouette(&img, &recipe),
+                        threshold_silhouette(&img, &scoring),
                     ),
                 };
                 if opt.scale == 1.0 {

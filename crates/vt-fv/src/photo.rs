@@ -33,8 +33,10 @@ use crate::{Error, Result};
 #[derive(Debug, Clone, PartialEq)]
 pub struct PhotoParams {
     /// Largest per-channel standard deviation (0..255) of a voxel's colour samples across the
-    /// cameras that see it for the voxel to count as photo-consistent (20). Lower carves more
-    /// (and risks holes under lighting changes); higher keeps the visual hull.
+    /// cameras that see it for the voxel to count as photo-consistent (15: with silhouette
+    /// keeping a lower threshold carves concavities without losing thin parts; the temple's
+    /// worst view goes from IoU 0.897 at 20 to 0.901). Lower carves more (and risks holes under
+    /// lighting changes); higher keeps the visual hull.
     pub threshold: f64,
     /// Most carving passes (1000, a safety cap: the synthetic object converges in about 80 at
     /// 256^3); 0 skips carving and only colours the visual hull's surface.

@@ -10,7 +10,7 @@ use crate::eval::{psnr, ssim};
 use crate::guided::{guided_synthesis, GuidedParams};
 use crate::hull::{visual_hull, HullParams};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
-use crate::render::{render_rough, Rendered};
+use crate::render::{clip_to_silhouettes, render_rough, ClipParams, Rendered};
 use crate::silhouette::Mask;
 use crate::texture::{model_centre, nearest_by_direction, texture_view, TextureParams};
 use crate::{Error, Result};
@@ -52,6 +52,10 @@ pub struct ViewParams {
     /// [`Method::Textured`]: run guided synthesis from the nearest photo with the textured view
     /// as the guide.
     pub refine: bool,
+    /// Trim the rough render to the visual hull at pixel accuracy when the reference
+    /// silhouettes are given ([`novel_view_in`]; `Some` by default, `None` = splats as they
+    /// fall).
+    pub clip: Option<ClipParams>,
 }
 
 impl Default for ViewParams {
@@ -61,6 +65,7 @@ impl Default for ViewParams {
             guided: GuidedParams::fast_for(7),
             texture: TextureParams::default(),
             refine: false,
+            clip: Some(ClipParams::default()),
         }
     }
 }
@@ -75,11 +80,13 @@ impl ViewParams {
         }
     }
 
-    /// The paper's method with these synthesis settings.
+    /// The paper's method with these synthesis settings (the rough render as the paper makes
+    /// it: splats, no [`ViewParams::clip`]).
     pub fn paper(guided: GuidedParams) -> Self {
         Self {
             method: Method::Paper,
             guided,
+            clip: None,
             ..Self::default()
         }
     }
@@ -162,7 +169,7 @@ pub struct NovelView {
     pub guided: RgbImage,
     /// The nearest reference photo (the synthesis input), index into the cameras.
     pub reference: usize,
-    /// Seconds per stage, in order: rough render, texturing, synthesis.
+    /// Seconds per stage, in order: rough render, clip (with silhouettes), texturing, synthesis.
     pub times: Vec<(&'static str, f64)>,
 }
 
@@ -196,6 +203,32 @@ pub fn novel_view(
     h: u32,
     p: &ViewParams,
 ) -> Result<NovelView> {
+    novel_view_in(model, cams, images, None, cam, w, h, p)
+}
+
+/// [`novel_view`] with the reference cameras' silhouettes (the ones the model was carved
+/// from): the rough render is then trimmed to them at pixel accuracy as [`ViewParams::clip`]
+/// says ([`clip_to_silhouettes`]) before anything is made from it.
+#[allow(clippy::too_many_arguments)]
+pub fn novel_view_in(
+    model: &VoxelModel,
+    cams: &[Camera],
+    images: &[RgbImage],
+    silhouettes: Option<&[Mask]>,
+    cam: &Camera,
+    w: u32,
+    h: u32,
+    p: &ViewParams,
+) -> Result<NovelView> {
+    if let Some(m) = silhouettes {
+        if m.len() != cams.len() {
+            return Err(Error::CountMismatch {
+                what: "cameras vs silhouettes".into(),
+                a: cams.len(),
+                b: m.len(),
+            });
+        }
+    }
     let reference = nearest_reference(cams, cam).ok_or(Error::TooFew {
         what: "reference cameras".into(),
         got: 0,
@@ -203,8 +236,13 @@ pub fn novel_view(
     })?;
     let mut times = Vec::new();
     let t = Instant::now();
-    let rough = render_rough(model, cam, w, h);
+    let mut rough = render_rough(model, cam, w, h);
     times.push(("rough render", t.elapsed().as_secs_f64()));
+    if let (Some(m), Some(c)) = (silhouettes, &p.clip) {
+        let t = Instant::now();
+        clip_to_silhouettes(&mut rough, model, cam, cams, m, c);
+        times.push(("clip", t.elapsed().as_secs_f64()));
+    }
     let (guide, reference, synthesise) = match p.method {
         Method::Paper => (rough.image.clone(), reference, true),
         Method::Textured => {
@@ -335,7 +373,7 @@ pub struct EvalReport {
     pub silhouette_iou: f64,
     /// Surface voxels of the model.
     pub surface_voxels: usize,
-    /// Seconds per stage: visual hull, photo hull, rough render, texturing, synthesis, scoring.
+    /// Seconds per stage: visual hull, photo hull, rough render, clip, texturing, synthesis, scoring.
     pub times: Vec<(&'static str, f64)>,
 }
 
@@ -364,7 +402,7 @@ impl EvalReport {
 
     /// Seconds to make the new view (render, texturing, synthesis).
     pub fn view_secs(&self) -> f64 {
-        self.stage_secs(&["rough render", "texturing", "synthesis"])
+        self.stage_secs(&["rough render", "clip", "texturing", "synthesis"])
     }
 
     fn stage_secs(&self, names: &[&str]) -> f64 {
@@ -500,7 +538,7 @@ pub(crate) fn leave_one_out_from(
     )?;
     times.push(("photo hull", t.elapsed().as_secs_f64()));
     let (w, h) = truth.dimensions();
-    let v = novel_view(&model, sub_cams, sub_imgs, cam, w, h, view)?;
+    let v = novel_view_in(&model, sub_cams, sub_imgs, Some(sub_masks), cam, w, h, view)?;
     times.extend(v.times.iter().copied());
     let t = Instant::now();
     // The baseline photo: nearest by direction from the object, as the texturing picks it.
