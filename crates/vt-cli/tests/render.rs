@@ -389,3 +389,32 @@ fn crossfade_softens_real_loop_wraps() {
         "crossfade should soften the wrap: {plain:.3} -> {faded:.3}"
     );
 }
+
+#[test]
+fn loaded_scene_holds_each_transition_table_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (dir, _) = scene(tmp.path(), "once", &[]);
+    let on_disk = vt_io::scene::SceneFile::read(&dir).unwrap();
+    let loaded = LoadedScene::open(&dir).unwrap();
+    for (p, (file, view)) in on_disk.views.iter().zip(&loaded.render.views).enumerate() {
+        let t = &file.transitions;
+        assert!(
+            t.next.iter().chain(&t.prev).any(Option::is_some),
+            "view {p}: no tables"
+        );
+        assert_eq!(
+            (&view.to_next, &view.to_prev),
+            (&t.next, &t.prev),
+            "view {p}"
+        );
+        assert_eq!(view.to_next_seam, t.next_seam, "view {p}");
+        assert_eq!(view.to_prev_seam, t.prev_seam, "view {p}");
+        // Moved, not copied: the loaded file keeps none.
+        let kept = &loaded.file.views[p].transitions;
+        assert!(
+            kept.next.is_empty() && kept.prev.is_empty(),
+            "view {p}: tables held twice"
+        );
+        assert!(kept.next_seam.is_empty() && kept.prev_seam.is_empty());
+    }
+}
