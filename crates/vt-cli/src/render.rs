@@ -46,6 +46,10 @@ pub struct RenderOptions {
     /// Crossfade the object over this many frames after a loop wrap or view switch (0 = off).
     #[arg(long, default_value_t = 0)]
     crossfade: usize,
+    /// Replace this many frames after a loop wrap or view switch by in-between frames that
+    /// dissolve the last frame into the new sequence (0 = off; for footage that never repeats).
+    #[arg(long, default_value_t = 0, conflicts_with = "crossfade")]
+    dissolve: usize,
     /// Compensate per-view exposure differences (estimated from the backgrounds; the default).
     #[arg(long)]
     gain_compensation: bool,
@@ -54,17 +58,16 @@ pub struct RenderOptions {
     no_gain_compensation: bool,
 }
 
-/// Longest `--crossfade`, frames (the renderer's own limit).
+/// Longest `--crossfade` and `--dissolve`, frames (the renderer's own limit).
 pub const MAX_CROSSFADE: usize = vt_core::render::MAX_CROSSFADE;
 
 impl RenderOptions {
     /// Checks the options against their limits.
     pub fn check(&self) -> Result<()> {
-        if self.crossfade > MAX_CROSSFADE {
-            bail!(
-                "--crossfade {} is more than {MAX_CROSSFADE} frames",
-                self.crossfade
-            );
+        for (flag, n) in [("crossfade", self.crossfade), ("dissolve", self.dissolve)] {
+            if n > MAX_CROSSFADE {
+                bail!("--{flag} {n} is more than {MAX_CROSSFADE} frames");
+            }
         }
         Ok(())
     }
@@ -77,6 +80,7 @@ impl RenderOptions {
                 Interpolation::Bilinear
             },
             crossfade: self.crossfade,
+            dissolve: self.dissolve,
             gain_compensation: self.gain_compensation || !self.no_gain_compensation,
         }
     }

@@ -36,7 +36,7 @@ pub fn knobs() -> Vec<Knob> {
             "Rendering: interpolation and gain compensation",
             render_modes,
         ),
-        Knob::new("Crossfade length", crossfade),
+        Knob::new("Crossfade and dissolve length", crossfade),
     ]
 }
 
@@ -482,12 +482,25 @@ fn crossfade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let n_frames = ctx.pick(240, 600);
     let scene = &sa.loaded;
     let q_max = scene.render.q_max();
-    let mut pts = Vec::new();
-    for &len in &lengths {
+    let mut settings: Vec<(String, RenderParams, usize)> = lengths
+        .iter()
+        .map(|&len| {
+            let params = RenderParams {
+                crossfade: len,
+                ..Default::default()
+            };
+            (format!("{len} frames"), params, len)
+        })
+        .collect();
+    for len in ctx.pick(vec![1, 2], vec![1, 2, 3, 4]) {
         let params = RenderParams {
-            crossfade: len,
+            dissolve: len,
             ..Default::default()
         };
+        settings.push((format!("dissolve {len}"), params, len));
+    }
+    let mut pts = Vec::new();
+    for (label, params, len) in settings {
         let mut renderer = Renderer::new(scene.render.clone(), params)?;
         let (w, h) = renderer.size();
         let (mut prev, mut out) = (RgbImage::new(w, h), RgbImage::new(w, h));
@@ -511,8 +524,9 @@ fn crossfade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                     since_jump = Some(0);
                     worst = d;
                 } else if let Some(k) = since_jump {
-                    // The largest step within 2 frames after a jump belongs to the jump.
-                    if k < 2 {
+                    // The largest step within 2 frames (or the blend) after a jump belongs to
+                    // the jump.
+                    if k < len.max(2) {
                         worst = worst.max(d);
                         since_jump = Some(k + 1);
                     } else {
@@ -537,20 +551,22 @@ fn crossfade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
             .unwrap_or(f64::NAN);
         let seam = jumps.iter().sum::<f64>() / jumps.len().max(1) as f64 / median;
         pts.push(
-            Setting::new(format!("{len} frames"), fps, seam, len == 0)
+            Setting::new(label, fps, seam, len == 0)
                 .with("jumps", jumps.len() as f64)
                 .with("median ordinary step (grey levels)", median),
         );
     }
     Ok(vec![Curve::new(
         "a-crossfade",
-        "Crossfade length",
+        "Crossfade and dissolve length",
         format!(
-            "Object crossfade after a loop wrap or view switch (Schoedl et al. 2000), {n_frames} \
-             frames of a slow back-and-forth sweep over {SCENE}. x: frames per second; y: image \
-             seam score: the largest frame-to-frame change (mean absolute difference) within 2 \
-             frames after each jump, divided by the median ordinary step, averaged over jumps \
-             (1 = a jump looks like an ordinary step). Default: 0 (off, the thesis)."
+            "Object crossfade after a loop wrap or view switch (Schoedl et al. 2000; \"N frames\"), \
+             and dissolve (\"dissolve N\": N in-between frames from the last frame shown into \
+             the new sequence), {n_frames} frames of a slow back-and-forth sweep over {SCENE}. \
+             x: frames per second; y: image seam score: the largest frame-to-frame change (mean \
+             absolute difference) within 2 frames (or the blend) after each jump, divided by \
+             the median ordinary step, averaged over jumps (1 = a jump looks like an ordinary \
+             step). Default: 0 (off, the thesis)."
         ),
         Axis::new("frames per second", Better::Higher),
         Axis::new("image seam score (jump / ordinary step)", Better::Lower),
