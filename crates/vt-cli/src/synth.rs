@@ -49,7 +49,7 @@ pub struct TexturesArgs {
     #[arg(long, default_value_t = 150)]
     frames: usize,
     /// Frame size, WxH.
-    #[arg(long, default_value = "320x180", value_parser = parse_size)]
+    #[arg(long, default_value = "320x180", value_parser = vt_io::limits::parse_size)]
     size: (u32, u32),
     /// Motion period in frames.
     #[arg(long, default_value_t = 24)]
@@ -69,26 +69,6 @@ pub struct TexturesArgs {
     /// Largest per-view exposure gain difference (0.04 = up to +-4%).
     #[arg(long, default_value_t = 0.04)]
     exposure: f64,
-}
-
-pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("size '{s}' is not WxH (e.g. 320x180)"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .map_err(|_| format!("width '{w}' is not a whole number"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .map_err(|_| format!("height '{h}' is not a whole number"))?;
-    if w < 8 || h < 8 || w > 16384 || h > 16384 {
-        return Err(format!(
-            "size {w}x{h} is out of range (8 to 16384 per side)"
-        ));
-    }
-    Ok((w, h))
 }
 
 pub fn run(cmd: SynthCommand) -> Result<()> {

@@ -54,6 +54,26 @@ pub fn bytes(n: u64) -> String {
     }
 }
 
+/// Parses a frame size `WxH` (e.g. `320x180`; `X` also separates), each side in
+/// 8..=[`MAX_IMAGE_SIDE`]. The message quotes what was given.
+pub fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("size '{s}' is not WxH (e.g. 320x180)"))?;
+    let side = |v: &str, what: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("{what} '{v}' is not a whole number"))
+    };
+    let (w, h) = (side(w, "width")?, side(h, "height")?);
+    if w < 8 || h < 8 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+        return Err(format!(
+            "size {w}x{h} is out of range (8 to {MAX_IMAGE_SIDE} per side)"
+        ));
+    }
+    Ok((w, h))
+}
+
 /// Fails unless the file at `path` is at most `limit` bytes; `what` names it in the message.
 pub fn check_file_size(path: &Path, limit: u64, what: &str) -> Result<u64> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
@@ -127,5 +147,22 @@ mod tests {
         assert!(e.contains("not UTF-8"), "{e}");
         assert_eq!(bytes(512 << 20), "512 MiB");
         assert_eq!(bytes(17), "17 bytes");
+    }
+
+    #[test]
+    fn frame_sizes_parse_within_limits() {
+        assert_eq!(parse_size("320x180"), Ok((320, 180)));
+        assert_eq!(parse_size(" 64 X 48 "), Ok((64, 48)));
+        assert_eq!(parse_size("16384x8"), Ok((16384, 8)));
+        for (bad, says) in [
+            ("320by180", "size '320by180' is not WxH"),
+            ("4x4", "out of range (8 to 16384 per side)"),
+            ("16385x8", "out of range"),
+            ("99999999999x9", "width '99999999999' is not a whole number"),
+            ("9x-1", "height '-1'"),
+        ] {
+            let e = parse_size(bad).unwrap_err();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
     }
 }
