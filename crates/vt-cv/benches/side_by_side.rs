@@ -1,7 +1,7 @@
 //! vt-core and vt-cv (OpenCV) side by side on the same inputs, one criterion group per
 //! operation, then a table of time ratios (vt-core / OpenCV) from a short `Instant` loop
 //! (median of several runs), so the ratio can be read without digging in criterion's files:
-//! wall-clock and CPU time (all threads, from the scheduler's counters) per call, with the load
+//! wall-clock and CPU time (all threads, the process CPU clock) per call, with the load
 //! average, since on a shared machine the CPU times are the figures the load does not move.
 //!
 //! Inputs follow the thesis's scale: 640x360 frames, a 3x3 Gaussian, 100 frames for the median
@@ -61,15 +61,10 @@ fn homography() -> Homography {
 }
 
 /// CPU time of this process so far, nanoseconds (all threads: rayon's and OpenCV's pools
-/// alike), from the scheduler's counters.
+/// alike; `CLOCK_PROCESS_CPUTIME_ID`, which counts the running threads' current slices too).
 fn cpu_ns() -> u64 {
-    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
-        return 0;
-    };
-    tasks
-        .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("schedstat")).ok())
-        .filter_map(|s| s.split_whitespace().next()?.parse::<u64>().ok())
-        .sum()
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::ProcessCPUTime);
+    t.tv_sec as u64 * 1_000_000_000 + t.tv_nsec as u64
 }
 
 /// Median wall time and median CPU time (all threads) per call of `f`, over 11 samples of
