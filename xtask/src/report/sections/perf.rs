@@ -1,5 +1,6 @@
 //! Section 6: performance, measured side by side in this run: analysis against plain decoding,
-//! render frames per second at 640x360 and 1280x720, vt-core against OpenCV per operation,
+//! render frames per second at 640x360 and 1280x720, vt-core against OpenCV per operation
+//! (warps, blurs, masks, morphology, searches),
 //! guided synthesis time per setting, peak memory. Ratios first.
 
 use anyhow::Result;
@@ -163,6 +164,10 @@ fn opencv_table(ctx: &mut Ctx) -> Result<Table> {
     let masks = &sa.analysis.views[0].masks;
     let h = sa.analysis.links[0].homography;
     let gp = GaussianParams::default();
+    let g7 = GaussianParams {
+        ksize: 7,
+        sigma: 0.0,
+    };
     let n_med = 31.min(sa.frames[0].len());
     let pts: Vec<Point> = sa.points[0].clone();
     let dst: Vec<Point> = sa.points[1].clone();
@@ -238,6 +243,46 @@ fn opencv_table(ctx: &mut Ctx) -> Result<Table> {
                 vt_cv::warp::warp_rgb(&big, &tilt, 640, 360, Interpolation::Nearest)
                     .map(|_| ())
                     .map_err(Into::into)
+            }),
+        ),
+        (
+            "warp RGB, bilinear fixed-point",
+            "640x360".into(),
+            Box::new(|| {
+                vt_core::warp::warp_rgb(&big, &tilt, 640, 360, Interpolation::BilinearFixed);
+                Ok(())
+            }),
+            Box::new(|| {
+                vt_cv::warp::warp_rgb(&big, &tilt, 640, 360, Interpolation::BilinearFixed)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "Gaussian blur 7x7",
+            "640x360 RGB".into(),
+            Box::new(|| {
+                vt_core::blur::gaussian_blur(&big, &g7)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+            Box::new(|| {
+                vt_cv::blur::gaussian_blur(&big, &g7)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }),
+        ),
+        (
+            "morphology open + close, r = 2",
+            "320x180 mask".into(),
+            Box::new(|| {
+                std::hint::black_box(masks[0].open(2).close(2));
+                Ok(())
+            }),
+            Box::new(|| {
+                use vt_cv::mask::{morph, Morph};
+                let o = morph(&masks[0], 2, Morph::Open)?;
+                morph(&o, 2, Morph::Close).map(|_| ()).map_err(Into::into)
             }),
         ),
         (
