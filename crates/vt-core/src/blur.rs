@@ -603,7 +603,7 @@ impl GaussianBlur {
                 }
             };
         }
-        fixed!(1 3 5 7 9 11 13 15);
+        fixed!(3 5 7 9 11 13 15);
     }
 
     /// Output row `y` of a band (its taps in ring slots `(y + t) % ksize`), rounded to u8.
@@ -638,7 +638,7 @@ impl GaussianBlur {
                 }
             };
         }
-        fixed!(1 3 5 7 9 11 13 15);
+        fixed!(3 5 7 9 11 13 15);
     }
 }
 
