@@ -53,6 +53,10 @@ pub struct RenderOptions {
     /// Compensate per-view exposure differences (estimated from the backgrounds; the default).
     #[arg(long)]
     gain_compensation: bool,
+    /// Show the static background where the shown view does not see at fractional q, not the
+    /// other view's matching frame (the thesis).
+    #[arg(long)]
+    no_neighbour_fill: bool,
     /// Do not compensate exposure differences (the thesis).
     #[arg(long, conflicts_with = "gain_compensation")]
     no_gain_compensation: bool,
@@ -81,6 +85,7 @@ impl RenderOptions {
             },
             crossfade: self.crossfade,
             dissolve: self.dissolve,
+            neighbour_fill: !self.no_neighbour_fill,
             gain_compensation: self.gain_compensation || !self.no_gain_compensation,
         }
     }

@@ -303,8 +303,10 @@ fn real_scene_with_marking_noise() {
     }
     assert!(within >= 0.95, "transitions within +-1 frame: {within}");
     assert!(corner <= 0.5, "corner error {corner} px");
-    // The refined points still carry about 2 / sqrt(5) px of marking error into x(q).
-    assert!(min_psnr >= 34.0, "PSNR at fractional q: {psnrs:?}");
+    // Issue #10's target. Measured 35.26-36.46 dB: the refined points still carry about
+    // 2 / sqrt(5) px of marking error into x(q); where the shown view does not see, the other
+    // view's matching frame fills in (34.46 dB worst without).
+    assert!(min_psnr >= 35.0, "PSNR at fractional q: {psnrs:?}");
 
     // Switch where it matches: along a slow sweep, the seams of the switches the player makes,
     // with eq. (6) as is and with bad switches postponed.
@@ -352,14 +354,16 @@ fn switch_seams(scene: &LoadedScene, policy: SwitchPolicy) -> (f64, f64, u64) {
 #[test]
 fn real_scene_exact_points_renders_the_ideal_view() {
     let tmp = tempfile::tempdir().unwrap();
-    let real = real_scene(tmp.path(), "exact", "0", "60");
+    let real = real_scene(tmp.path(), "exact", "0", "70");
     let scene = analyze_real(&real, &tmp.path().join("exact-scene"), &[]);
     let psnrs = psnr_at_fractional_q(&scene, &real.truth, RenderParams::default());
     if verbose() {
         eprintln!("real 5-view scene, exact points: PSNR at fractional q {psnrs:.2?}");
     }
+    // Exact points fit an affine map to 0.3-0.4 px, so GRIC picks affine; the backgrounds then
+    // ask for the homography (5% lower photometric error), which lifts 33.6-34.4 dB to 35.3+.
     assert!(
-        psnrs.iter().all(|&p| p >= 33.0),
+        psnrs.iter().all(|&p| p >= 35.0),
         "PSNR at fractional q: {psnrs:?}"
     );
     assert!(transitions_within_one(&scene, &real.truth) >= 0.95);

@@ -468,11 +468,9 @@ pub fn analyze(
 
     // Refinement of H_(p,p+1) from the backgrounds, inside the marked points' hull and outside
     // the dynamic region (the whole hull when too little of it is static).
-    let mut used: Vec<Homography> = Vec::new();
-    let mut refinements: Vec<Option<Refinement>> = Vec::new();
-    let mut refined_points = None;
-    if let Some(sel) = &selection {
-        let t0 = Instant::now();
+    let refine_all = |sel: &Selection| -> Result<(Vec<Homography>, Vec<Option<Refinement>>)> {
+        let mut used: Vec<Homography> = Vec::new();
+        let mut refinements: Vec<Option<Refinement>> = Vec::new();
         // Marking deviation implied by the fits: the RMS residual over all links, scaled up by
         // the residual degrees of freedom (2K measurements, `dof` used by the model), and halved
         // because a residual carries the noise of both views' points (about 2 sigma).
@@ -526,6 +524,50 @@ pub fn analyze(
                 points_rms,
                 kept,
             }));
+        }
+        Ok((used, refinements))
+    };
+    let mut used: Vec<Homography> = Vec::new();
+    let mut refinements: Vec<Option<Refinement>> = Vec::new();
+    let mut refined_points = None;
+    if let Some(sel) = selection.clone() {
+        let t0 = Instant::now();
+        (used, refinements) = refine_all(&sel)?;
+        // The backgrounds may ask for more than the points do: exact or precise points on a
+        // slanted plane can leave GRIC preferring an affine map whose error only shows away from
+        // the points. When a simpler model was selected, refine under the full homography too
+        // and take it if it lowers the photometric error over all links by 5% or more.
+        if params.refine && !sel.forced && sel.model != MotionModel::Homography {
+            let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
+                .map(|p| (points[p].as_slice(), points[p + 1].as_slice()))
+                .collect();
+            let force = ModelParams {
+                force: Some(MotionModel::Homography),
+                ..params.model
+            };
+            if let Ok(full) = select_model(&pairs, &force) {
+                let (u2, r2) = refine_all(&full)?;
+                let error = |r: &[Option<Refinement>]| -> f64 {
+                    r.iter()
+                        .flatten()
+                        .map(|r| {
+                            if r.kept {
+                                r.error_after
+                            } else {
+                                r.error_before
+                            }
+                        })
+                        .sum()
+                };
+                if error(&r2) <= 0.95 * error(&refinements) {
+                    selection = Some(Selection {
+                        forced: false,
+                        scores: sel.scores.clone(),
+                        ..full
+                    });
+                    (used, refinements) = (u2, r2);
+                }
+            }
         }
         if refinements.iter().flatten().any(|r| r.kept) {
             refined_points = crate::align::consistent_points(points, &used);
