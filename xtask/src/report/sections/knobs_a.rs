@@ -33,7 +33,7 @@ pub fn knobs() -> Vec<Knob> {
         Knob::new("Window w of eq. (1) and (2)", window),
         Knob::new("Loop search at reduced mask resolution", mask_resolution),
         Knob::new(
-            "Rendering: interpolation and gain compensation",
+            "Rendering: interpolation, gain compensation, neighbour fill",
             render_modes,
         ),
         Knob::new("Crossfade and dissolve length", crossfade),
@@ -438,16 +438,28 @@ fn render_modes(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     );
     let sweep = ctx.pick(120, 400);
     let mut pts = Vec::new();
-    for (label, interpolation, gain) in [
-        ("nearest", Interpolation::Nearest, false),
-        ("bilinear", Interpolation::Bilinear, false),
-        ("nearest + gain", Interpolation::Nearest, true),
-        ("bilinear + gain", Interpolation::Bilinear, true),
-        ("fixed-point bilinear", Interpolation::BilinearFixed, false),
+    for (label, interpolation, gain, fill) in [
+        ("nearest", Interpolation::Nearest, false, true),
+        ("bilinear", Interpolation::Bilinear, false, true),
+        ("nearest + gain", Interpolation::Nearest, true, true),
+        ("bilinear + gain", Interpolation::Bilinear, true, true),
+        (
+            "bilinear + gain, no fill",
+            Interpolation::Bilinear,
+            true,
+            false,
+        ),
+        (
+            "fixed-point bilinear",
+            Interpolation::BilinearFixed,
+            false,
+            true,
+        ),
     ] {
         let params = RenderParams {
             interpolation,
             gain_compensation: gain,
+            neighbour_fill: fill,
             ..Default::default()
         };
         let (p, fps) = render_figures(&sa, params, &qs, sweep)?;
@@ -460,7 +472,7 @@ fn render_modes(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     }
     Ok(vec![Curve::new(
         "a-render",
-        "Rendering: interpolation and gain compensation",
+        "Rendering: interpolation, gain compensation, neighbour fill",
         format!(
             "Eq. (3)-(6) rendered from the analysed scene of {SCENE} (written and loaded as a \
              scene directory). x: frames per second over a {sweep}-frame sweep across all views \
@@ -468,7 +480,9 @@ fn render_modes(ctx: &mut Ctx) -> Result<Vec<Curve>> {
              the motion phase of the source frame the player chose. The background has real \
              depth, so one plane cannot explain it: absolute PSNR is limited by parallax, the \
              differences are what the options buy. Fixed-point bilinear is OpenCV's 1/32-pixel \
-             integer interpolation. Default: bilinear, no gain compensation."
+             integer interpolation; \"no fill\" shows the median background where the shown \
+             view does not see, instead of the other view's matching frame. Default: bilinear \
+             with gain compensation and neighbour fill."
         ),
         Axis::new("frames per second", Better::Higher),
         Axis::new("PSNR vs truth (dB)", Better::Higher),
