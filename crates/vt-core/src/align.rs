@@ -243,6 +243,29 @@ fn region_points(a: &Grey, region: &Mask, level: usize, cap: usize) -> Vec<(f64,
     all
 }
 
+/// The rule both alignments (this one and vt-cv's ECC twin) apply to their inputs: b and the
+/// region have a's size.
+pub fn check_inputs(a: &RgbImage, b: &RgbImage, region: &Mask) -> Result<()> {
+    for (what, (got_w, got_h)) in [
+        ("background alignment: second background", b.dimensions()),
+        (
+            "background alignment: region",
+            (region.width(), region.height()),
+        ),
+    ] {
+        if (got_w, got_h) != a.dimensions() {
+            return Err(Error::SizeMismatch {
+                what: what.into(),
+                expected_w: a.width(),
+                expected_h: a.height(),
+                got_w,
+                got_h,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Refines `init` (view a to view b) by aligning the two backgrounds over `region` (view a's
 /// pixels), under `model`.
 pub fn align_backgrounds(
@@ -253,15 +276,7 @@ pub fn align_backgrounds(
     model: MotionModel,
     params: &AlignParams,
 ) -> Result<Alignment> {
-    if a.dimensions() != b.dimensions() || (region.width(), region.height()) != a.dimensions() {
-        return Err(Error::SizeMismatch {
-            what: "background alignment".into(),
-            expected_w: a.width(),
-            expected_h: a.height(),
-            got_w: b.width(),
-            got_h: b.height(),
-        });
-    }
+    check_inputs(a, b, region)?;
     let levels = params.levels.clamp(1, 8);
     let mut pyr_a = vec![Grey::from_rgb(a)];
     let mut pyr_b = vec![Grey::from_rgb(b)];

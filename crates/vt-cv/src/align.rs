@@ -24,7 +24,7 @@ use opencv::prelude::*;
 use opencv::video;
 use vt_core::align::AlignParams;
 use vt_core::model::MotionModel;
-use vt_core::{Error as CoreError, Homography, Mask};
+use vt_core::{Homography, Mask};
 
 use crate::convert::{mask_to_mat, rgb_view};
 use crate::error::{Context, Error, Result};
@@ -51,16 +51,7 @@ pub fn align_backgrounds(
     model: MotionModel,
     params: &AlignParams,
 ) -> Result<EccAlignment> {
-    if a.dimensions() != b.dimensions() || (region.width(), region.height()) != a.dimensions() {
-        return Err(CoreError::SizeMismatch {
-            what: "background alignment".into(),
-            expected_w: a.width(),
-            expected_h: a.height(),
-            got_w: b.width(),
-            got_h: b.height(),
-        }
-        .into());
-    }
+    vt_core::align::check_inputs(a, b, region)?;
     let motion = match model {
         MotionModel::Translation => video::MOTION_TRANSLATION,
         MotionModel::Affine => video::MOTION_AFFINE,
