@@ -8,16 +8,16 @@
 use std::time::Instant;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::hull::HullParams;
-use vt_fv::{build_model, novel_view, Camera, GuidedParams, PhotoParams, ViewParams};
-use vt_synth::object::{generate, SceneParams};
+use vt_fv::{build_model, novel_view, Camera, GuidedParams, PhotoParams, ViewParams, VoxelModel};
+use vt_synth::object::{generate, SceneParams, SynthData};
 
-#[test]
-fn guided_synthesis_beats_rough_render_on_synthetic_object() {
+/// The synthetic object (`size` x `size` photos, extra views at `extra` degrees) and its voxel
+/// model on a `grid`^3 hull.
+fn object_and_model(size: u32, extra: &[f64], grid: usize) -> (SynthData<Camera>, VoxelModel) {
     let d = generate(&SceneParams {
-        width: 96,
-        height: 96,
-        extra_angles_deg: vec![5.0, 10.0],
-        supersample: 2,
+        width: size,
+        height: size,
+        extra_angles_deg: extra.to_vec(),
         ..Default::default()
     })
     .unwrap()
@@ -28,13 +28,19 @@ fn guided_synthesis_beats_rough_render_on_synthetic_object() {
         &d.photos,
         &d.masks,
         &HullParams {
-            dims: [96; 3],
+            dims: [grid; 3],
             ..Default::default()
         },
         &PhotoParams::default(),
         &mut |_, _, _| {},
     )
     .unwrap();
+    (d, model)
+}
+
+#[test]
+fn guided_synthesis_beats_rough_render_on_synthetic_object() {
+    let (d, model) = object_and_model(96, &[5.0, 10.0], 96);
     let configs = [
         (
             "exact",
@@ -100,27 +106,7 @@ fn guided_synthesis_beats_rough_render_on_synthetic_object() {
 /// from the output, patch 41 at 400x400 lost 1.3 dB against its own stage (i).)
 #[test]
 fn synthesis_stage_keeps_large_patches_on_the_guide() {
-    let d = generate(&SceneParams {
-        width: 160,
-        height: 160,
-        extra_angles_deg: vec![5.0],
-        ..Default::default()
-    })
-    .unwrap()
-    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
-    .unwrap();
-    let model = build_model(
-        &d.cameras,
-        &d.photos,
-        &d.masks,
-        &HullParams {
-            dims: [128; 3],
-            ..Default::default()
-        },
-        &PhotoParams::default(),
-        &mut |_, _, _| {},
-    )
-    .unwrap();
+    let (d, model) = object_and_model(160, &[5.0], 128);
     let base = GuidedParams {
         patch: 17,
         ..GuidedParams::fast()
@@ -155,28 +141,7 @@ fn synthesis_stage_keeps_large_patches_on_the_guide() {
 /// rough render on PSNR and SSIM at 5 and 10 degrees from reference camera 0.
 #[test]
 fn textured_view_beats_rough_render_on_synthetic_object() {
-    let d = generate(&SceneParams {
-        width: 96,
-        height: 96,
-        extra_angles_deg: vec![5.0, 10.0],
-        supersample: 2,
-        ..Default::default()
-    })
-    .unwrap()
-    .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
-    .unwrap();
-    let model = build_model(
-        &d.cameras,
-        &d.photos,
-        &d.masks,
-        &HullParams {
-            dims: [96; 3],
-            ..Default::default()
-        },
-        &PhotoParams::default(),
-        &mut |_, _, _| {},
-    )
-    .unwrap();
+    let (d, model) = object_and_model(96, &[5.0, 10.0], 96);
     for (k, cam) in d.extra_cameras.iter().enumerate() {
         let v = novel_view(
             &model,
