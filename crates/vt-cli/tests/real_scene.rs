@@ -94,11 +94,7 @@ fn tree_single_view_keeps_the_motion() {
         s(&frames_dir),
     ]);
     assert!(stdout.contains("rendered 5 frames"), "{stdout}");
-    let pngs = std::fs::read_dir(&frames_dir)
-        .unwrap()
-        .filter(|e| e.as_ref().unwrap().path().extension() == Some("png".as_ref()))
-        .count();
-    assert_eq!(pngs, 5);
+    assert_eq!(count_pngs(&frames_dir), 5);
     let source = decode(&tree());
     let scene = LoadedScene::open(&out).unwrap();
     let frames = play(&scene, RenderParams::default(), |_| 0.0, 50);

@@ -217,20 +217,7 @@ fn single_view_renders_without_switching() {
         stdout.contains("rendered 60 frames") && stdout.contains("0 view switches"),
         "{stdout}"
     );
-    // PNG frames only: the folder also holds vt's `.vt-output` marker.
-    let pngs = |d: &std::path::Path| {
-        std::fs::read_dir(d)
-            .unwrap()
-            .filter(|e| {
-                e.as_ref()
-                    .unwrap()
-                    .path()
-                    .extension()
-                    .is_some_and(|x| x == "png")
-            })
-            .count()
-    };
-    assert_eq!(pngs(&out), 60);
+    assert_eq!(count_pngs(&out), 60);
     // 60 frames of a loop shorter than 60 frames wrap at least once.
     let l = &read_json(&scene.join("scene.json"))["views"][0]["loop"];
     if l["end"].as_u64().unwrap() - l["start"].as_u64().unwrap() < 59 {
@@ -261,18 +248,7 @@ fn render_outputs_and_bad_input() {
         );
         assert!(o.exists());
     }
-    // PNG frames only: the folder also holds vt's `.vt-output` marker.
-    let frames = std::fs::read_dir(t.join("c"))
-        .unwrap()
-        .filter(|e| {
-            e.as_ref()
-                .unwrap()
-                .path()
-                .extension()
-                .is_some_and(|x| x == "png")
-        })
-        .count();
-    assert_eq!(frames, 4);
+    assert_eq!(count_pngs(&t.join("c")), 4);
 
     let out = t.join("never.mp4");
     vt_err(

@@ -144,3 +144,17 @@ pub fn copy_dir(src: &Path, dst: &Path) {
         }
     }
 }
+
+/// PNG files in `dir` (a frames folder also holds vt's `.vt-output` marker).
+pub fn count_pngs(dir: &Path) -> usize {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "png")
+        })
+        .count()
+}
