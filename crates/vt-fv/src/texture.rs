@@ -89,7 +89,10 @@ pub struct Textured {
 }
 
 /// Indices of the `n` cameras whose direction from `centre` is closest in angle to `cam`'s,
-/// nearest first.
+/// nearest first. A camera that duplicates the pose of one already chosen (same centre and
+/// orientation, as templeSparseRing's views 1 and 11) is skipped: a second photo from the same
+/// pose adds no parallax, and the references' disagreement, which the texturing measures, would
+/// read as agreement everywhere.
 pub fn nearest_by_direction(
     cams: &[Camera],
     cam: &Camera,
@@ -103,7 +106,24 @@ pub fn nearest_by_direction(
         .map(|(i, c)| (-(c.centre() - centre).normalize().dot(&d), i))
         .collect();
     order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    order.into_iter().take(n).map(|(_, i)| i).collect()
+    let mut chosen: Vec<usize> = Vec::with_capacity(n);
+    for (_, i) in order {
+        if chosen.len() == n {
+            break;
+        }
+        if !chosen.iter().any(|&j| same_pose(&cams[i], &cams[j])) {
+            chosen.push(i);
+        }
+    }
+    chosen
+}
+
+/// Whether two cameras share a pose: centres within 1e-6 of their distance from the origin
+/// (at least 1e-9) and forward directions within 1e-6 rad.
+pub fn same_pose(a: &Camera, b: &Camera) -> bool {
+    let (ca, cb) = (a.centre(), b.centre());
+    let scale = ca.norm().max(cb.norm()).max(1e-3);
+    (ca - cb).norm() <= 1e-6 * scale && a.forward().angle(&b.forward()) <= 1e-6
 }
 
 /// The centroid of the model's surface voxels.
@@ -488,6 +508,25 @@ pub fn push_pull(px: &mut [Option<[f64; 3]>], w: usize, h: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn references_skip_a_duplicated_pose() {
+        let k = Matrix3::new(500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0);
+        let origin = Vector3::zeros();
+        let down = Vector3::new(0.0, 0.0, -1.0);
+        let at = |deg: f64| {
+            let a = deg.to_radians();
+            let c = Vector3::new(a.cos(), a.sin(), 0.0);
+            Camera::look_at(format!("{deg}"), k, c, origin, down).unwrap()
+        };
+        // Ring: -30, -30 (same pose again), 30, 60; the new view at 0.
+        let cams = vec![at(-30.0), at(60.0), at(-30.0), at(30.0)];
+        assert!(same_pose(&cams[0], &cams[2]) && !same_pose(&cams[0], &cams[3]));
+        let chosen = nearest_by_direction(&cams, &at(0.0), &origin, 2);
+        assert_eq!(chosen, vec![0, 3]);
+        // Asking for more than there are distinct poses gives the distinct ones.
+        assert_eq!(nearest_by_direction(&cams, &at(0.0), &origin, 4).len(), 3);
+    }
 
     #[test]
     fn push_pull_fills_gaps_from_neighbours_and_keeps_known_pixels() {
