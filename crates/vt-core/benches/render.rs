@@ -1,17 +1,32 @@
 //! Renderer speed (eq. 3-6) at 640x360, 1280x720 and 1920x1080: frames per second for exact
 //! bilinear, fixed-point bilinear and nearest warping, crossfade on and off, a moving and a still
 //! viewpoint, on a translation scene (parallel rig) and a homography scene (converging rig), and
-//! heap allocations per frame after warm-up (counted by a wrapping global allocator). Prints one
-//! table:
-//! - `fps`: frames over the wall-clock time of all 100 timed frames;
-//! - `fast fps`: one over the 10th-percentile frame time, the frames the other processes on a
-//!   shared machine disturbed least;
-//! - `cpu ms`: the process's CPU time per frame, all threads (the process CPU clock): the work
-//!   itself, whatever the load;
-//! - `2-core fps`: `2000 / cpu ms`, the rate that work allows when both cores are free for it
-//!   (an upper bound: it assumes the frame's work splits perfectly over two threads).
+//! heap allocations per frame after warm-up (counted by a wrapping global allocator).
 //!
-//! The load average is printed with the table: on a loaded machine read `cpu ms`.
+//! The moving viewpoint steps q by 0.013 views every frame, as a user dragging the viewpoint
+//! does: a sweep across the 3-view scene (q 0..2) in 2.6 s at 60 fps, the background sliding
+//! about half a pixel per frame at 1280x720 (a view is 40 px of shift there). Every frame has
+//! a new q, so every frame re-warps and re-blends both backgrounds. `still` keeps q at 0.7:
+//! only the objects change.
+//!
+//! Each row is measured `VT_RENDER_REPS` times (default 5) over 40 frames after 20 warm-up
+//! frames; the table shows medians over the repetitions, so a burst of load on this shared
+//! machine moves one repetition, not the figure:
+//! - `fps`: frames over the wall-clock time of a repetition;
+//! - `cpu ms`: the process's CPU time per frame, all threads (the process CPU clock, which counts
+//!   every thread's running time): the work itself, whatever the load;
+//! - `1-core fps`, `2-core fps`: `1000 / cpu ms` and `2000 / cpu ms`, the rates that work
+//!   allows on one or two free cores (the second an upper bound: it assumes the frame's work
+//!   splits perfectly over two threads);
+//! - `spread`: the repetitions' CPU times, lowest and highest over the median (%).
+//!
+//! Then, for the goal rows (exact bilinear, moving, no crossfade), the time per stage: the
+//! background (homographies and the two-source warp blend, written straight into the frame):
+//! moving minus still; the objects (decode, warp, composite) and the frame copy: still.
+//! The load average is printed before and after: on a loaded machine read `cpu ms`.
+//!
+//! `VT_RENDER_HASH=1` times nothing: it prints a checksum (FNV-1a) of the 60 frames each row
+//! renders, so a speed change can be shown to keep every output byte (run it before and after).
 // A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
 #![allow(unsafe_code)]
 
@@ -156,31 +171,135 @@ fn cpu_ns() -> u64 {
     t.tv_sec as u64 * 1_000_000_000 + t.tv_nsec as u64
 }
 
+fn load() -> String {
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    load.split_whitespace()
+        .take(3)
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// One row's medians: wall fps, CPU ms per frame, CPU spread (low, high, %), allocations.
+struct Row {
+    fps: f64,
+    cpu_ms: f64,
+    spread: (f64, f64),
+    allocs: f64,
+}
+
+/// q of frame i: moving by 0.013 views per frame (see the module doc), or still at 0.7.
+fn q_at(moving: bool, i: usize) -> f64 {
+    if moving {
+        (i as f64 * 0.013) % 2.0
+    } else {
+        0.7
+    }
+}
+
+fn measure(
+    scene: &RenderScene,
+    objects: &Objects,
+    params: RenderParams,
+    moving: bool,
+    reps: usize,
+) -> Row {
+    const WARM: usize = 20;
+    const FRAMES: usize = 40;
+    let (w, h) = scene.views[0].background.dimensions();
+    let mut renderer = Renderer::new(scene.clone(), params).unwrap();
+    let mut player = Player::new();
+    let mut out = RgbImage::new(w, h);
+    let mut frame = |i: usize| {
+        let q = q_at(moving, i);
+        let c = player.advance(scene, q).unwrap();
+        renderer.render_into(objects, q, &c, &mut out).unwrap();
+    };
+    for i in 0..WARM {
+        frame(i);
+    }
+    let (mut fps, mut cpu) = (Vec::new(), Vec::new());
+    let a0 = ALLOCS.load(Ordering::Relaxed);
+    let mut i = WARM;
+    for _ in 0..reps {
+        let cpu0 = cpu_ns();
+        let t = Instant::now();
+        for _ in 0..FRAMES {
+            frame(i);
+            i += 1;
+        }
+        fps.push(FRAMES as f64 / t.elapsed().as_secs_f64());
+        cpu.push((cpu_ns() - cpu0) as f64 * 1e-6 / FRAMES as f64);
+    }
+    let allocs = (ALLOCS.load(Ordering::Relaxed) - a0) as f64 / (reps * FRAMES) as f64;
+    let cpu_ms = median(&mut cpu);
+    let spread = (
+        (cpu[0] / cpu_ms - 1.0) * 100.0,
+        (cpu[cpu.len() - 1] / cpu_ms - 1.0) * 100.0,
+    );
+    Row {
+        fps: median(&mut fps),
+        cpu_ms,
+        spread,
+        allocs,
+    }
+}
+
+/// FNV-1a of the 60 frames a row renders (after the same 20 warm-up frames as the timing).
+fn checksum(scene: &RenderScene, objects: &Objects, params: RenderParams, moving: bool) -> u64 {
+    let (w, h) = scene.views[0].background.dimensions();
+    let mut renderer = Renderer::new(scene.clone(), params).unwrap();
+    let mut player = Player::new();
+    let mut out = RgbImage::new(w, h);
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    for i in 0..80 {
+        let q = q_at(moving, i);
+        let c = player.advance(scene, q).unwrap();
+        renderer.render_into(objects, q, &c, &mut out).unwrap();
+        if i >= 20 {
+            for &b in out.as_raw() {
+                hash = (hash ^ b as u64).wrapping_mul(0x100_0000_01b3);
+            }
+        }
+    }
+    hash
+}
+
 fn run() {
     let frames = 120;
+    let hash = std::env::var_os("VT_RENDER_HASH").is_some();
     let filter = std::env::var("VT_RENDER_ROWS").unwrap_or_default();
-    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    let load: Vec<&str> = load.split_whitespace().take(3).collect();
+    let reps: usize = std::env::var("VT_RENDER_REPS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(5)
+        .max(1);
     println!(
-        "load average {} on {} cpus; rayon threads: {}",
-        load.join(" "),
+        "load average {} on {} cpus; rayon threads: {}; medians of {reps} repetitions of 40 frames",
+        load(),
         std::thread::available_parallelism().map_or(0, |n| n.get()),
         rayon::current_num_threads()
     );
     println!(
-        "{:<10} {:<12} {:<15} {:<10} {:<8} {:>8} {:>9} {:>8} {:>10} {:>13}",
+        "{:<10} {:<12} {:<15} {:<10} {:<7} {:>7} {:>7} {:>10} {:>10} {:>12} {:>7}",
         "size",
         "scene",
         "interp",
         "crossfade",
         "q",
         "fps",
-        "fast fps",
         "cpu ms",
+        "1-core fps",
         "2-core fps",
-        "allocs/frame"
+        "spread %",
+        "allocs"
     );
-    let mut times = Vec::with_capacity(100);
+    // (size, scene) -> (moving cpu ms, still cpu ms, moving fps) of the goal rows.
+    let mut goals: Vec<(String, f64, f64, f64)> = Vec::new();
     for (w, h) in [(640, 360), (1280, 720), (1920, 1080)] {
         for model in [MotionModel::Translation, MotionModel::Homography] {
             let (scene, objects) = scene(w, h, 3, frames, model);
@@ -190,6 +309,7 @@ fn run() {
                 Interpolation::Nearest,
             ] {
                 for crossfade in [0usize, 4] {
+                    let mut goal = (f64::NAN, f64::NAN, f64::NAN);
                     for moving in [true, false] {
                         // The full grid at 640x360 on the translation scene; elsewhere the
                         // rows the goals are about (no crossfade).
@@ -197,20 +317,18 @@ fn run() {
                         if crossfade > 0 && !full {
                             continue;
                         }
-                        let label = format!(
-                            "{:<10} {:<12} {:<15} {:<10} {:<8}",
-                            format!("{w}x{h}"),
-                            format!("{model:?}").to_lowercase(),
-                            match interp {
-                                Interpolation::Bilinear => "bilinear",
-                                Interpolation::BilinearFixed => "bilinear-fixed",
-                                Interpolation::Nearest => "nearest",
-                            },
-                            if crossfade > 0 { "on" } else { "off" },
-                            if moving { "moving" } else { "still" },
-                        );
-                        // VT_RENDER_ROWS=text keeps only the rows whose label contains it.
-                        if !filter.split(',').any(|f| label.contains(f)) {
+                        let name = match interp {
+                            Interpolation::Bilinear => "bilinear",
+                            Interpolation::BilinearFixed => "bilinear-fixed",
+                            Interpolation::Nearest => "nearest",
+                        };
+                        let scene_name = format!("{model:?}").to_lowercase();
+                        let cf = if crossfade > 0 { "on" } else { "off" };
+                        let q = if moving { "moving" } else { "still" };
+                        // VT_RENDER_ROWS=a,b keeps the rows whose label ("1280x720 homography
+                        // bilinear off moving") contains a or b.
+                        let key = format!("{w}x{h} {scene_name} {name} {cf} {q}");
+                        if !filter.split(',').any(|f| key.contains(f)) {
                             continue;
                         }
                         let params = RenderParams {
@@ -218,46 +336,55 @@ fn run() {
                             crossfade,
                             ..RenderParams::default()
                         };
-                        let mut renderer = Renderer::new(scene.clone(), params).unwrap();
-                        let mut player = Player::new();
-                        let mut out = RgbImage::new(w, h);
-                        let q_at = |i: usize| {
-                            if moving {
-                                (i as f64 * 0.013) % 2.0
-                            } else {
-                                0.7
-                            }
-                        };
-                        for i in 0..20 {
-                            let q = q_at(i);
-                            let c = player.advance(&scene, q).unwrap();
-                            renderer.render_into(&objects, q, &c, &mut out).unwrap();
+                        if hash {
+                            let sum = checksum(&scene, &objects, params, moving);
+                            println!("{key:<45} {sum:016x}");
+                            continue;
                         }
-                        let n = 100;
-                        times.clear();
-                        let cpu0 = cpu_ns();
-                        let a0 = ALLOCS.load(Ordering::Relaxed);
-                        let t = Instant::now();
-                        for i in 20..20 + n {
-                            let t_frame = Instant::now();
-                            let q = q_at(i);
-                            let c = player.advance(&scene, q).unwrap();
-                            renderer.render_into(&objects, q, &c, &mut out).unwrap();
-                            times.push(t_frame.elapsed().as_secs_f64());
-                        }
-                        let fps = n as f64 / t.elapsed().as_secs_f64();
-                        let allocs = (ALLOCS.load(Ordering::Relaxed) - a0) as f64 / n as f64;
-                        let cpu_ms = (cpu_ns() - cpu0) as f64 * 1e-6 / n as f64;
-                        times.sort_by(f64::total_cmp);
-                        let fast = 1.0 / times[n / 10];
-                        let two_core = 2000.0 / cpu_ms;
+                        let r = measure(&scene, &objects, params, moving, reps);
                         println!(
-                            "{label} {fps:>8.1} {fast:>9.1} {cpu_ms:>8.2} {two_core:>10.1} {allocs:>13.1}"
+                            "{:<10} {:<12} {:<15} {:<10} {:<7} {:>7.1} {:>7.2} {:>10.1} {:>10.1} {:>12} {:>7.1}",
+                            format!("{w}x{h}"),
+                            scene_name,
+                            name,
+                            cf,
+                            q,
+                            r.fps,
+                            r.cpu_ms,
+                            1000.0 / r.cpu_ms,
+                            2000.0 / r.cpu_ms,
+                            format!("{:+.0}/{:+.0}", r.spread.0, r.spread.1),
+                            r.allocs
                         );
+                        if interp == Interpolation::Bilinear && crossfade == 0 {
+                            if moving {
+                                goal.0 = r.cpu_ms;
+                                goal.2 = r.fps;
+                            } else {
+                                goal.1 = r.cpu_ms;
+                            }
+                        }
+                    }
+                    if interp == Interpolation::Bilinear && crossfade == 0 && w >= 1280 {
+                        let scene_name = format!("{model:?}").to_lowercase();
+                        goals.push((format!("{w}x{h} {scene_name}"), goal.0, goal.1, goal.2));
                     }
                 }
             }
         }
+    }
+    println!("load average after: {}", load());
+    println!(
+        "stages (exact bilinear, moving, CPU ms per frame): background = moving - still, \
+         objects and copy = still"
+    );
+    for (name, moving, still, fps) in goals.iter().filter(|g| g.1.is_finite() && g.2.is_finite()) {
+        println!(
+            "  {name:<22} total {moving:>6.2}  background {:>6.2}  objects+copy {still:>5.2}  \
+             wall fps {fps:>6.1}  1-core fps {:>6.1}",
+            moving - still,
+            1000.0 / moving
+        );
     }
     println!(
         "goals: >= 60 fps at 1280x720 and >= 30 fps at 1920x1080 (bilinear, moving, 2 threads), \

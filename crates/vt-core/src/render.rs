@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use crate::model::{fit_model, MotionModel};
 use crate::round_u8;
 use crate::warp::{
-    sample_value, state, write_packed, Border, Interpolation, Mapping, Run, Sampler, BILINEAR,
+    sample_value, state, write_packed, Interpolation, Mapping, Padded, Run, Sampler, BILINEAR,
     BILINEAR_FIXED, CHUNK, NEAREST, ROWS_PER_JOB,
 };
 use crate::{Error, Homography, Point, Result};
@@ -471,6 +471,9 @@ pub struct Renderer {
     cached_q: Option<f64>,
     h_to_q: Vec<Option<Homography>>,
     background_q: RgbImage,
+    /// Each view's background with its edge replicated around it ([`Padded`]), made once, so the
+    /// per-frame blend reads its taps without a border test.
+    padded: Vec<Padded>,
     /// The new layer during a blend (allocated up front when blends are on).
     layer: RgbImage,
     vpoints: Vec<Point>,
@@ -541,6 +544,11 @@ impl Renderer {
             vec![[1.0; 3]; scene.views.len()]
         };
         let m = scene.views.len();
+        let padded = scene
+            .views
+            .iter()
+            .map(|v| Padded::new(&v.background))
+            .collect();
         Ok(Self {
             scene,
             params,
@@ -550,6 +558,7 @@ impl Renderer {
             cached_q: None,
             h_to_q: vec![None; m],
             background_q: RgbImage::new(width, height),
+            padded,
             layer: if params.crossfade > 0 || params.dissolve > 0 {
                 RgbImage::new(width, height)
             } else {
@@ -632,10 +641,11 @@ impl Renderer {
         (self.width, self.height)
     }
 
-    /// Recomputes `H_(f,q)`, `H_(c,q)` and the blended background `B_q` (eq. 3) when q changed.
-    fn prepare_q(&mut self, q: f64) -> Result<()> {
+    /// Recomputes `H_(f,q)`, `H_(c,q)` and the blended background `B_q` (eq. 3) when q changed,
+    /// writing it into `out` too in the same pass; true when it did (else `out` is untouched).
+    fn prepare_q(&mut self, q: f64, out: &mut RgbImage) -> Result<bool> {
         if self.cached_q == Some(q) {
-            return Ok(());
+            return Ok(false);
         }
         let QSplit {
             floor: f,
@@ -657,13 +667,13 @@ impl Renderer {
         };
         let sources = [
             Source {
-                image: &self.scene.views[f].background,
+                image: &self.padded[f],
                 h: &hf,
                 gain_inv: self.gains[f].map(|g| 1.0 / g),
                 weight: wf,
             },
             Source {
-                image: &self.scene.views[c].background,
+                image: &self.padded[c],
                 h: &hc,
                 gain_inv: self.gains[c].map(|g| 1.0 / g),
                 weight: wc,
@@ -673,9 +683,10 @@ impl Renderer {
             &sources[..if f == c { 1 } else { 2 }],
             self.params.interpolation,
             &mut self.background_q,
+            out.as_mut(),
         );
         self.cached_q = Some(q);
-        Ok(())
+        Ok(true)
     }
 
     /// Renders viewpoint `q` showing `choice` (from [`Player::advance`]) into `out`.
@@ -696,8 +707,9 @@ impl Renderer {
                 got_h: out.height(),
             });
         }
-        self.prepare_q(q)?;
-        out.as_mut().copy_from_slice(self.background_q.as_raw());
+        if !self.prepare_q(q, out)? {
+            out.as_mut().copy_from_slice(self.background_q.as_raw());
+        }
         let view = choice.view;
         let h = self.h_to_q[view].expect("qbar's homography is prepared");
         // What the object shows: the chosen frame, or a blend of two (crossfade or dissolve).
@@ -794,7 +806,7 @@ impl Renderer {
 
 /// One background of eq. (3): the image, its `H_(p,q)`, its inverse gain and blend weight.
 struct Source<'a> {
-    image: &'a RgbImage,
+    image: &'a Padded,
     h: &'a Homography,
     gain_inv: [f32; 3],
     weight: f32,
@@ -807,22 +819,22 @@ struct Source<'a> {
 /// blended from their replicated edges.
 ///
 /// Sampling is [`crate::warp`]'s sampler (runs of [`CHUNK`] pixels, the renderer's
-/// division mapping, [`Border::Replicate`]); rows in parallel.
-fn blend_warps<'a>(sources: &[Source<'a>], interp: Interpolation, out: &mut RgbImage) {
+/// division mapping, replicated border, read from the padded backgrounds); rows in parallel.
+/// Each run is written to `out` and to `copy` (the same size): the frame starts from the
+/// background without a second pass over it.
+fn blend_warps<'a>(
+    sources: &[Source<'a>],
+    interp: Interpolation,
+    out: &mut RgbImage,
+    copy: &mut [u8],
+) {
     let w = out.width() as usize;
     if w == 0 || sources.is_empty() {
         return;
     }
     let size = out.dimensions();
     let sampler = |s: &Source<'a>| {
-        let sampler = Sampler::new(
-            s.image,
-            s.h,
-            interp,
-            Border::Replicate,
-            Mapping::Division,
-            size,
-        );
+        let sampler = Sampler::padded(s.image, s.h, interp, Mapping::Division, size);
         // weight * gain_inv[k], in the order the per-pixel formula multiplies them.
         let wg = s.gain_inv.map(|g| s.weight * g);
         (sampler, wg, s.weight)
@@ -832,13 +844,15 @@ fn blend_warps<'a>(sources: &[Source<'a>], interp: Interpolation, out: &mut RgbI
     let second = sources.get(1).map(sampler);
     out.as_mut()
         .par_chunks_mut(w * 3 * ROWS_PER_JOB)
+        .zip(copy.par_chunks_mut(w * 3 * ROWS_PER_JOB))
         .enumerate()
-        .for_each(|(band, rows)| {
+        .for_each(|(band, (rows, copy))| {
             crate::simd::dispatch(BlendBand {
                 first: &first,
                 second: second.as_ref(),
                 y0: band * ROWS_PER_JOB,
                 rows,
+                copy,
                 w,
             })
         });
@@ -853,6 +867,7 @@ struct BlendBand<'a, 'b> {
     second: Option<&'a Weighted<'b>>,
     y0: usize,
     rows: &'a mut [u8],
+    copy: &'a mut [u8],
     w: usize,
 }
 
@@ -878,6 +893,7 @@ impl BlendBand<'_, '_> {
             second,
             y0,
             rows,
+            copy,
             w,
         } = self;
         // On the stack, once per band: rayon's per-job init would allocate.
@@ -885,9 +901,17 @@ impl BlendBand<'_, '_> {
         let (wg0, weight0) = (first.1, first.2);
         let (wg1, weight1) = second.map_or(([0.0; 3], 0.0), |s| (s.1, s.2));
         let (mut sel0, mut sel1, mut ws) = ([false; CHUNK], [false; CHUNK], [0f32; CHUNK]);
-        for (r, row) in rows.chunks_mut(w * 3).enumerate() {
+        for (r, (row, copy_row)) in rows
+            .chunks_mut(w * 3)
+            .zip(copy.chunks_mut(w * 3))
+            .enumerate()
+        {
             let y = y0 + r;
-            for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
+            for (c, (px, copy_px)) in row
+                .chunks_mut(CHUNK * 3)
+                .zip(copy_row.chunks_mut(CHUNK * 3))
+                .enumerate()
+            {
                 let n = px.len() / 3;
                 // A source without a sample (empty image, or no second source) has states NONE
                 // and is never selected below, whatever its taps hold.
@@ -927,6 +951,7 @@ impl BlendBand<'_, '_> {
                     }
                 }
                 write_packed(&packed, px);
+                write_packed(&packed, copy_px);
             }
         }
     }

@@ -389,6 +389,9 @@ pub(crate) struct Sampler<'a> {
     raw: &'a [u8],
     sw: usize,
     sh: usize,
+    /// `raw` is a [`Padded`] image: every tap of a coordinate clamped to `[-1, size]` lies in
+    /// it, so the gather has no border branch (only [`Border::Replicate`]).
+    padded: bool,
     m: [f64; 9],
     interp: Interpolation,
     border: Border,
@@ -412,9 +415,32 @@ impl<'a> Sampler<'a> {
             raw: src.as_raw(),
             sw: src.width() as usize,
             sh: src.height() as usize,
+            padded: false,
             m,
             interp,
             border,
+            mapping,
+            block_w: opencv_block_width(out_w as usize, out_h as usize),
+        }
+    }
+
+    /// [`Sampler::new`] with [`Border::Replicate`] over a [`Padded`] copy of the source: the
+    /// same samples, without the border branch in the gather.
+    pub fn padded(
+        src: &'a Padded,
+        h: &Homography,
+        interp: Interpolation,
+        mapping: Mapping,
+        (out_w, out_h): (u32, u32),
+    ) -> Self {
+        Self {
+            raw: &src.raw,
+            sw: src.width,
+            sh: src.height,
+            padded: src.width > 0 && src.height > 0,
+            m: inverse_rows(h),
+            interp,
+            border: Border::Replicate,
             mapping,
             block_w: opencv_block_width(out_w as usize, out_h as usize),
         }
@@ -583,9 +609,16 @@ impl<'a> Sampler<'a> {
             } else {
                 state::OUTSIDE
             };
-            // saturate_cast<short>(X >> INTER_BITS), and the fraction X & 31.
-            run.ix[i] = (qx >> 5).clamp(-32768, 32767);
-            run.iy[i] = (qy >> 5).clamp(-32768, 32767);
+            // saturate_cast<short>(X >> INTER_BITS), and the fraction X & 31. A padded
+            // (replicated) source takes the block clamped to [-1, size]: beyond, both taps of a
+            // side are the same edge pixel either way.
+            let (lx, ly, hx, hy) = if self.padded {
+                (-1, -1, self.sw as i32, self.sh as i32)
+            } else {
+                (-32768, -32768, 32767, 32767)
+            };
+            run.ix[i] = (qx >> 5).clamp(-32768, 32767).clamp(lx, hx);
+            run.iy[i] = (qy >> 5).clamp(-32768, 32767).clamp(ly, hy);
             run.wx[i] = qx & 31;
             run.wy[i] = qy & 31;
         }
@@ -596,6 +629,10 @@ impl<'a> Sampler<'a> {
     /// 8-byte reads; the border goes through [`Sampler::tap`].
     #[inline(always)]
     fn gather(&self, n: usize, run: &mut Run, block: bool) {
+        if self.padded {
+            self.gather_padded(run, block);
+            return;
+        }
         let stride = self.sw * 3;
         let (wi, hi) = (self.sw as u32 - 1, self.sh as u32 - 1);
         let len = self.raw.len();
@@ -631,6 +668,35 @@ impl<'a> Sampler<'a> {
         }
     }
 
+    /// [`Sampler::gather`] from a [`Padded`] source: coordinates are in `[-1, size]`, so every
+    /// tap is inside the padded image and each pixel is two 8-byte reads, no branch (the
+    /// length check never fails; it keeps the reads checked without a panic path). Runs over
+    /// the whole [`CHUNK`] (lanes past `n` read valid, unused pixels).
+    #[inline(always)]
+    fn gather_padded(&self, run: &mut Run, block: bool) {
+        let stride = (self.sw + PAD) * 3;
+        let raw = self.raw;
+        let [ta, tb, tc, td] = &mut run.taps;
+        for i in 0..CHUNK {
+            // (x + 1, y + 1) in the padded image, both in [0, size + 1].
+            let (x, y) = ((run.ix[i] + 1) as usize, (run.iy[i] + 1) as usize);
+            let a = y * stride + x * 3;
+            let (u, l) = match (raw.get(a..a + 8), raw.get(a + stride..a + stride + 8)) {
+                (Some(u), Some(l)) => (
+                    u64::from_le_bytes(u.try_into().expect("8 bytes")),
+                    u64::from_le_bytes(l.try_into().expect("8 bytes")),
+                ),
+                _ => (0, 0),
+            };
+            ta[i] = u as u32;
+            if block {
+                tb[i] = (u >> 24) as u32;
+                tc[i] = l as u32;
+                td[i] = (l >> 24) as u32;
+            }
+        }
+    }
+
     /// One source pixel with the border rule.
     #[inline(always)]
     fn tap(&self, x: i32, y: i32) -> [u8; 3] {
@@ -648,6 +714,51 @@ impl<'a> Sampler<'a> {
         };
         let i = (y * self.sw + x) * 3;
         [self.raw[i], self.raw[i + 1], self.raw[i + 2]]
+    }
+}
+
+/// Columns and rows a [`Padded`] image adds (one before, two after each side).
+const PAD: usize = 3;
+
+/// An RGB image with its edge replicated one pixel before and two after each side, and 8 spare
+/// bytes: what a [`Sampler::padded`] reads. Made once per source (the renderer keeps one per
+/// view), so the per-frame gather needs no border test.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Padded {
+    raw: Vec<u8>,
+    width: usize,
+    height: usize,
+}
+
+impl Padded {
+    /// The padded copy of `src`.
+    pub fn new(src: &RgbImage) -> Self {
+        let (w, h) = (src.width() as usize, src.height() as usize);
+        if w == 0 || h == 0 {
+            return Self {
+                raw: Vec::new(),
+                width: w,
+                height: h,
+            };
+        }
+        let stride = (w + PAD) * 3;
+        let mut raw = vec![0u8; (h + PAD) * stride + 8];
+        let s = src.as_raw();
+        for py in 0..h + PAD {
+            let y = py.saturating_sub(1).min(h - 1);
+            let row = &s[y * w * 3..(y + 1) * w * 3];
+            let out = &mut raw[py * stride..(py + 1) * stride];
+            out[3..3 + w * 3].copy_from_slice(row);
+            for px in [0, w + 1, w + 2] {
+                let x = px.saturating_sub(1).min(w - 1);
+                out[px * 3..px * 3 + 3].copy_from_slice(&row[x * 3..x * 3 + 3]);
+            }
+        }
+        Self {
+            raw,
+            width: w,
+            height: h,
+        }
     }
 }
 
@@ -1067,9 +1178,19 @@ mod tests {
             seed in any::<u32>(),
         ) {
             let src = texture(sw, sh, seed);
+            let padded = Padded::new(&src);
             let mut run = Run::default();
-            for interp in [Interpolation::Nearest, Interpolation::Bilinear] {
-                let sampler = Sampler::new(&src, &h, interp, Border::Replicate, Mapping::Division, (w, hgt));
+            for (interp, pad) in [
+                (Interpolation::Nearest, false),
+                (Interpolation::Bilinear, false),
+                (Interpolation::Nearest, true),
+                (Interpolation::Bilinear, true),
+            ] {
+                let sampler = if pad {
+                    Sampler::padded(&padded, &h, interp, Mapping::Division, (w, hgt))
+                } else {
+                    Sampler::new(&src, &h, interp, Border::Replicate, Mapping::Division, (w, hgt))
+                };
                 for y in 0..hgt {
                     for x0 in (0..w).step_by(CHUNK) {
                         let n = (w - x0).min(CHUNK as u32) as usize;
@@ -1083,8 +1204,40 @@ mod tests {
                             prop_assert_eq!(
                                 got.map(|(v, i)| (v.map(f32::to_bits), i)),
                                 want.map(|(v, i)| (v.map(f32::to_bits), i)),
-                                "{:?} at ({}, {})", interp, x0 + i as u32, y
+                                "{:?} (padded {}) at ({}, {})", interp, pad, x0 + i as u32, y
                             );
+                        }
+                    }
+                }
+            }
+        }
+
+        /// The padded source (the renderer's) reads the same taps as the replicated border, in
+        /// the fixed-point mode too (whose coordinates are not clamped to the image first).
+        #[test]
+        fn padded_source_is_the_replicated_border(
+            h in arbitrary_homography(), (sw, sh) in (1u32..90, 1u32..40), (w, hgt) in (1u32..150, 1u32..20),
+            seed in any::<u32>(),
+        ) {
+            let src = texture(sw, sh, seed);
+            let padded = Padded::new(&src);
+            let (mut a, mut b) = (Run::default(), Run::default());
+            for interp in [Interpolation::Nearest, Interpolation::Bilinear, Interpolation::BilinearFixed] {
+                let plain = Sampler::new(&src, &h, interp, Border::Replicate, Mapping::Division, (w, hgt));
+                let pad = Sampler::padded(&padded, &h, interp, Mapping::Division, (w, hgt));
+                for y in 0..hgt as usize {
+                    for x0 in (0..w as usize).step_by(CHUNK) {
+                        let n = (w as usize - x0).min(CHUNK);
+                        plain.run(y, x0, n, &mut a);
+                        pad.run(y, x0, n, &mut b);
+                        for i in 0..n {
+                            prop_assert_eq!(a.state[i], b.state[i]);
+                            for k in 0..3 {
+                                prop_assert_eq!(
+                                    a.value[k][i].to_bits(), b.value[k][i].to_bits(),
+                                    "{:?} at ({}, {})", interp, x0 + i, y
+                                );
+                            }
                         }
                     }
                 }
