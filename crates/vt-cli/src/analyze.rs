@@ -57,6 +57,10 @@ pub struct AnalyzeArgs {
     /// Marking noise of the points, pixels (GRIC's sigma).
     #[arg(long, default_value_t = 1.0)]
     point_sigma: f64,
+    /// Median background from at most this many evenly spaced frames per view (0 = every frame,
+    /// the thesis; slower, and the error it saves is in the report's median curve).
+    #[arg(long, default_value_t = vt_core::analysis::DEFAULT_MEDIAN_FRAMES)]
+    median_frames: usize,
     /// Keep a view's frames in memory between the two passes when they fit in this many MiB.
     #[arg(long, default_value_t = 768)]
     cache_mb: usize,
@@ -124,6 +128,7 @@ impl AnalyzeArgs {
                 force,
             },
             alternative_loops: self.alternatives,
+            median_frames: self.median_frames,
             cache_bytes: self.cache_mb << 20,
             appearance: self.appearance,
             refine: self.refine == "on",
@@ -156,6 +161,7 @@ fn flag_of(name: &str) -> Option<&'static str> {
         "alternative_loops" => "--alternatives",
         "model.sigma" => "--point-sigma",
         "appearance" => "--appearance",
+        "median_frames" => "--median-frames",
         _ => return None,
     })
 }

@@ -15,12 +15,13 @@ use serde::{Deserialize, Serialize};
 use crate::appearance::{self, change_thumb, thumb_factor, Thumb};
 use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, GaussianParams};
 use crate::loops::{check_loop_input, loops_from_pair_costs, pair_costs, Loop, LoopParams};
-use crate::median::{temporal_median, MedianAccumulator};
+use crate::median::{temporal_median, temporal_median_frames, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
 use crate::noise::{noise_mask, noise_model, FrameSample, MotionKept, NoiseModel, NoiseParams};
 use crate::transition::{
     seam_score, transition_range, transitions_from_pair_costs, warp_masks, xor_pair_costs,
 };
+use crate::yuv::Yuv420Image;
 use crate::{Error, Homography, Mask, Point, Result};
 
 /// Where a view's frames come from. Implemented by the decoders in `vt-io` and by in-memory
@@ -34,6 +35,95 @@ pub trait FrameSource {
         &mut self,
         f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>,
     ) -> Result<usize>;
+    /// Like [`FrameSource::for_each_frame`], but in the form the source holds its frames: a video
+    /// decoder may give 4:2:0 frames, half the bytes of RGB, which the analysis keeps between its
+    /// passes as they are. The frames must be the ones [`FrameSource::for_each_frame`] gives
+    /// once converted ([`FrameRef::to_rgb_into`]). The default hands out the RGB frames.
+    fn for_each_native(
+        &mut self,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
+    ) -> Result<usize> {
+        self.for_each_frame(&mut |i, rgb| f(i, FrameRef::Rgb(rgb)))
+    }
+}
+
+/// A frame as its source holds it.
+#[derive(Debug, Clone, Copy)]
+pub enum FrameRef<'a> {
+    /// Interleaved RGB.
+    Rgb(&'a RgbImage),
+    /// Planar 4:2:0, as video decoders give it.
+    Yuv420(&'a Yuv420Image),
+}
+
+impl FrameRef<'_> {
+    /// `(width, height)`.
+    pub fn dimensions(&self) -> (u32, u32) {
+        match self {
+            FrameRef::Rgb(f) => f.dimensions(),
+            FrameRef::Yuv420(f) => f.dimensions(),
+        }
+    }
+
+    /// Bytes the frame takes.
+    pub fn byte_len(&self) -> usize {
+        match self {
+            FrameRef::Rgb(f) => f.as_raw().len(),
+            FrameRef::Yuv420(f) => f.as_raw().len(),
+        }
+    }
+
+    /// An owned copy.
+    pub fn to_owned(&self) -> Frame {
+        match self {
+            FrameRef::Rgb(f) => Frame::Rgb((*f).clone()),
+            FrameRef::Yuv420(f) => Frame::Yuv420((*f).clone()),
+        }
+    }
+
+    /// The frame in RGB, in `out` (resized if needed).
+    pub fn to_rgb_into(&self, out: &mut RgbImage) {
+        match self {
+            FrameRef::Rgb(f) => {
+                if out.dimensions() == f.dimensions() {
+                    out.copy_from_slice(f.as_raw());
+                } else {
+                    *out = (*f).clone();
+                }
+            }
+            FrameRef::Yuv420(f) => f.to_rgb_into(out),
+        }
+    }
+
+    /// The frame in RGB: borrowed when it is RGB already, else converted into `buf`.
+    pub fn rgb<'b>(&'b self, buf: &'b mut RgbImage) -> &'b RgbImage {
+        match self {
+            FrameRef::Rgb(f) => f,
+            FrameRef::Yuv420(f) => {
+                f.to_rgb_into(buf);
+                buf
+            }
+        }
+    }
+}
+
+/// An owned frame in its source's form (the analysis's frame cache).
+#[derive(Debug, Clone)]
+pub enum Frame {
+    /// Interleaved RGB.
+    Rgb(RgbImage),
+    /// Planar 4:2:0.
+    Yuv420(Yuv420Image),
+}
+
+impl Frame {
+    /// Borrowed.
+    pub fn as_ref(&self) -> FrameRef<'_> {
+        match self {
+            Frame::Rgb(f) => FrameRef::Rgb(f),
+            Frame::Yuv420(f) => FrameRef::Yuv420(f),
+        }
+    }
 }
 
 /// Frames already in memory.
@@ -140,6 +230,11 @@ pub struct AnalyzeParams {
     /// [`crate::loops::find_loops`]; distinct = more than `window` frames apart in m or n).
     #[serde(default)]
     pub alternative_loops: usize,
+    /// The median background from at most this many evenly spaced frames of each view
+    /// ([`FrameSample`]: every k-th frame, k a power of two); 0 = every frame (the thesis).
+    /// Scenes written before it existed used every frame.
+    #[serde(default)]
+    pub median_frames: usize,
     /// Keep a view's frames in memory between the two passes when they fit in this many bytes
     /// (not serialised into scenes: it changes speed, never results).
     #[serde(skip, default = "default_cache")]
@@ -149,6 +244,12 @@ pub struct AnalyzeParams {
 fn default_cache() -> usize {
     768 << 20
 }
+
+/// Default [`AnalyzeParams::median_frames`].
+pub const DEFAULT_MEDIAN_FRAMES: usize = 128;
+
+/// Most frames of a view the median histograms can count (`u16` counts).
+pub const MAX_FRAMES_PER_VIEW: usize = MedianAccumulator::MAX_FRAMES;
 
 /// Largest Gaussian kernel size of the analysis (OpenCV allows any odd size; beyond this the
 /// kernel is wider than any useful smoothing and its cost grows with it).
@@ -209,6 +310,13 @@ impl AnalyzeParams {
                 "a positive number of pixels".into(),
             );
         }
+        if matches!(self.median_frames, 1 | 2) || self.median_frames > MAX_FRAMES_PER_VIEW {
+            return bad(
+                "median_frames",
+                self.median_frames.to_string(),
+                format!("0 (every frame) or 3 to {MAX_FRAMES_PER_VIEW} frames"),
+            );
+        }
         self.noise.check()?;
         if !(self.appearance.is_finite() && (0.0..=1000.0).contains(&self.appearance)) {
             let why = "the appearance weight must be in 0..=1000 (0 = masks only)";
@@ -229,6 +337,7 @@ impl Default for AnalyzeParams {
             loops: LoopParams::default(),
             model: ModelParams::default(),
             alternative_loops: 0,
+            median_frames: DEFAULT_MEDIAN_FRAMES,
             cache_bytes: default_cache(),
         }
     }
@@ -683,16 +792,21 @@ fn analyze_view(
     let name = src.name().to_string();
     let label = |extra: &str| format!("view {p} ({name}){extra}");
 
-    // Pass 1: keep frames while they fit the cache budget; past it, stream them into a
-    // histogram median instead. Cached views get the faster row-blocked median.
+    // Pass 1: keep frames (in the source's form: 4:2:0 video frames take half the bytes of RGB)
+    // while they fit the cache budget; past it, the second pass decodes again. The median comes
+    // from an evenly spaced sample of frames, or from every frame (streamed into a histogram
+    // median when they do not fit).
     observer.start(Stage::Background, Some(p), None);
+    let every_frame = params.median_frames == 0;
     let mut acc: Option<MedianAccumulator> = None;
-    let mut cache: Option<Vec<RgbImage>> = Some(Vec::new());
+    let mut cache: Option<Vec<Frame>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
     let mut sample = params
         .noise
         .enabled()
         .then(|| FrameSample::new(params.noise.sample_frames));
+    let mut median_sample = (!every_frame).then(|| FrameSample::new(params.median_frames));
+    let (mut rgb_buf, mut spill_buf) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
     let mut inside = Duration::ZERO;
     let t_pass = Instant::now();
     let too_many = |e: Error| match e {
@@ -703,7 +817,7 @@ fn analyze_view(
         },
         other => other,
     };
-    let n1 = src.for_each_frame(&mut |i, frame| {
+    let n1 = src.for_each_native(&mut |i, frame| {
         let t = Instant::now();
         let dims = frame.dimensions();
         if dims.0 == 0 || dims.1 == 0 {
@@ -725,24 +839,35 @@ fn analyze_view(
             Some(s) if *s != dims => return Err(size_err(label(&format!(" frame {i}")), *s, dims)),
             _ => {}
         }
-        cached_bytes += frame.as_raw().len();
-        if let Some(s) = sample.as_mut() {
-            s.offer(i, frame);
-        }
-        match cache.as_mut() {
-            Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.clone()),
-            _ => {
+        cached_bytes += frame.byte_len();
+        let fits = cache.is_some() && cached_bytes <= params.cache_bytes;
+        let sampled = sample.as_ref().is_some_and(|s| s.wants(i))
+            || median_sample.as_ref().is_some_and(|s| s.wants(i));
+        if sampled || (every_frame && !fits) {
+            let rgb = frame.rgb(&mut rgb_buf);
+            if let Some(s) = sample.as_mut() {
+                s.offer(i, rgb);
+            }
+            if let Some(s) = median_sample.as_mut() {
+                s.offer(i, rgb);
+            }
+            if every_frame && !fits {
                 let a = acc.get_or_insert_with(|| MedianAccumulator::new(dims.0, dims.1));
                 for f in cache.take().unwrap_or_default() {
-                    a.push(&f).map_err(too_many)?;
+                    a.push(f.as_ref().rgb(&mut spill_buf)).map_err(too_many)?;
                 }
-                a.push(frame).map_err(too_many)?;
+                a.push(rgb).map_err(too_many)?;
             }
+        }
+        match cache.as_mut() {
+            Some(c) if fits => c.push(frame.to_owned()),
+            _ => cache = None,
         }
         observer.tick();
         inside += t.elapsed();
         Ok(())
     })?;
+    drop((rgb_buf, spill_buf));
     timings.decode += t_pass.elapsed().saturating_sub(inside);
     observer.finish();
     let need = params.loops.window + params.loops.min_length;
@@ -758,10 +883,14 @@ fn analyze_view(
         });
     }
     let t = Instant::now();
-    let background = match (&cache, acc) {
-        (Some(frames), _) => temporal_median(frames).map_err(too_many)?,
-        (None, Some(acc)) => acc.median()?,
-        (None, None) => unreachable!("frames go to the cache or the accumulator"),
+    let background = match (median_sample, &cache, acc) {
+        (Some(s), _, _) => temporal_median(s.frames()).map_err(too_many)?,
+        (None, Some(frames), _) => {
+            let refs: Vec<FrameRef<'_>> = frames.iter().map(Frame::as_ref).collect();
+            temporal_median_frames(&refs).map_err(too_many)?
+        }
+        (None, None, Some(acc)) => acc.median()?,
+        (None, None, None) => unreachable!("frames go to the cache or the accumulator"),
     };
     let bg_blur = gaussian_blur(&background, &params.blur)?;
     timings.median += t.elapsed() + inside;
@@ -792,12 +921,7 @@ fn analyze_view(
     });
     let shown = |m: &Mask| -> Mask {
         match &support {
-            Some(s) => {
-                let (a, b) = (m.words(), s.words());
-                Mask::from_index_fn(m.width(), m.height(), |i| {
-                    ((a[i / 64] | b[i / 64]) >> (i % 64)) & 1 == 1
-                })
-            }
+            Some(s) => m.union(s),
             None => m.clone(),
         }
     };
@@ -820,27 +944,45 @@ fn analyze_view(
     let mut masks = Vec::with_capacity(n1);
     let mut inside = Duration::ZERO;
     if let Some(frames) = cache {
-        // One frame per thread, buffers reused: no allocation per frame but the mask.
+        // Frames in chunks: each chunk's frames converted, blurred and masked in parallel (one
+        // frame per thread, buffers reused), then handed to the observer in order. The cache
+        // shrinks as it goes: a chunk's frames are dropped once converted.
         let blur = GaussianBlur::new(&params.blur)?;
         let (w, h) = bg_blur.dimensions();
-        let computed: Result<Vec<(Mask, Option<Thumb>)>> = frames
-            .par_iter()
-            .map_init(
-                || (BlurScratch::default(), RgbImage::new(w, h)),
-                |(scratch, blurred), f| {
-                    blur.apply_into(f, blurred, scratch)?;
-                    let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
-                    Ok((mask_of(blurred)?, thumb))
-                },
-            )
+        let chunk = (4 * rayon::current_num_threads()).max(8);
+        let mut rgb: Vec<RgbImage> = (0..chunk.min(frames.len()))
+            .map(|_| RgbImage::new(w, h))
             .collect();
-        let (m, th): (Vec<Mask>, Vec<Option<Thumb>>) = computed?.into_iter().unzip();
-        masks = m;
-        thumbs = th.into_iter().flatten().collect();
-        for (i, (m, f)) in masks.iter().zip(&frames).enumerate() {
-            observer.object_frame(p, i, &shown(m), f)?;
-            kept.push(f, m, &background, alpha);
-            observer.tick();
+        let mut frames = frames.into_iter();
+        let mut i = 0;
+        loop {
+            let part: Vec<Frame> = frames.by_ref().take(chunk).collect();
+            if part.is_empty() {
+                break;
+            }
+            let computed: Vec<Result<(Mask, Option<Thumb>)>> = part
+                .into_par_iter()
+                .zip(rgb.par_iter_mut())
+                .map_init(
+                    || (BlurScratch::default(), RgbImage::new(w, h)),
+                    |(scratch, blurred), (f, out)| {
+                        f.as_ref().to_rgb_into(out);
+                        drop(f);
+                        blur.apply_into(out, blurred, scratch)?;
+                        let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
+                        Ok((mask_of(blurred)?, thumb))
+                    },
+                )
+                .collect();
+            for (r, f) in computed.into_iter().zip(&rgb) {
+                let (m, thumb) = r?;
+                observer.object_frame(p, i, &shown(&m), f)?;
+                kept.push(f, &m, &background, alpha);
+                masks.push(m);
+                thumbs.extend(thumb);
+                observer.tick();
+                i += 1;
+            }
         }
         timings.masks += t.elapsed();
     } else {

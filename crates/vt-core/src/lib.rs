@@ -27,6 +27,7 @@ pub mod rng;
 mod simd;
 pub mod transition;
 pub mod warp;
+pub mod yuv;
 
 pub use error::{Error, ExternalError, Result};
 pub use homography::{Homography, Point};

@@ -193,6 +193,25 @@ impl Mask {
         self.words.iter().map(|w| w.count_ones() as u64).sum()
     }
 
+    /// Pixels set in either mask (same size; panics otherwise).
+    pub fn union(&self, other: &Mask) -> Mask {
+        assert_eq!(
+            (self.width, self.height),
+            (other.width, other.height),
+            "union of masks of different sizes"
+        );
+        Mask {
+            width: self.width,
+            height: self.height,
+            words: self
+                .words
+                .iter()
+                .zip(&other.words)
+                .map(|(a, b)| a | b)
+                .collect(),
+        }
+    }
+
     /// Range of words holding any set bit (empty range when nothing is set).
     pub fn active_words(&self) -> Range<usize> {
         let first = self.words.iter().position(|&w| w != 0);

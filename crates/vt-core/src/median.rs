@@ -11,6 +11,7 @@
 use image::RgbImage;
 use rayon::prelude::*;
 
+use crate::analysis::FrameRef;
 use crate::{Error, Result};
 
 const BINS: usize = 256;
@@ -111,7 +112,14 @@ impl MedianAccumulator {
 /// which stays in cache), so it reads each frame row once and never allocates the whole-image
 /// histogram; on 640x360 frames it is several times faster than streaming.
 pub fn temporal_median<'a>(frames: impl IntoIterator<Item = &'a RgbImage>) -> Result<RgbImage> {
-    let frames: Vec<&RgbImage> = frames.into_iter().collect();
+    let frames: Vec<FrameRef<'a>> = frames.into_iter().map(FrameRef::Rgb).collect();
+    temporal_median_frames(&frames)
+}
+
+/// [`temporal_median`] of frames in their source's form: 4:2:0 frames are converted to RGB one
+/// row at a time as the median reads them, so the median of a cache of video frames needs no
+/// RGB copy of them.
+pub fn temporal_median_frames(frames: &[FrameRef<'_>]) -> Result<RgbImage> {
     let first = frames.first().ok_or(Error::TooFewFrames {
         what: "median".into(),
         got: 0,
@@ -124,12 +132,13 @@ pub fn temporal_median<'a>(frames: impl IntoIterator<Item = &'a RgbImage>) -> Re
         .enumerate()
         .find(|(_, f)| f.dimensions() != (w, h))
     {
+        let (got_w, got_h) = f.dimensions();
         return Err(Error::SizeMismatch {
             what: format!("median frame {i}"),
             expected_w: w,
             expected_h: h,
-            got_w: f.width(),
-            got_h: f.height(),
+            got_w,
+            got_h,
         });
     }
     if frames.len() > MedianAccumulator::MAX_FRAMES {
@@ -143,11 +152,17 @@ pub fn temporal_median<'a>(frames: impl IntoIterator<Item = &'a RgbImage>) -> Re
     let rank = (frames.len() - 1) / 2;
     let mut out = vec![0u8; row_values * h as usize];
     out.par_chunks_mut(row_values).enumerate().for_each_init(
-        || vec![0u16; row_values * BINS],
-        |hist, (y, out_row)| {
+        || (vec![0u16; row_values * BINS], vec![0u8; row_values]),
+        |(hist, converted), (y, out_row)| {
             let start = y * row_values;
-            for f in &frames {
-                let row = &f.as_raw()[start..start + row_values];
+            for f in frames {
+                let row: &[u8] = match f {
+                    FrameRef::Rgb(f) => &f.as_raw()[start..start + row_values],
+                    FrameRef::Yuv420(f) => {
+                        f.row_to_rgb(y as u32, converted);
+                        converted
+                    }
+                };
                 for (i, &v) in row.iter().enumerate() {
                     hist[i * BINS + v as usize] += 1;
                 }

@@ -156,6 +156,16 @@ impl FrameSample {
         }
     }
 
+    /// Whether [`FrameSample::offer`] would keep frame `index` (to skip preparing the others).
+    pub fn wants(&self, index: usize) -> bool {
+        let stride = if self.frames.len() == self.cap {
+            2 * self.stride
+        } else {
+            self.stride
+        };
+        index.is_multiple_of(stride)
+    }
+
     /// Offers frame `index` (frames must come in order from 0).
     pub fn offer(&mut self, index: usize, frame: &RgbImage) {
         if !index.is_multiple_of(self.stride) {
@@ -368,35 +378,46 @@ impl MotionKept {
         alpha: Option<&GrayImage>,
     ) {
         if let Some((pf, pm)) = &mut self.prev {
+            // In integers: with alphas in 0..=255, 255 R_t = a_t F_t + (255 - a_t) B, so
+            // 255 (R_{t+1} - R_t) = a1 F1 - a0 F0 + (a0 - a1) B; `kept` sums it over 255.
             let (a, b, bg) = (pf.as_raw(), frame.as_raw(), background.as_raw());
             let (w0, w1) = (pm.words(), mask.words());
-            let bit = |w: &[u64], i: usize| (w[i / 64] >> (i % 64)) & 1 == 1;
-            let n = frame.width() as usize * frame.height() as usize;
-            let (real, kept) = (0..n)
-                .into_par_iter()
-                .with_min_len(4096)
-                .map(|i| {
-                    let dyn_a = alpha.map_or(0.0, |al| al.as_raw()[i] as f32 / 255.0);
-                    let pick = |set: bool| match (dyn_a > 0.0, set) {
-                        (true, _) => dyn_a,
-                        (false, true) => 1.0,
-                        (false, false) => 0.0,
-                    };
-                    let (a0, a1) = (pick(bit(w0, i)), pick(bit(w1, i)));
-                    let (mut real, mut kept) = (0f64, 0f64);
-                    for c in 0..3 {
-                        let (f0, f1, g) = (
-                            a[3 * i + c] as f32,
-                            b[3 * i + c] as f32,
-                            bg[3 * i + c] as f32,
-                        );
-                        real += (f1 - f0).abs() as f64;
-                        let r0 = a0 * f0 + (1.0 - a0) * g;
-                        let r1 = a1 * f1 + (1.0 - a1) * g;
-                        kept += (r1 - r0).abs() as f64;
-                    }
-                    (real, kept)
-                })
+            let w = frame.width() as usize;
+            let (real, kept) = a
+                .par_chunks(3 * w)
+                .zip(b.par_chunks(3 * w))
+                .zip(bg.par_chunks(3 * w))
+                .enumerate()
+                .with_min_len(8)
+                .map_init(
+                    || (vec![0i32; w], vec![0i32; w]),
+                    |(al0, al1), (y, ((f0, f1), g))| {
+                        for x in 0..w {
+                            let i = y * w + x;
+                            let dyn_a = alpha.map_or(0, |al| al.as_raw()[i]) as i32;
+                            let pick = |words: &[u64]| match dyn_a {
+                                0 => 255 * ((words[i / 64] >> (i % 64)) & 1) as i32,
+                                a => a,
+                            };
+                            al0[x] = pick(w0);
+                            al1[x] = pick(w1);
+                        }
+                        let (mut real, mut kept) = (0u64, 0u64);
+                        for x in 0..w {
+                            let (a0, a1) = (al0[x], al1[x]);
+                            for c in 0..3 {
+                                let (v0, v1, gv) = (
+                                    f0[3 * x + c] as i32,
+                                    f1[3 * x + c] as i32,
+                                    g[3 * x + c] as i32,
+                                );
+                                real += (v1 - v0).unsigned_abs() as u64;
+                                kept += (a1 * v1 - a0 * v0 + (a0 - a1) * gv).unsigned_abs() as u64;
+                            }
+                        }
+                        (real as f64, kept as f64 / 255.0)
+                    },
+                )
                 .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
             self.real += real;
             self.kept += kept;

@@ -10,7 +10,8 @@ use std::process::{Command, Stdio};
 
 use image::RgbImage;
 use rayon::prelude::*;
-use vt_core::analysis::FrameSource;
+use vt_core::analysis::{FrameRef, FrameSource};
+use vt_core::yuv::{Yuv420Image, YuvMatrix, YuvRange};
 
 use crate::{Error, Result};
 
@@ -92,6 +93,9 @@ pub struct VideoSource {
     name: String,
     width: u32,
     height: u32,
+    /// The 4:2:0 form the decoder gives, when the stream is 4:2:0 (then frames are decoded as
+    /// such and converted by [`vt_core::yuv`]); None: ffmpeg converts to RGB.
+    yuv: Option<(YuvMatrix, YuvRange)>,
 }
 
 fn missing_tool(tool: &str, path: &Path, e: std::io::Error) -> Error {
@@ -116,7 +120,7 @@ fn last_line(s: &str) -> String {
 }
 
 impl VideoSource {
-    /// Probes the video's size with `ffprobe`.
+    /// Probes the video's size and pixel format with `ffprobe`.
     pub fn open(path: &Path) -> Result<Self> {
         let out = Command::new("ffprobe")
             .args([
@@ -125,44 +129,191 @@ impl VideoSource {
                 "-select_streams",
                 "v:0",
                 "-show_entries",
-                "stream=width,height",
+                "stream=width,height,pix_fmt,color_space,color_range",
                 "-of",
-                "csv=p=0",
+                "default=noprint_wrappers=1",
             ])
             .arg(path)
             .stdin(Stdio::null())
             .output()
             .map_err(|e| missing_tool("ffprobe", path, e))?;
         let stdout = String::from_utf8_lossy(&out.stdout);
-        let dims: Vec<u32> = stdout
-            .trim()
-            .split(',')
-            .filter_map(|s| s.trim().parse().ok())
-            .collect();
-        if !out.status.success() || dims.len() != 2 || dims[0] == 0 || dims[1] == 0 {
-            let err = String::from_utf8_lossy(&out.stderr);
-            let why = if out.status.success() {
-                "no video stream".to_string()
-            } else {
-                last_line(&err)
-            };
-            return Err(Error::Video {
-                path: path.to_path_buf(),
-                message: format!("not a readable video ({why})"),
-            });
-        }
-        check_image_size(path, (dims[0], dims[1]))?;
+        let field = |key: &str| {
+            stdout
+                .lines()
+                .find_map(|l| l.trim().strip_prefix(key)?.strip_prefix('='))
+                .map(str::trim)
+        };
+        let dim = |key: &str| field(key).and_then(|v| v.parse::<u32>().ok());
+        let dims = match (dim("width"), dim("height")) {
+            (Some(w), Some(h)) if out.status.success() && w > 0 && h > 0 => (w, h),
+            _ => {
+                let err = String::from_utf8_lossy(&out.stderr);
+                let why = if out.status.success() {
+                    "no video stream".to_string()
+                } else {
+                    last_line(&err)
+                };
+                return Err(Error::Video {
+                    path: path.to_path_buf(),
+                    message: format!("not a readable video ({why})"),
+                });
+            }
+        };
+        check_image_size(path, dims)?;
+        let even = dims.0 % 2 == 0 && dims.1 % 2 == 0;
+        let yuv = match field("pix_fmt") {
+            Some(fmt @ ("yuv420p" | "yuvj420p")) if even => {
+                let full = fmt == "yuvj420p" || matches!(field("color_range"), Some("pc" | "jpeg"));
+                let range = if full {
+                    YuvRange::Full
+                } else {
+                    YuvRange::Limited
+                };
+                let matrix = match field("color_space") {
+                    Some("bt709") => YuvMatrix::Bt709,
+                    _ => YuvMatrix::Bt601,
+                };
+                Some((matrix, range))
+            }
+            _ => None,
+        };
         Ok(Self {
             path: path.to_path_buf(),
             name: path.display().to_string(),
-            width: dims[0],
-            height: dims[1],
+            width: dims.0,
+            height: dims.1,
+            yuv,
         })
     }
 
     /// Frame size.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
+    }
+}
+
+impl VideoSource {
+    /// The 4:2:0 form frames are decoded in (None: RGB from ffmpeg).
+    pub fn yuv_format(&self) -> Option<(YuvMatrix, YuvRange)> {
+        self.yuv
+    }
+
+    fn src_err(&self, message: String) -> vt_core::Error {
+        vt_core::Error::Source {
+            view: self.name.clone(),
+            message,
+        }
+    }
+
+    /// Runs ffmpeg to decode every frame as raw `pix_fmt` of `frame_bytes` bytes, calling
+    /// `on_frame(index, bytes)` for each; returns the frame count.
+    fn decode(
+        &self,
+        pix_fmt: &str,
+        frame_bytes: usize,
+        on_frame: &mut dyn FnMut(usize, &mut Vec<u8>) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
+        let mut child = Command::new("ffmpeg")
+            .args(["-v", "error", "-xerror", "-nostdin", "-i"])
+            .arg(&self.path)
+            .args([
+                "-map",
+                "0:v:0",
+                "-fps_mode",
+                "passthrough",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                pix_fmt,
+                "-",
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| self.src_err(missing_tool("ffmpeg", &self.path, e).to_string()))?;
+        // Drain stderr on a thread so a chatty decoder can never block on a full pipe.
+        let mut stderr = child.stderr.take().expect("stderr was piped");
+        let err_thread = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = stderr.read_to_string(&mut s);
+            s
+        });
+        let mut stdout = child.stdout.take().expect("stdout was piped");
+        let mut buf = vec![0u8; frame_bytes];
+        let mut n = 0usize;
+        let result: vt_core::Result<()> = loop {
+            let mut filled = 0;
+            while filled < frame_bytes {
+                match stdout.read(&mut buf[filled..]) {
+                    Ok(0) => break,
+                    Ok(k) => filled += k,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(self.src_err(format!("reading decoded frames: {e}"))),
+                }
+            }
+            if filled == 0 {
+                break Ok(());
+            }
+            if filled < frame_bytes {
+                break Err(self.src_err(format!(
+                    "truncated: frame {n} has {filled} of {frame_bytes} bytes"
+                )));
+            }
+            if let Err(e) = on_frame(n, &mut buf) {
+                break Err(e);
+            }
+            n += 1;
+        };
+        drop(stdout);
+        if result.is_err() {
+            let _ = child.kill();
+        }
+        let status = child
+            .wait()
+            .map_err(|e| self.src_err(format!("waiting for ffmpeg: {e}")))?;
+        let err = err_thread.join().unwrap_or_default();
+        result?;
+        if !status.success() {
+            return Err(self.src_err(format!(
+                "unreadable or truncated video after {n} frames (ffmpeg: {})",
+                last_line(&err)
+            )));
+        }
+        if n == 0 {
+            return Err(self.src_err("the video has no frames".into()));
+        }
+        Ok(n)
+    }
+
+    /// Decodes 4:2:0 frames, handing each out as a [`Yuv420Image`].
+    fn decode_yuv(
+        &self,
+        (matrix, range): (YuvMatrix, YuvRange),
+        f: &mut dyn FnMut(usize, &Yuv420Image) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
+        let (w, h) = (self.width, self.height);
+        self.decode("yuv420p", Yuv420Image::byte_len(w, h), &mut |i, buf| {
+            let img = Yuv420Image::from_raw(w, h, matrix, range, std::mem::take(buf))?;
+            let r = f(i, &img);
+            *buf = img.into_raw();
+            r
+        })
+    }
+
+    /// Decodes RGB frames (converted by ffmpeg).
+    fn decode_rgb(
+        &self,
+        f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
+        let (w, h) = (self.width, self.height);
+        self.decode("rgb24", w as usize * h as usize * 3, &mut |i, buf| {
+            let img = RgbImage::from_raw(w, h, std::mem::take(buf)).expect("buffer is w*h*3");
+            let r = f(i, &img);
+            *buf = img.into_raw();
+            r
+        })
     }
 }
 
@@ -175,86 +326,26 @@ impl FrameSource for VideoSource {
         &mut self,
         f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>,
     ) -> vt_core::Result<usize> {
-        let src_err = |message: String| vt_core::Error::Source {
-            view: self.name.clone(),
-            message,
-        };
-        let mut child = Command::new("ffmpeg")
-            .args(["-v", "error", "-xerror", "-nostdin", "-i"])
-            .arg(&self.path)
-            .args([
-                "-map",
-                "0:v:0",
-                "-fps_mode",
-                "passthrough",
-                "-f",
-                "rawvideo",
-                "-pix_fmt",
-                "rgb24",
-                "-",
-            ])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .map_err(|e| src_err(missing_tool("ffmpeg", &self.path, e).to_string()))?;
-        // Drain stderr on a thread so a chatty decoder can never block on a full pipe.
-        let mut stderr = child.stderr.take().expect("stderr was piped");
-        let err_thread = std::thread::spawn(move || {
-            let mut s = String::new();
-            let _ = stderr.read_to_string(&mut s);
-            s
-        });
-        let mut stdout = child.stdout.take().expect("stdout was piped");
-        let frame_bytes = self.width as usize * self.height as usize * 3;
-        let mut buf = vec![0u8; frame_bytes];
-        let mut n = 0usize;
-        let result: vt_core::Result<()> = loop {
-            let mut filled = 0;
-            while filled < frame_bytes {
-                match stdout.read(&mut buf[filled..]) {
-                    Ok(0) => break,
-                    Ok(k) => filled += k,
-                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                    Err(e) => return Err(src_err(format!("reading decoded frames: {e}"))),
-                }
+        match self.yuv {
+            Some(form) => {
+                let mut rgb = RgbImage::new(self.width, self.height);
+                self.decode_yuv(form, &mut |i, yuv| {
+                    yuv.to_rgb_into(&mut rgb);
+                    f(i, &rgb)
+                })
             }
-            if filled == 0 {
-                break Ok(());
-            }
-            if filled < frame_bytes {
-                break Err(src_err(format!(
-                    "truncated: frame {n} has {filled} of {frame_bytes} bytes"
-                )));
-            }
-            let img = RgbImage::from_raw(self.width, self.height, std::mem::take(&mut buf))
-                .expect("buffer is w*h*3");
-            let r = f(n, &img);
-            buf = img.into_raw();
-            if let Err(e) = r {
-                break Err(e);
-            }
-            n += 1;
-        };
-        drop(stdout);
-        if result.is_err() {
-            let _ = child.kill();
+            None => self.decode_rgb(f),
         }
-        let status = child
-            .wait()
-            .map_err(|e| src_err(format!("waiting for ffmpeg: {e}")))?;
-        let err = err_thread.join().unwrap_or_default();
-        result?;
-        if !status.success() {
-            return Err(src_err(format!(
-                "unreadable or truncated video after {n} frames (ffmpeg: {})",
-                last_line(&err)
-            )));
+    }
+
+    fn for_each_native(
+        &mut self,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
+        match self.yuv {
+            Some(form) => self.decode_yuv(form, &mut |i, yuv| f(i, FrameRef::Yuv420(yuv))),
+            None => self.decode_rgb(&mut |i, rgb| f(i, FrameRef::Rgb(rgb))),
         }
-        if n == 0 {
-            return Err(src_err("the video has no frames".into()));
-        }
-        Ok(n)
     }
 }
 

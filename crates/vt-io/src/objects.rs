@@ -68,21 +68,32 @@ impl ObjectWriter {
             });
         }
         let (x0, y0, x1, y1) = mask.bounding_box().unwrap_or((0, 0, 0, 0));
-        let mut rec = Vec::new();
+        let n_bits = ((x1 - x0) * (y1 - y0)) as usize;
+        let set = mask.count_ones() as usize;
+        let mut rec = Vec::with_capacity(16 + n_bits.div_ceil(8) + 3 * set);
         for v in [x0, y0, x1, y1] {
             rec.extend_from_slice(&v.to_le_bytes());
         }
-        let n_bits = ((x1 - x0) * (y1 - y0)) as usize;
         let mut bits = vec![0u8; n_bits.div_ceil(8)];
-        let mut rgb = Vec::new();
+        let mut rgb = Vec::with_capacity(3 * set);
+        let (words, px) = (mask.words(), raw.as_raw());
+        let w = self.width as usize;
         let mut i = 0;
-        for y in y0..y1 {
-            for x in x0..x1 {
-                if mask.get(x, y) {
+        for y in y0 as usize..y1 as usize {
+            // Runs of set pixels are copied whole.
+            let mut run: Option<usize> = None;
+            for x in x0 as usize..x1 as usize {
+                let at = y * w + x;
+                if (words[at / 64] >> (at % 64)) & 1 == 1 {
                     bits[i / 8] |= 1 << (i % 8);
-                    rgb.extend_from_slice(&raw.get_pixel(x, y).0);
+                    run.get_or_insert(at);
+                } else if let Some(start) = run.take() {
+                    rgb.extend_from_slice(&px[3 * start..3 * at]);
                 }
                 i += 1;
+            }
+            if let Some(start) = run {
+                rgb.extend_from_slice(&px[3 * start..3 * (y * w + x1 as usize)]);
             }
         }
         rec.extend_from_slice(&bits);

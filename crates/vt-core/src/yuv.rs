@@ -1,0 +1,405 @@
+//! 4:2:0 frames as video decoders hold them, and their conversion to RGB.
+//!
+//! A [`Yuv420Image`] is planar: the luma plane (`width * height` bytes), then the U and V planes
+//! at half width and half height, one chroma sample per 2x2 block of pixels. It takes half the
+//! memory of the same frame in RGB, so the analysis keeps video frames in this form between its
+//! two passes (twice as many frames fit its cache) and converts a frame when it needs its pixels.
+//!
+//! Conversion is fixed point with 20 fractional bits, each chroma sample shared by its 2x2 block
+//! (no chroma interpolation). For BT.601 limited range the constants and rounding are OpenCV's
+//! (`COLOR_YUV2RGB_I420`: 1.164, 1.596, -0.391, -0.813, 2.018), so the result is byte for byte
+//! OpenCV's (cross-checked in vt-cv); BT.709 and full range use the same arithmetic with their
+//! own constants. ffmpeg's fast unscaled converter, which `-pix_fmt rgb24` uses, is less exact:
+//! it differs from this by about one grey level on average.
+
+use image::RgbImage;
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// The colour matrix of a YUV frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum YuvMatrix {
+    /// ITU-R BT.601 (SD video, and what decoders assume when a file does not say).
+    #[default]
+    Bt601,
+    /// ITU-R BT.709 (HD video).
+    Bt709,
+}
+
+/// The value range of a YUV frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum YuvRange {
+    /// Y in 16..=235, U and V in 16..=240 ("tv", "mpeg"; the usual one).
+    #[default]
+    Limited,
+    /// Y, U and V in 0..=255 ("pc", "jpeg").
+    Full,
+}
+
+/// A planar 4:2:0 frame (even width and height).
+#[derive(Clone, PartialEq, Eq)]
+pub struct Yuv420Image {
+    width: u32,
+    height: u32,
+    matrix: YuvMatrix,
+    range: YuvRange,
+    data: Vec<u8>,
+}
+
+impl std::fmt::Debug for Yuv420Image {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Yuv420Image")
+            .field("width", &self.width)
+            .field("height", &self.height)
+            .field("matrix", &self.matrix)
+            .field("range", &self.range)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Yuv420Image {
+    /// Bytes of a `width x height` frame: `w * h * 3 / 2`.
+    pub fn byte_len(width: u32, height: u32) -> usize {
+        let n = width as usize * height as usize;
+        n + n / 2
+    }
+
+    /// A frame of all zero bytes (a buffer to read into).
+    pub fn new(width: u32, height: u32, matrix: YuvMatrix, range: YuvRange) -> Result<Self> {
+        Self::from_raw(
+            width,
+            height,
+            matrix,
+            range,
+            vec![0; Self::byte_len(width, height)],
+        )
+    }
+
+    /// Wraps planar bytes (Y, then U, then V). Width and height must be even and non-zero, and
+    /// `data` exactly [`Yuv420Image::byte_len`] long.
+    pub fn from_raw(
+        width: u32,
+        height: u32,
+        matrix: YuvMatrix,
+        range: YuvRange,
+        data: Vec<u8>,
+    ) -> Result<Self> {
+        if width == 0 || height == 0 || width % 2 == 1 || height % 2 == 1 {
+            return Err(Error::InvalidParameter {
+                name: "yuv420 size",
+                value: format!("{width}x{height}"),
+                why: "4:2:0 frames need an even, non-zero width and height".into(),
+            });
+        }
+        let need = Self::byte_len(width, height);
+        if data.len() != need {
+            return Err(Error::InvalidParameter {
+                name: "yuv420 data",
+                value: format!("{} bytes", data.len()),
+                why: format!("a {width}x{height} 4:2:0 frame has {need} bytes"),
+            });
+        }
+        Ok(Self {
+            width,
+            height,
+            matrix,
+            range,
+            data,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// `(width, height)`.
+    pub fn dimensions(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The colour matrix.
+    pub fn matrix(&self) -> YuvMatrix {
+        self.matrix
+    }
+
+    /// The value range.
+    pub fn range(&self) -> YuvRange {
+        self.range
+    }
+
+    /// The planar bytes.
+    pub fn as_raw(&self) -> &[u8] {
+        &self.data
+    }
+
+    /// The planar bytes, to fill in place (a decoder reading into a reused frame).
+    pub fn as_raw_mut(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+
+    /// Takes the planar bytes back (to reuse the buffer).
+    pub fn into_raw(self) -> Vec<u8> {
+        self.data
+    }
+
+    /// The frame in RGB.
+    pub fn to_rgb(&self) -> RgbImage {
+        let mut out = RgbImage::new(self.width, self.height);
+        self.to_rgb_into(&mut out);
+        out
+    }
+
+    /// Converts into `out`, resized to this frame's size if it differs.
+    pub fn to_rgb_into(&self, out: &mut RgbImage) {
+        if out.dimensions() != self.dimensions() {
+            *out = RgbImage::new(self.width, self.height);
+        }
+        let c = Coefficients::of(self.matrix, self.range);
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (y_plane, chroma) = self.data.split_at(w * h);
+        let (u_plane, v_plane) = chroma.split_at(w * h / 4);
+        let cw = w / 2;
+        // Two output rows share a chroma row.
+        for (row_pair, (ys, rgb)) in y_plane
+            .chunks_exact(2 * w)
+            .zip(out.chunks_exact_mut(6 * w))
+            .enumerate()
+        {
+            let us = &u_plane[row_pair * cw..(row_pair + 1) * cw];
+            let vs = &v_plane[row_pair * cw..(row_pair + 1) * cw];
+            let (y0, y1) = ys.split_at(w);
+            let (r0, r1) = rgb.split_at_mut(3 * w);
+            convert_row(&c, y0, us, vs, r0);
+            convert_row(&c, y1, us, vs, r1);
+        }
+    }
+}
+
+impl Yuv420Image {
+    /// Converts row `y` into `out` (`3 * width` bytes).
+    pub fn row_to_rgb(&self, y: u32, out: &mut [u8]) {
+        let c = Coefficients::of(self.matrix, self.range);
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (y, cw) = (y as usize, w / 2);
+        let chroma = w * h + (y / 2) * cw;
+        let (us, vs) = (
+            &self.data[chroma..chroma + cw],
+            &self.data[chroma + w * h / 4..chroma + w * h / 4 + cw],
+        );
+        convert_row(
+            &c,
+            &self.data[y * w..(y + 1) * w],
+            us,
+            vs,
+            &mut out[..3 * w],
+        );
+    }
+}
+
+/// Fixed-point conversion constants, 20 fractional bits.
+struct Coefficients {
+    /// Luma scale.
+    cy: i32,
+    /// Luma offset subtracted first (16 for limited range).
+    y_offset: i32,
+    cvr: i32,
+    cug: i32,
+    cvg: i32,
+    cub: i32,
+}
+
+const SHIFT: u32 = 20;
+
+impl Coefficients {
+    fn of(matrix: YuvMatrix, range: YuvRange) -> Self {
+        let fix = |v: f64| (v * (1 << SHIFT) as f64).round() as i32;
+        match (matrix, range) {
+            // OpenCV's ITUR_BT_601_* constants, exactly.
+            (YuvMatrix::Bt601, YuvRange::Limited) => Self {
+                cy: 1_220_542,
+                y_offset: 16,
+                cvr: 1_673_527,
+                cug: -409_993,
+                cvg: -852_492,
+                cub: 2_116_026,
+            },
+            (YuvMatrix::Bt709, YuvRange::Limited) => Self {
+                cy: 1_220_542,
+                y_offset: 16,
+                cvr: fix(1.793),
+                cug: fix(-0.213),
+                cvg: fix(-0.533),
+                cub: fix(2.112),
+            },
+            (YuvMatrix::Bt601, YuvRange::Full) => Self {
+                cy: 1 << SHIFT,
+                y_offset: 0,
+                cvr: fix(1.402),
+                cug: fix(-0.344_136),
+                cvg: fix(-0.714_136),
+                cub: fix(1.772),
+            },
+            (YuvMatrix::Bt709, YuvRange::Full) => Self {
+                cy: 1 << SHIFT,
+                y_offset: 0,
+                cvr: fix(1.5748),
+                cug: fix(-0.187_324),
+                cvg: fix(-0.468_124),
+                cub: fix(1.8556),
+            },
+        }
+    }
+}
+
+#[inline(always)]
+fn clamp_u8(v: i32) -> u8 {
+    v.clamp(0, 255) as u8
+}
+
+/// One row: `ys` luma, `us`/`vs` its chroma row (half width), `rgb` the output row.
+#[inline]
+fn convert_row(c: &Coefficients, ys: &[u8], us: &[u8], vs: &[u8], rgb: &mut [u8]) {
+    let half = 1 << (SHIFT - 1);
+    for (((y2, &u), &v), out) in ys
+        .chunks_exact(2)
+        .zip(us)
+        .zip(vs)
+        .zip(rgb.chunks_exact_mut(6))
+    {
+        let (uu, vv) = (u as i32 - 128, v as i32 - 128);
+        let ruv = half + c.cvr * vv;
+        let guv = half + c.cvg * vv + c.cug * uu;
+        let buv = half + c.cub * uu;
+        for k in 0..2 {
+            let y = (y2[k] as i32 - c.y_offset).max(0) * c.cy;
+            out[3 * k] = clamp_u8((y + ruv) >> SHIFT);
+            out[3 * k + 1] = clamp_u8((y + guv) >> SHIFT);
+            out[3 * k + 2] = clamp_u8((y + buv) >> SHIFT);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    fn random(w: u32, h: u32, matrix: YuvMatrix, range: YuvRange, seed: u64) -> Yuv420Image {
+        let mut rng = Rng::new(seed);
+        let data = (0..Yuv420Image::byte_len(w, h))
+            .map(|_| rng.next_u64() as u8)
+            .collect();
+        Yuv420Image::from_raw(w, h, matrix, range, data).unwrap()
+    }
+
+    /// The textbook formula in f64, chroma shared by each 2x2 block.
+    fn reference(img: &Yuv420Image) -> RgbImage {
+        let (w, h) = (img.width as usize, img.height as usize);
+        let d = img.as_raw();
+        let (scale, off, m) = match (img.matrix, img.range) {
+            (YuvMatrix::Bt601, YuvRange::Limited) => (1.164, 16.0, [1.596, -0.391, -0.813, 2.018]),
+            (YuvMatrix::Bt709, YuvRange::Limited) => (1.164, 16.0, [1.793, -0.213, -0.533, 2.112]),
+            (YuvMatrix::Bt601, YuvRange::Full) => {
+                (1.0, 0.0, [1.402, -0.344_136, -0.714_136, 1.772])
+            }
+            (YuvMatrix::Bt709, YuvRange::Full) => {
+                (1.0, 0.0, [1.5748, -0.187_324, -0.468_124, 1.8556])
+            }
+        };
+        RgbImage::from_fn(img.width, img.height, |x, y| {
+            let (x, y) = (x as usize, y as usize);
+            let yy = scale * (d[y * w + x] as f64 - off).max(0.0);
+            let ci = (y / 2) * (w / 2) + x / 2;
+            let u = d[w * h + ci] as f64 - 128.0;
+            let v = d[w * h + w * h / 4 + ci] as f64 - 128.0;
+            let px = |v: f64| v.round().clamp(0.0, 255.0) as u8;
+            image::Rgb([
+                px(yy + m[0] * v),
+                px(yy + m[1] * u + m[2] * v),
+                px(yy + m[3] * u),
+            ])
+        })
+    }
+
+    #[test]
+    fn conversion_matches_the_formula_within_one_level() {
+        for (s, matrix) in [YuvMatrix::Bt601, YuvMatrix::Bt709].into_iter().enumerate() {
+            for (t, range) in [YuvRange::Limited, YuvRange::Full].into_iter().enumerate() {
+                let img = random(38, 26, matrix, range, 7 + 2 * s as u64 + t as u64);
+                let (got, want) = (img.to_rgb(), reference(&img));
+                let worst = got
+                    .as_raw()
+                    .iter()
+                    .zip(want.as_raw())
+                    .map(|(a, b)| a.abs_diff(*b))
+                    .max()
+                    .unwrap();
+                assert!(worst <= 1, "{matrix:?} {range:?}: off by {worst}");
+            }
+        }
+    }
+
+    #[test]
+    fn rows_convert_as_the_whole_frame_does() {
+        let img = random(10, 6, YuvMatrix::Bt709, YuvRange::Limited, 11);
+        let whole = img.to_rgb();
+        let mut row = vec![0u8; 30];
+        for y in 0..6 {
+            img.row_to_rgb(y, &mut row);
+            assert_eq!(
+                &row[..],
+                &whole.as_raw()[30 * y as usize..30 * (y as usize + 1)]
+            );
+        }
+    }
+
+    #[test]
+    fn greys_stay_grey_and_extremes_saturate() {
+        // Limited-range black, mid grey and white with neutral chroma.
+        for (yv, want) in [(16u8, 0u8), (126, 128), (235, 255), (0, 0), (255, 255)] {
+            let mut img = Yuv420Image::new(4, 2, YuvMatrix::Bt601, YuvRange::Limited).unwrap();
+            let d = img.as_raw_mut();
+            d[..8].fill(yv);
+            d[8..].fill(128);
+            let rgb = img.to_rgb();
+            assert!(
+                rgb.as_raw().iter().all(|&c| c.abs_diff(want) <= 1),
+                "Y {yv}: {:?}",
+                &rgb.as_raw()[..3]
+            );
+        }
+    }
+
+    #[test]
+    fn chroma_is_shared_by_its_two_by_two_block() {
+        let img = random(6, 4, YuvMatrix::Bt601, YuvRange::Limited, 3);
+        let mut flat = img.clone();
+        // Same luma everywhere: the four pixels of a block must then be equal.
+        flat.as_raw_mut()[..24].fill(100);
+        let rgb = flat.to_rgb();
+        for by in 0..2 {
+            for bx in 0..3 {
+                let p = *rgb.get_pixel(2 * bx, 2 * by);
+                for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
+                    assert_eq!(*rgb.get_pixel(2 * bx + dx, 2 * by + dy), p);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn odd_sizes_and_wrong_lengths_are_refused() {
+        let m = (YuvMatrix::Bt601, YuvRange::Limited);
+        assert!(Yuv420Image::new(3, 2, m.0, m.1).is_err());
+        assert!(Yuv420Image::new(0, 2, m.0, m.1).is_err());
+        assert!(Yuv420Image::from_raw(4, 2, m.0, m.1, vec![0; 11]).is_err());
+        assert!(Yuv420Image::from_raw(4, 2, m.0, m.1, vec![0; 12]).is_ok());
+    }
+}
