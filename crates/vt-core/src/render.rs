@@ -37,8 +37,8 @@ use rayon::prelude::*;
 use crate::model::{fit_model, MotionModel};
 use crate::round_u8;
 use crate::warp::{
-    sample_value, state, write_packed, Interpolation, Mapping, Padded, Run, Sampler, BILINEAR,
-    BILINEAR_FIXED, CHUNK, NEAREST, ROWS_PER_JOB,
+    sample_value, state, Interpolation, Mapping, Padded, Run, Sampler, BILINEAR, BILINEAR_FIXED,
+    CHUNK, NEAREST, ROWS_PER_JOB,
 };
 use crate::{Error, Homography, Point, Result};
 
@@ -470,7 +470,10 @@ pub struct Renderer {
     height: u32,
     cached_q: Option<f64>,
     h_to_q: Vec<Option<Homography>>,
+    /// `B_q` at `cached_q` when `background_valid`: kept only once q stays (or a blend needs
+    /// it), so a moving viewpoint writes its background once, straight into the frame.
     background_q: RgbImage,
+    background_valid: bool,
     /// Each view's background with its edge replicated around it ([`Padded`]), made once, so the
     /// per-frame blend reads its taps without a border test.
     padded: Vec<Padded>,
@@ -556,6 +559,7 @@ impl Renderer {
             width,
             height,
             cached_q: None,
+            background_valid: false,
             h_to_q: vec![None; m],
             background_q: RgbImage::new(width, height),
             padded,
@@ -641,25 +645,27 @@ impl Renderer {
         (self.width, self.height)
     }
 
-    /// Recomputes `H_(f,q)`, `H_(c,q)` and the blended background `B_q` (eq. 3) when q changed,
-    /// writing it into `out` too in the same pass; true when it did (else `out` is untouched).
-    fn prepare_q(&mut self, q: f64, out: &mut RgbImage) -> Result<bool> {
-        if self.cached_q == Some(q) {
-            return Ok(false);
+    /// Writes the blended background `B_q` (eq. 3) into `out`, recomputing `H_(f,q)` and
+    /// `H_(c,q)` when q changed. `B_q` is blended straight into `out`; it is also kept (written
+    /// in the same pass) when q is the previous frame's or `keep` asks (a blend of layers reads
+    /// it), and then copied while q stays.
+    fn prepare_q(&mut self, q: f64, out: &mut RgbImage, keep: bool) -> Result<()> {
+        let same = self.cached_q == Some(q);
+        if same && self.background_valid {
+            out.as_mut().copy_from_slice(self.background_q.as_raw());
+            return Ok(());
         }
+        if !same {
+            self.prepare_homographies(q)?;
+        }
+        let keep = same || keep;
         let QSplit {
             floor: f,
             ceil: c,
-            nearest: qbar,
+            nearest: _,
         } = split_q(q);
-        self.h_to_q.iter_mut().for_each(|h| *h = None);
-        for p in [f, c, qbar] {
-            if self.h_to_q[p].is_none() {
-                self.h_to_q[p] = Some(self.scene.homography_to_with(p, q, &mut self.vpoints)?);
-            }
-        }
-        let hf = self.h_to_q[f].expect("computed above");
-        let hc = self.h_to_q[c].expect("computed above");
+        let hf = self.h_to_q[f].expect("computed with q");
+        let hc = self.h_to_q[c].expect("computed with q");
         let (wf, wc) = if f == c {
             (1.0, 0.0)
         } else {
@@ -682,11 +688,30 @@ impl Renderer {
         blend_warps(
             &sources[..if f == c { 1 } else { 2 }],
             self.params.interpolation,
-            &mut self.background_q,
-            out.as_mut(),
+            out,
+            keep.then_some(self.background_q.as_mut()),
         );
+        self.background_valid = keep;
+        Ok(())
+    }
+
+    /// `H_(p,q)` for q's pair and nearest view; the others cleared.
+    fn prepare_homographies(&mut self, q: f64) -> Result<()> {
+        self.cached_q = None;
+        self.background_valid = false;
+        let QSplit {
+            floor: f,
+            ceil: c,
+            nearest: qbar,
+        } = split_q(q);
+        self.h_to_q.iter_mut().for_each(|h| *h = None);
+        for p in [f, c, qbar] {
+            if self.h_to_q[p].is_none() {
+                self.h_to_q[p] = Some(self.scene.homography_to_with(p, q, &mut self.vpoints)?);
+            }
+        }
         self.cached_q = Some(q);
-        Ok(true)
+        Ok(())
     }
 
     /// Renders viewpoint `q` showing `choice` (from [`Player::advance`]) into `out`.
@@ -707,13 +732,11 @@ impl Renderer {
                 got_h: out.height(),
             });
         }
-        if !self.prepare_q(q, out)? {
-            out.as_mut().copy_from_slice(self.background_q.as_raw());
-        }
-        let view = choice.view;
-        let h = self.h_to_q[view].expect("qbar's homography is prepared");
         // What the object shows: the chosen frame, or a blend of two (crossfade or dissolve).
         self.blend = self.next_blend(choice);
+        self.prepare_q(q, out, self.blend.is_some())?;
+        let view = choice.view;
+        let h = self.h_to_q[view].expect("qbar's homography is prepared");
         let views = &self.scene.views;
         let (shown, old, alpha) = match self.blend {
             Some(Blend::Fade { old, k }) if old.1 < views[old.0].to_next.len() => (
@@ -775,6 +798,14 @@ impl Renderer {
         if self.layer.dimensions() != out.dimensions() {
             self.layer = RgbImage::new(out.width(), out.height());
         }
+        if !self.background_valid {
+            // A blend that started after prepare_q's check (never: it keeps B_q for any blend).
+            return Err(Error::InvalidParameter {
+                name: "render state",
+                value: "background".into(),
+                why: "the blended background was not kept for a layer blend".into(),
+            });
+        }
         self.layer.copy_from_slice(self.background_q.as_raw());
         composite_shown(&self.patch, &self.patch_fill, &mut self.layer);
         objects.decode_into(ov, oj, &mut self.patch_old)?;
@@ -820,13 +851,13 @@ struct Source<'a> {
 ///
 /// Sampling is [`crate::warp`]'s sampler (runs of [`CHUNK`] pixels, the renderer's
 /// division mapping, replicated border, read from the padded backgrounds); rows in parallel.
-/// Each run is written to `out` and to `copy` (the same size): the frame starts from the
-/// background without a second pass over it.
+/// Each run is written to `out` and, when given, to `copy` (the same size): the frame starts
+/// from the background without a second pass over it.
 fn blend_warps<'a>(
     sources: &[Source<'a>],
     interp: Interpolation,
     out: &mut RgbImage,
-    copy: &mut [u8],
+    copy: Option<&mut [u8]>,
 ) {
     let w = out.width() as usize;
     if w == 0 || sources.is_empty() {
@@ -842,20 +873,31 @@ fn blend_warps<'a>(
     let first = sampler(&sources[0]);
     // One source: the second contributes nothing (its state stays NONE).
     let second = sources.get(1).map(sampler);
-    out.as_mut()
-        .par_chunks_mut(w * 3 * ROWS_PER_JOB)
-        .zip(copy.par_chunks_mut(w * 3 * ROWS_PER_JOB))
-        .enumerate()
-        .for_each(|(band, (rows, copy))| {
-            crate::simd::dispatch(BlendBand {
-                first: &first,
-                second: second.as_ref(),
-                y0: band * ROWS_PER_JOB,
-                rows,
-                copy,
-                w,
-            })
-        });
+    let band = w * 3 * ROWS_PER_JOB;
+    let job = |(i, (rows, copy)): (usize, (&mut [u8], Option<&mut [u8]>))| {
+        crate::simd::dispatch(BlendBand {
+            first: &first,
+            second: second.as_ref(),
+            y0: i * ROWS_PER_JOB,
+            rows,
+            copy,
+            w,
+        })
+    };
+    match copy {
+        Some(copy) => out
+            .as_mut()
+            .par_chunks_mut(band)
+            .zip(copy.par_chunks_mut(band).map(Some))
+            .enumerate()
+            .for_each(job),
+        None => out
+            .as_mut()
+            .par_chunks_mut(band)
+            .map(|rows| (rows, None))
+            .enumerate()
+            .for_each(job),
+    }
 }
 
 /// A sampler with its weights times inverse gains, and its weight.
@@ -867,7 +909,7 @@ struct BlendBand<'a, 'b> {
     second: Option<&'a Weighted<'b>>,
     y0: usize,
     rows: &'a mut [u8],
-    copy: &'a mut [u8],
+    copy: Option<&'a mut [u8]>,
     w: usize,
 }
 
@@ -893,7 +935,7 @@ impl BlendBand<'_, '_> {
             second,
             y0,
             rows,
-            copy,
+            mut copy,
             w,
         } = self;
         // On the stack, once per band: rayon's per-job init would allocate.
@@ -901,17 +943,11 @@ impl BlendBand<'_, '_> {
         let (wg0, weight0) = (first.1, first.2);
         let (wg1, weight1) = second.map_or(([0.0; 3], 0.0), |s| (s.1, s.2));
         let (mut sel0, mut sel1, mut ws) = ([false; CHUNK], [false; CHUNK], [0f32; CHUNK]);
-        for (r, (row, copy_row)) in rows
-            .chunks_mut(w * 3)
-            .zip(copy.chunks_mut(w * 3))
-            .enumerate()
-        {
+        let mut bytes = [[0u8; CHUNK]; 3];
+        let mut buf = [0u8; CHUNK * 3];
+        for (r, row) in rows.chunks_mut(w * 3).enumerate() {
             let y = y0 + r;
-            for (c, (px, copy_px)) in row
-                .chunks_mut(CHUNK * 3)
-                .zip(copy_row.chunks_mut(CHUNK * 3))
-                .enumerate()
-            {
+            for (c, px) in row.chunks_mut(CHUNK * 3).enumerate() {
                 let n = px.len() / 3;
                 // A source without a sample (empty image, or no second source) has states NONE
                 // and is never selected below, whatever its taps hold.
@@ -936,8 +972,7 @@ impl BlendBand<'_, '_> {
                     sel1[i] = if use_in { in1 } else { has1 };
                     ws[i] = if use_in { ws_in } else { ws_all };
                 }
-                let mut packed = [0u32; CHUNK];
-                for k in 0..3 {
+                for (k, bytes) in bytes.iter_mut().enumerate() {
                     for i in 0..CHUNK {
                         // v = weight * gain_inv * sample, summed over the selected sources in
                         // order. Selects instead of branches (so it vectorises); `0 + v` and
@@ -947,11 +982,20 @@ impl BlendBand<'_, '_> {
                         let v1 = wg1[k] * sample_value::<MODE>(r1, i, k);
                         let acc = (0.0 + pick(sel0[i], v0)) + pick(sel1[i], v1);
                         let v = round_u8(acc / ws[i]);
-                        packed[i] |= (if ws[i] > 0.0 { v } else { 0 } as u32) << (8 * k);
+                        bytes[i] = if ws[i] > 0.0 { v } else { 0 };
                     }
                 }
-                write_packed(&packed, px);
-                write_packed(&packed, copy_px);
+                // Interleaved into RGB (a strided store the compiler shuffles), then copied.
+                for i in 0..CHUNK {
+                    for k in 0..3 {
+                        buf[3 * i + k] = bytes[k][i];
+                    }
+                }
+                px.copy_from_slice(&buf[..px.len()]);
+                if let Some(copy) = copy.as_deref_mut() {
+                    let at = r * w * 3 + c * CHUNK * 3;
+                    copy[at..at + px.len()].copy_from_slice(&buf[..px.len()]);
+                }
             }
         }
     }
@@ -1196,6 +1240,45 @@ mod tests {
         };
         let e = Renderer::new(tiny(), both).err().expect("refused");
         assert!(e.to_string().contains("dissolve"), "{e}");
+    }
+
+    /// No moving objects: the frame is the blended background alone.
+    struct NoObjects;
+    impl ObjectFrames for NoObjects {
+        fn decode_into(&self, _view: usize, _frame: usize, patch: &mut ObjectPatch) -> Result<()> {
+            patch.reset(0, 0, 0, 0);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn kept_background_equals_a_fresh_render() {
+        // The background is blended into the frame, kept only once q stays, then copied: every
+        // frame of a path that moves, stays, jumps back and stays must equal the first frame of
+        // a new renderer at that q (which blends it afresh).
+        let mut scene = tiny();
+        for (p, v) in scene.views.iter_mut().enumerate() {
+            v.background = RgbImage::from_fn(23, 17, |x, y| {
+                image::Rgb([(x * 11 + y * 3) as u8, (y * 13 + p as u32 * 40) as u8, 90])
+            });
+        }
+        let scene = std::sync::Arc::new(scene);
+        let params = RenderParams::default();
+        let mut r = Renderer::new(scene.clone(), params).unwrap();
+        let mut p = Player::new();
+        let mut out = RgbImage::new(23, 17);
+        for q in [0.3, 0.3, 0.3, 0.55, 0.55, 1.2, 0.3, 0.3, 2.0, 2.0, 2.0] {
+            let c = p.advance(&scene, q).unwrap();
+            r.render_into(&NoObjects, q, &c, &mut out).unwrap();
+            let mut fresh = Renderer::new(scene.clone(), params).unwrap();
+            let mut want = RgbImage::new(23, 17);
+            fresh.render_into(&NoObjects, q, &c, &mut want).unwrap();
+            assert!(out == want, "q {q}");
+            assert!(
+                out.as_raw().iter().any(|&v| v != 0),
+                "q {q}: a textured frame"
+            );
+        }
     }
 
     /// A 3-view scene with tiny hand-made tables, for eq. (6) step by step.
