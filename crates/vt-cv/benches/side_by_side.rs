@@ -1,14 +1,20 @@
 //! vt-core and vt-cv (OpenCV) side by side on the same inputs, one criterion group per
-//! operation, then a table of time ratios (vt-core / OpenCV) from a short `Instant` loop
-//! (median of several runs), so the ratio can be read without digging in criterion's files:
-//! wall-clock and CPU time (all threads, the process CPU clock) per call, with the load
-//! average, since on a shared machine the CPU times are the figures the load does not move.
+//! operation, then a table of time ratios (vt-core / OpenCV), so the ratio can be read without
+//! digging in criterion's files: wall-clock and CPU time (all threads, the process CPU clock)
+//! per call, with the load average before and after.
+//!
+//! The table's runs are interleaved: per operation, `VT_CV_ROUNDS` rounds (default 9), each
+//! timing vt-core and OpenCV back to back (about 10 ms of calls each, the order alternating
+//! round by round), so a burst of load on a shared machine hits both sides of a round alike.
+//! Each round gives a ratio; the table shows the medians over the rounds (times and ratios)
+//! and the range of the wall ratio. `VT_CV_TABLE=1` skips the criterion groups (only the
+//! table).
 //!
 //! Inputs follow the thesis's scale: 640x360 frames, a 3x3 Gaussian, 100 frames for the median
 //! (at 320x180 to bound memory), 200 masks for the XOR cost matrix.
 
 use std::hint::black_box;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use criterion::{criterion_group, Criterion, Throughput};
 use image::RgbImage;
@@ -67,29 +73,73 @@ fn cpu_ns() -> u64 {
     t.tv_sec as u64 * 1_000_000_000 + t.tv_nsec as u64
 }
 
-/// Median wall time and median CPU time (all threads) per call of `f`, over 11 samples of
-/// enough calls to last about 5 ms each (after warm-up calls).
-fn time(mut f: impl FnMut()) -> (Duration, Duration) {
+/// Calls of `f` that last about 10 ms (after two warm-up calls).
+fn calls_for(f: &mut dyn FnMut()) -> u32 {
     let t = Instant::now();
     f();
     f();
     let once = t.elapsed() / 2;
-    let reps = (5_000_000 / once.as_nanos().max(1)).clamp(1, 1000) as u32;
-    let (mut wall, mut cpu): (Vec<Duration>, Vec<Duration>) = (0..11)
-        .map(|_| {
-            let (t, c) = (Instant::now(), cpu_ns());
-            for _ in 0..reps {
-                f();
-            }
-            (
-                t.elapsed() / reps,
-                Duration::from_nanos((cpu_ns() - c) / reps as u64),
-            )
-        })
-        .unzip();
-    wall.sort();
-    cpu.sort();
-    (wall[5], cpu[5])
+    (10_000_000 / once.as_nanos().max(1)).clamp(1, 1000) as u32
+}
+
+/// Wall and CPU time (all threads) per call over `n` calls of `f`.
+fn sample(f: &mut dyn FnMut(), n: u32) -> (f64, f64) {
+    let (t, c) = (Instant::now(), cpu_ns());
+    for _ in 0..n {
+        f();
+    }
+    (
+        t.elapsed().as_secs_f64() / n as f64,
+        (cpu_ns() - c) as f64 * 1e-9 / n as f64,
+    )
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// One operation's interleaved rounds: medians of vt-core's and OpenCV's wall and CPU times
+/// per call, of the per-round wall and CPU ratios, and the lowest and highest wall ratio.
+struct Interleaved {
+    vt: (f64, f64),
+    cv: (f64, f64),
+    ratio: f64,
+    cpu_ratio: f64,
+    range: (f64, f64),
+}
+
+fn interleaved(case: &mut Case, rounds: usize) -> Interleaved {
+    let (nv, nc) = (calls_for(&mut case.vt), calls_for(&mut case.cv));
+    let mut t: [Vec<f64>; 6] = Default::default();
+    for r in 0..rounds {
+        let (a, b) = if r % 2 == 0 {
+            let a = sample(&mut case.vt, nv);
+            (a, sample(&mut case.cv, nc))
+        } else {
+            let b = sample(&mut case.cv, nc);
+            (sample(&mut case.vt, nv), b)
+        };
+        for (v, x) in t.iter_mut().zip([a.0, a.1, b.0, b.1, a.0 / b.0, a.1 / b.1]) {
+            v.push(x);
+        }
+    }
+    let [mut vw, mut vc, mut cw, mut cc, mut r, mut rc] = t;
+    let range = (
+        r.iter().copied().fold(f64::INFINITY, f64::min),
+        r.iter().copied().fold(0.0, f64::max),
+    );
+    Interleaved {
+        vt: (median(&mut vw), median(&mut vc)),
+        cv: (median(&mut cw), median(&mut cc)),
+        ratio: median(&mut r),
+        cpu_ratio: median(&mut rc),
+        range,
+    }
+}
+
+fn ms(v: f64) -> String {
+    format!("{:.3} ms", v * 1e3)
 }
 
 struct Case {
@@ -273,20 +323,34 @@ fn side_by_side(c: &mut Criterion) {
     }
 }
 
-fn ratios() {
+fn load() -> String {
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    let load: Vec<&str> = load.split_whitespace().take(3).collect();
+    load.split_whitespace()
+        .take(3)
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn ratios() {
+    let rounds: usize = std::env::var("VT_CV_ROUNDS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(9)
+        .max(1);
     println!(
-        "\nvt-core / OpenCV time ratio (median of 11 samples each; > 1 means vt-core is slower); \
-         load average {}",
-        load.join(" ")
+        "\nvt-core / OpenCV time ratio, median over {rounds} interleaved rounds (> 1 means \
+         vt-core is slower); load average {}",
+        load()
     );
     println!(
         "wall: elapsed time per call (both sides use every core); cpu: CPU time per call summed \
-         over all threads, which the other processes on a shared machine do not inflate"
+         over all threads, which the other processes on a shared machine do not inflate; \
+         range: the rounds' lowest and highest wall ratio"
     );
-    println!("| operation | vt-core | OpenCV | ratio | vt-core cpu | OpenCV cpu | cpu ratio |");
-    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    println!(
+        "| operation | vt-core | OpenCV | ratio | range | vt-core cpu | OpenCV cpu | cpu ratio |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
     // A filter argument (as for criterion: `cargo bench -p vt-cv -- blur`) limits the table too.
     let filter: Vec<String> = std::env::args()
         .skip(1)
@@ -296,25 +360,30 @@ fn ratios() {
         if !filter.is_empty() && !filter.iter().any(|f| case.name.contains(f.as_str())) {
             continue;
         }
-        let ((a, ac), (b, bc)) = (time(&mut case.vt), time(&mut case.cv));
+        let r = interleaved(&mut case, rounds);
         println!(
-            "| {} | {:.2?} | {:.2?} | {:.2} | {:.2?} | {:.2?} | {:.2} |",
+            "| {} | {} | {} | {:.2} | {:.2}-{:.2} | {} | {} | {:.2} |",
             case.name,
-            a,
-            b,
-            a.as_secs_f64() / b.as_secs_f64(),
-            ac,
-            bc,
-            ac.as_secs_f64() / bc.as_secs_f64()
+            ms(r.vt.0),
+            ms(r.cv.0),
+            r.ratio,
+            r.range.0,
+            r.range.1,
+            ms(r.vt.1),
+            ms(r.cv.1),
+            r.cpu_ratio
         );
     }
+    println!("load average after: {}", load());
 }
 
 criterion_group!(benches, side_by_side);
 
 fn main() {
-    benches();
-    Criterion::default().configure_from_args().final_summary();
+    if std::env::var_os("VT_CV_TABLE").is_none() {
+        benches();
+        Criterion::default().configure_from_args().final_summary();
+    }
     // `cargo test --benches` passes --bench too; only print ratios on a real bench run.
     if std::env::args().any(|a| a == "--bench") {
         ratios();
