@@ -44,6 +44,20 @@ fn bench(c: &mut Criterion) {
             acc.push(&frame).unwrap()
         })
     });
+    let yuv = vt_core::yuv::Yuv420Image::from_raw(
+        768,
+        576,
+        vt_core::yuv::YuvMatrix::Bt601,
+        vt_core::yuv::YuvRange::Limited,
+        (0..vt_core::yuv::Yuv420Image::byte_len(768, 576))
+            .map(|i| (i * 7 % 251) as u8)
+            .collect(),
+    )
+    .unwrap();
+    let mut rgb = RgbImage::new(768, 576);
+    g.bench_function("yuv420_to_rgb_768x576", |b| {
+        b.iter(|| yuv.to_rgb_into(&mut rgb))
+    });
     g.finish();
 }
 

@@ -193,6 +193,23 @@ impl Mask {
         self.words.iter().map(|w| w.count_ones() as u64).sum()
     }
 
+    /// A mask from its packed words (bit `i` of the image is bit `i % 64` of word `i / 64`);
+    /// bits past `width * height` are cleared.
+    pub(crate) fn from_words(width: u32, height: u32, mut words: Vec<u64>) -> Mask {
+        let n = width as usize * height as usize;
+        assert_eq!(words.len(), n_words(width, height), "word count");
+        if n % 64 != 0 {
+            if let Some(last) = words.last_mut() {
+                *last &= (1u64 << (n % 64)) - 1;
+            }
+        }
+        Mask {
+            width,
+            height,
+            words,
+        }
+    }
+
     /// Pixels set in either mask (same size; panics otherwise).
     pub fn union(&self, other: &Mask) -> Mask {
         assert_eq!(
@@ -231,19 +248,29 @@ impl Mask {
         if words.is_empty() {
             return None;
         }
-        let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0u32, 0u32);
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        // Per word, per row segment of it: only the lowest and highest set bits matter.
         for wi in words {
             let mut bits = self.words[wi];
+            let base = wi * 64;
             while bits != 0 {
-                let i = wi * 64 + bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let (x, y) = ((i % w) as u32, (i / w) as u32);
-                x0 = x0.min(x);
+                let i = base + bits.trailing_zeros() as usize;
+                let y = i / w;
+                let row_end = ((y + 1) * w - base).min(64);
+                let seg = if row_end == 64 {
+                    bits
+                } else {
+                    bits & ((1u64 << row_end) - 1)
+                };
+                let last = base + 63 - seg.leading_zeros() as usize;
+                x0 = x0.min(i - y * w);
+                x1 = x1.max(last - y * w + 1);
                 y0 = y0.min(y);
-                x1 = x1.max(x + 1);
                 y1 = y1.max(y + 1);
+                bits &= !seg;
             }
         }
+        let (x0, y0, x1, y1) = (x0 as u32, y0 as u32, x1 as u32, y1 as u32);
         Some((x0, y0, x1, y1))
     }
 
@@ -557,7 +584,41 @@ mod tests {
         })
     }
 
+    /// Sparse random masks (a few set pixels, so boxes are not the whole image), widths below,
+    /// at and above one word.
+    fn sparse_mask(max: u32) -> impl Strategy<Value = Mask> {
+        (1..max, 1..max, any::<u64>()).prop_map(|(w, h, seed)| {
+            Mask::from_fn(w, h, |x, y| {
+                crate::rng::mix(seed ^ (x as u64) << 20 ^ y as u64).is_multiple_of(23)
+            })
+        })
+    }
+
     proptest! {
+        #[test]
+        fn bounding_box_matches_per_pixel_scan(m in sparse_mask(150)) {
+            let mut want: Option<(u32, u32, u32, u32)> = None;
+            for y in 0..m.height() { for x in 0..m.width() {
+                if m.get(x, y) {
+                    let b = want.get_or_insert((x, y, x + 1, y + 1));
+                    *b = (b.0.min(x), b.1.min(y), b.2.max(x + 1), b.3.max(y + 1));
+                }
+            }}
+            prop_assert_eq!(m.bounding_box(), want);
+        }
+
+        #[test]
+        fn union_and_words_round_trip(a in arbitrary_mask(40), seed in any::<u64>()) {
+            let b = Mask::from_fn(a.width(), a.height(), |x, y| {
+                (seed ^ (x as u64 * 31 + y as u64 * 17)).count_ones().is_multiple_of(3)
+            });
+            let u = a.union(&b);
+            for y in 0..a.height() { for x in 0..a.width() {
+                prop_assert_eq!(u.get(x, y), a.get(x, y) || b.get(x, y));
+            }}
+            prop_assert_eq!(Mask::from_words(a.width(), a.height(), a.words().to_vec()), a);
+        }
+
         #[test]
         fn xor_count_matches_per_pixel_count(a in arbitrary_mask(40), seed in any::<u64>()) {
             // A second mask of the same size from a simple hash of the seed.

@@ -342,14 +342,59 @@ pub fn noise_mask(frame: &RgbImage, background: &RgbImage, thresholds: &[u8]) ->
             got_h: frame.height(),
         });
     }
+    // 64 pixels per mask word.
     let (f, b) = (frame.as_raw(), background.as_raw());
-    Ok(Mask::from_index_fn(frame.width(), frame.height(), |i| {
-        let (f, b) = (&f[3 * i..3 * i + 3], &b[3 * i..3 * i + 3]);
-        f[0].abs_diff(b[0])
-            .max(f[1].abs_diff(b[1]))
-            .max(f[2].abs_diff(b[2]))
-            > thresholds[i]
-    }))
+    let words = f
+        .chunks(3 * 64)
+        .zip(b.chunks(3 * 64))
+        .zip(thresholds.chunks(64))
+        .map(|((f, b), t)| {
+            let mut bits = 0u64;
+            for (k, ((p, q), &t)) in f.chunks_exact(3).zip(b.chunks_exact(3)).zip(t).enumerate() {
+                let d = p[0]
+                    .abs_diff(q[0])
+                    .max(p[1].abs_diff(q[1]))
+                    .max(p[2].abs_diff(q[2]));
+                bits |= ((d > t) as u64) << k;
+            }
+            bits
+        })
+        .collect();
+    Ok(Mask::from_words(frame.width(), frame.height(), words))
+}
+
+/// One row of [`MotionKept::push`]: `(sum |F1 - F0|, sum |a1 F1 - a0 F0 + (a0 - a1) B|)` over
+/// pixels and channels (the second is 255 times the shown change).
+struct KeptRow<'a> {
+    f0: &'a [u8],
+    f1: &'a [u8],
+    g: &'a [u8],
+    al0: &'a [i32],
+    al1: &'a [i32],
+}
+
+impl crate::simd::Kernel for KeptRow<'_> {
+    type Output = (u64, u64);
+
+    #[inline(always)]
+    fn run(self) -> (u64, u64) {
+        let (mut real, mut kept) = (0u64, 0u64);
+        for ((((p0, p1), q), &a0), &a1) in self
+            .f0
+            .chunks_exact(3)
+            .zip(self.f1.chunks_exact(3))
+            .zip(self.g.chunks_exact(3))
+            .zip(self.al0)
+            .zip(self.al1)
+        {
+            for c in 0..3 {
+                let (v0, v1, gv) = (p0[c] as i32, p1[c] as i32, q[c] as i32);
+                real += (v1 - v0).unsigned_abs() as u64;
+                kept += (a1 * v1 - a0 * v0 + (a0 - a1) * gv).unsigned_abs() as u64;
+            }
+        }
+        (real, kept)
+    }
 }
 
 /// Accumulates the share of the real frame-to-frame change a view keeps when shown as eq. (3)-(5)
@@ -392,29 +437,31 @@ impl MotionKept {
                 .map_init(
                     || (vec![0i32; w], vec![0i32; w]),
                     |(al0, al1), (y, ((f0, f1), g))| {
+                        let zeros = [0u8; 0];
+                        let dyn_row =
+                            alpha.map_or(&zeros[..], |al| &al.as_raw()[y * w..(y + 1) * w]);
                         for x in 0..w {
                             let i = y * w + x;
-                            let dyn_a = alpha.map_or(0, |al| al.as_raw()[i]) as i32;
-                            let pick = |words: &[u64]| match dyn_a {
-                                0 => 255 * ((words[i / 64] >> (i % 64)) & 1) as i32,
-                                a => a,
+                            let d = dyn_row.get(x).copied().unwrap_or(0) as i32;
+                            // The dynamic alpha where it is set, else the mask bit as 0 or 255.
+                            let pick = |words: &[u64]| {
+                                let bit = ((words[i / 64] >> (i % 64)) & 1) as i32;
+                                if d != 0 {
+                                    d
+                                } else {
+                                    255 * bit
+                                }
                             };
                             al0[x] = pick(w0);
                             al1[x] = pick(w1);
                         }
-                        let (mut real, mut kept) = (0u64, 0u64);
-                        for x in 0..w {
-                            let (a0, a1) = (al0[x], al1[x]);
-                            for c in 0..3 {
-                                let (v0, v1, gv) = (
-                                    f0[3 * x + c] as i32,
-                                    f1[3 * x + c] as i32,
-                                    g[3 * x + c] as i32,
-                                );
-                                real += (v1 - v0).unsigned_abs() as u64;
-                                kept += (a1 * v1 - a0 * v0 + (a0 - a1) * gv).unsigned_abs() as u64;
-                            }
-                        }
+                        let (real, kept) = crate::simd::dispatch(KeptRow {
+                            f0,
+                            f1,
+                            g,
+                            al0,
+                            al1,
+                        });
                         (real as f64, kept as f64 / 255.0)
                     },
                 )
@@ -497,6 +544,94 @@ mod tests {
         // stay at the floor.
         assert!(m.thresholds[5 * 20 + 3] > 30);
         assert_eq!(m.thresholds[5 * 20 + 15], p.min_threshold);
+    }
+
+    fn random_rgb(w: u32, h: u32, rng: &mut crate::rng::Rng) -> RgbImage {
+        RgbImage::from_fn(w, h, |_, _| {
+            let v = rng.next_u64();
+            image::Rgb([v as u8, (v >> 8) as u8, (v >> 16) as u8])
+        })
+    }
+
+    #[test]
+    fn noise_mask_is_the_per_pixel_rule() {
+        let mut rng = crate::rng::Rng::new(5);
+        for (w, h) in [(1, 1), (13, 7), (64, 3), (67, 5)] {
+            let (f, b) = (random_rgb(w, h, &mut rng), random_rgb(w, h, &mut rng));
+            let t: Vec<u8> = (0..w * h).map(|_| rng.next_u64() as u8).collect();
+            let m = noise_mask(&f, &b, &t).unwrap();
+            for y in 0..h {
+                for x in 0..w {
+                    let (p, q) = (f.get_pixel(x, y).0, b.get_pixel(x, y).0);
+                    let d = (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap();
+                    assert_eq!(
+                        m.get(x, y),
+                        d > t[(y * w + x) as usize],
+                        "{w}x{h} ({x}, {y})"
+                    );
+                }
+            }
+            assert_eq!(
+                m.count_ones(),
+                (0..w * h).filter(|&i| m.get(i % w, i / w)).count() as u64
+            );
+        }
+    }
+
+    #[test]
+    fn motion_kept_matches_the_formula_in_floats() {
+        let mut rng = crate::rng::Rng::new(9);
+        let (w, h) = (37, 11);
+        let bg = random_rgb(w, h, &mut rng);
+        let frames: Vec<RgbImage> = (0..4).map(|_| random_rgb(w, h, &mut rng)).collect();
+        let masks: Vec<Mask> = (0..4)
+            .map(|_| {
+                let seed = rng.next_u64();
+                Mask::from_fn(w, h, |x, y| (seed >> ((x * 7 + y * 3) % 64)) & 1 == 1)
+            })
+            .collect();
+        // Alpha: set on the left third, partly feathered.
+        let alpha = GrayImage::from_fn(w, h, |x, _| {
+            image::Luma([if x < 12 { 40 + 17 * (x as u8) } else { 0 }])
+        });
+        let mut kept = MotionKept::new();
+        let (mut real, mut shown) = (0f64, 0f64);
+        for t in 0..4 {
+            kept.push(&frames[t], &masks[t], &bg, Some(&alpha));
+            if t == 0 {
+                continue;
+            }
+            for y in 0..h {
+                for x in 0..w {
+                    let a = alpha.get_pixel(x, y).0[0] as f64 / 255.0;
+                    let pick = |m: &Mask| {
+                        if a > 0.0 {
+                            a
+                        } else if m.get(x, y) {
+                            1.0
+                        } else {
+                            0.0
+                        }
+                    };
+                    let (a0, a1) = (pick(&masks[t - 1]), pick(&masks[t]));
+                    for c in 0..3 {
+                        let (f0, f1, g) = (
+                            frames[t - 1].get_pixel(x, y).0[c] as f64,
+                            frames[t].get_pixel(x, y).0[c] as f64,
+                            bg.get_pixel(x, y).0[c] as f64,
+                        );
+                        real += (f1 - f0).abs();
+                        shown += (a1 * f1 + (1.0 - a1) * g - a0 * f0 - (1.0 - a0) * g).abs();
+                    }
+                }
+            }
+        }
+        let want = shown / real;
+        assert!(
+            (kept.share() - want).abs() < 1e-9,
+            "{} vs {want}",
+            kept.share()
+        );
     }
 
     #[test]

@@ -266,22 +266,68 @@ fn clamp_u8(v: i32) -> u8 {
 /// One row: `ys` luma, `us`/`vs` its chroma row (half width), `rgb` the output row.
 #[inline]
 fn convert_row(c: &Coefficients, ys: &[u8], us: &[u8], vs: &[u8], rgb: &mut [u8]) {
-    let half = 1 << (SHIFT - 1);
-    for (((y2, &u), &v), out) in ys
-        .chunks_exact(2)
-        .zip(us)
-        .zip(vs)
-        .zip(rgb.chunks_exact_mut(6))
-    {
-        let (uu, vv) = (u as i32 - 128, v as i32 - 128);
-        let ruv = half + c.cvr * vv;
-        let guv = half + c.cvg * vv + c.cug * uu;
-        let buv = half + c.cub * uu;
-        for k in 0..2 {
-            let y = (y2[k] as i32 - c.y_offset).max(0) * c.cy;
-            out[3 * k] = clamp_u8((y + ruv) >> SHIFT);
-            out[3 * k + 1] = clamp_u8((y + guv) >> SHIFT);
-            out[3 * k + 2] = clamp_u8((y + buv) >> SHIFT);
+    crate::simd::dispatch(RowKernel { c, ys, us, vs, rgb });
+}
+
+struct RowKernel<'a> {
+    c: &'a Coefficients,
+    ys: &'a [u8],
+    us: &'a [u8],
+    vs: &'a [u8],
+    rgb: &'a mut [u8],
+}
+
+/// Pixels per block: fixed-size arrays the compiler turns into vector registers.
+const BLOCK: usize = 16;
+
+impl crate::simd::Kernel for RowKernel<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let c = self.c;
+        let half = 1 << (SHIFT - 1);
+        let w = self.ys.len();
+        let blocks = w / BLOCK;
+        for (((yb, ub), vb), ob) in self
+            .ys
+            .chunks_exact(BLOCK)
+            .zip(self.us.chunks_exact(BLOCK / 2))
+            .zip(self.vs.chunks_exact(BLOCK / 2))
+            .zip(self.rgb.chunks_exact_mut(3 * BLOCK))
+        {
+            let (mut r, mut g, mut b) = ([0u8; BLOCK], [0u8; BLOCK], [0u8; BLOCK]);
+            for k in 0..BLOCK {
+                let (uu, vv) = (ub[k / 2] as i32 - 128, vb[k / 2] as i32 - 128);
+                let y = (yb[k] as i32 - c.y_offset).max(0) * c.cy + half;
+                r[k] = clamp_u8((y + c.cvr * vv) >> SHIFT);
+                g[k] = clamp_u8((y + c.cvg * vv + c.cug * uu) >> SHIFT);
+                b[k] = clamp_u8((y + c.cub * uu) >> SHIFT);
+            }
+            for k in 0..BLOCK {
+                ob[3 * k] = r[k];
+                ob[3 * k + 1] = g[k];
+                ob[3 * k + 2] = b[k];
+            }
+        }
+        // The last pixels, two at a time (the width is even).
+        let done = blocks * BLOCK;
+        for (((y2, &u), &v), out) in self.ys[done..]
+            .chunks_exact(2)
+            .zip(&self.us[done / 2..])
+            .zip(&self.vs[done / 2..])
+            .zip(self.rgb[3 * done..].chunks_exact_mut(6))
+        {
+            let (uu, vv) = (u as i32 - 128, v as i32 - 128);
+            let ruv = half + c.cvr * vv;
+            let guv = half + c.cvg * vv + c.cug * uu;
+            let buv = half + c.cub * uu;
+            for k in 0..2 {
+                let y = (y2[k] as i32 - c.y_offset).max(0) * c.cy;
+                out[3 * k] = clamp_u8((y + ruv) >> SHIFT);
+                out[3 * k + 1] = clamp_u8((y + guv) >> SHIFT);
+                out[3 * k + 2] = clamp_u8((y + buv) >> SHIFT);
+            }
         }
     }
 }

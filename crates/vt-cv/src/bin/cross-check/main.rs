@@ -10,6 +10,8 @@
 //! Tolerances, and why:
 //! - median, masks from the same blurred frames, morphology, XOR costs, loops, transition tables,
 //!   nearest-neighbour warps: **identical** (integer or exact operations on both sides).
+//! - 4:2:0 to RGB (BT.601 limited range, the form OpenCV converts): **identical** (the same
+//!   20-bit fixed point on both sides).
 //! - Gaussian blur: **within 1 grey level**. OpenCV's 8-bit `GaussianBlur` is fixed point
 //!   (taps rounded to 8-bit fractions per pass, integer sums), vt-core's is `f32`; a value whose
 //!   exact result lies near `k + 0.5` can round either way.
@@ -53,6 +55,7 @@ mod real;
 mod scenes;
 mod searches;
 mod table;
+mod yuv_rows;
 
 use align_rows::*;
 use extremes::*;
@@ -62,6 +65,7 @@ use real::*;
 use scenes::*;
 use searches::*;
 use table::*;
+use yuv_rows::*;
 
 fn main() {
     let start = Instant::now();
@@ -85,6 +89,7 @@ fn main() {
         ("graf", Box::new(graf)),
         ("temple", Box::new(temple)),
         ("alignment", Box::new(alignment)),
+        ("yuv", Box::new(yuv)),
         ("extreme points", Box::new(extreme_points)),
         ("extreme images", Box::new(extreme_images)),
         ("extreme masks", Box::new(extreme_masks)),
