@@ -87,6 +87,7 @@ impl RenderOptions {
             dissolve: self.dissolve,
             neighbour_fill: !self.no_neighbour_fill,
             gain_compensation: self.gain_compensation || !self.no_gain_compensation,
+            ..RenderParams::default()
         }
     }
 }

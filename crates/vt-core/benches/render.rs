@@ -25,6 +25,13 @@
 //! moving minus still; the objects (decode, warp, composite) and the frame copy: still.
 //! The load average is printed before and after: on a loaded machine read `cpu ms`.
 //!
+//! `VT_RENDER_REUSE=1` measures the background-reuse knob (`RenderParams::background_reuse_px`)
+//! instead: on the homography scene at 1280x720 and 1920x1080, for the drag above (0.013 views
+//! per frame) and a slow one (0.002), per threshold the share of frames that re-blend, the CPU
+//! time per frame, and the error against the exact render of the same frames (mean and largest
+//! absolute difference over all pixels and channels, grey levels, and the share of values off
+//! by more than 2).
+//!
 //! `VT_RENDER_HASH=1` times nothing: it prints a checksum (FNV-1a) of the 60 frames each row
 //! renders, so a speed change can be shown to keep every output byte (run it before and after).
 // A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
@@ -269,7 +276,72 @@ fn checksum(scene: &RenderScene, objects: &Objects, params: RenderParams, moving
     hash
 }
 
+/// The background-reuse table (see the module doc).
+fn reuse_table() {
+    println!(
+        "background reuse (homography scene, exact bilinear, 120 frames after 20); load {}",
+        load()
+    );
+    println!(
+        "{:<10} {:<7} {:>9} {:>9} {:>8} {:>11} {:>10} {:>9}",
+        "size", "q step", "reuse px", "blended", "cpu ms", "mean error", "max error", "off > 2"
+    );
+    for (w, h) in [(1280, 720), (1920, 1080)] {
+        let (scene, objects) = scene(w, h, 3, 120, MotionModel::Homography);
+        for step in [0.013, 0.002] {
+            for reuse in [0.0, 0.1, 0.25, 0.5, 1.0] {
+                let exact = RenderParams::default();
+                let params = RenderParams {
+                    background_reuse_px: reuse,
+                    ..exact
+                };
+                let mut a = Renderer::new(scene.clone(), exact).unwrap();
+                let mut b = Renderer::new(scene.clone(), params).unwrap();
+                let (mut pa, mut pb) = (Player::new(), Player::new());
+                let (mut oa, mut ob) = (RgbImage::new(w, h), RgbImage::new(w, h));
+                let (mut cpu, mut sum, mut max, mut off, mut n) = (0u64, 0u64, 0u8, 0u64, 0u64);
+                let mut blends0 = 0;
+                for i in 0..140 {
+                    let q = 0.2 + (i as f64 * step) % 1.6;
+                    let ca = pa.advance(&scene, q).unwrap();
+                    let cb = pb.advance(&scene, q).unwrap();
+                    a.render_into(&objects, q, &ca, &mut oa).unwrap();
+                    let c0 = cpu_ns();
+                    b.render_into(&objects, q, &cb, &mut ob).unwrap();
+                    if i < 20 {
+                        blends0 = b.background_blends();
+                        continue;
+                    }
+                    cpu += cpu_ns() - c0;
+                    for (x, y) in oa.as_raw().iter().zip(ob.as_raw()) {
+                        let d = x.abs_diff(*y);
+                        sum += d as u64;
+                        max = max.max(d);
+                        off += (d > 2) as u64;
+                    }
+                    n += oa.as_raw().len() as u64;
+                }
+                println!(
+                    "{:<10} {:<7} {:>9} {:>8.0}% {:>8.2} {:>11.3} {:>10} {:>8.3}%",
+                    format!("{w}x{h}"),
+                    step,
+                    reuse,
+                    (b.background_blends() - blends0) as f64 / 120.0 * 100.0,
+                    cpu as f64 * 1e-6 / 120.0,
+                    sum as f64 / n as f64,
+                    max,
+                    off as f64 / n as f64 * 100.0
+                );
+            }
+        }
+    }
+}
+
 fn run() {
+    if std::env::var_os("VT_RENDER_REUSE").is_some() {
+        reuse_table();
+        return;
+    }
     let frames = 120;
     let hash = std::env::var_os("VT_RENDER_HASH").is_some();
     let filter = std::env::var("VT_RENDER_ROWS").unwrap_or_default();

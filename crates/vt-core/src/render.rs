@@ -398,7 +398,19 @@ pub struct RenderParams {
     /// made from tree.avi, +-6% gains, it lifts the worst PSNR at fractional q from 28.4 to
     /// 34.5 dB).
     pub gain_compensation: bool,
+    /// Background reuse, pixels (0 = off, the default: every new q is blended exactly). While
+    /// the viewpoint stays within q's pair of views and no background pixel would move by more
+    /// than this from the kept background's viewpoint (measured at the image's corners and
+    /// centre, through both views' homographies), the kept background `B_q` is shown again
+    /// instead of re-blending; objects are still placed at the exact q. Errors measured by the
+    /// render bench (`VT_RENDER_REUSE=1`) and in ARCHITECTURE.md; at most
+    /// [`MAX_BACKGROUND_REUSE_PX`].
+    pub background_reuse_px: f64,
 }
+
+/// Largest [`RenderParams::background_reuse_px`]: beyond a few pixels the reused background
+/// visibly lags the objects.
+pub const MAX_BACKGROUND_REUSE_PX: f64 = 4.0;
 
 impl Default for RenderParams {
     fn default() -> Self {
@@ -408,6 +420,7 @@ impl Default for RenderParams {
             dissolve: 0,
             neighbour_fill: true,
             gain_compensation: true,
+            background_reuse_px: 0.0,
         }
     }
 }
@@ -470,10 +483,12 @@ pub struct Renderer {
     height: u32,
     cached_q: Option<f64>,
     h_to_q: Vec<Option<Homography>>,
-    /// `B_q` at `cached_q` when `background_valid`: kept only once q stays (or a blend needs
-    /// it), so a moving viewpoint writes its background once, straight into the frame.
+    /// The kept background `B_q` when `kept` says at which q: kept only once q stays (or a
+    /// layer blend or background reuse needs it), so a moving viewpoint writes its background
+    /// once, straight into the frame.
     background_q: RgbImage,
-    background_valid: bool,
+    kept: Option<Kept>,
+    blends: u64,
     /// Each view's background with its edge replicated around it ([`Padded`]), made once, so the
     /// per-frame blend reads its taps without a border test.
     padded: Vec<Padded>,
@@ -484,6 +499,37 @@ pub struct Renderer {
     patch_old: ObjectPatch,
     patch_fill: ObjectPatch,
     blend: Option<Blend>,
+}
+
+/// What `background_q` holds: `B_q` blended at `q` from the pair `(f, c)` through `h`.
+#[derive(Debug, Clone, Copy)]
+struct Kept {
+    q: f64,
+    pair: (usize, usize),
+    h: [Homography; 2],
+}
+
+impl Kept {
+    /// Largest displacement, output pixels, between the kept background and the one `h` would
+    /// blend, at the corners and centre of a `w x h` image (`None`: a point left the plane).
+    fn displacement(&self, h: [&Homography; 2], (w, hh): (u32, u32)) -> Option<f64> {
+        let (w, hh) = (w as f64 - 1.0, hh as f64 - 1.0);
+        let mut d: f64 = 0.0;
+        for (old, new) in self.h.iter().zip(h) {
+            for (x, y) in [
+                (0.0, 0.0),
+                (w, 0.0),
+                (0.0, hh),
+                (w, hh),
+                (w / 2.0, hh / 2.0),
+            ] {
+                let p = Point::new(x, y);
+                let moved = new.apply(old.apply_inverse(p)?)?;
+                d = d.max((moved - p).norm());
+            }
+        }
+        Some(d)
+    }
 }
 
 /// An object blend in progress: a crossfade or a dissolve, `k` frames in.
@@ -524,6 +570,14 @@ impl Renderer {
                 });
             }
         }
+        let reuse = params.background_reuse_px;
+        if !(reuse.is_finite() && (0.0..=MAX_BACKGROUND_REUSE_PX).contains(&reuse)) {
+            return Err(Error::InvalidParameter {
+                name: "background_reuse_px",
+                value: reuse.to_string(),
+                why: format!("a displacement from 0 (off) to {MAX_BACKGROUND_REUSE_PX} pixels"),
+            });
+        }
         if params.crossfade > 0 && params.dissolve > 0 {
             return Err(Error::InvalidParameter {
                 name: "dissolve",
@@ -559,7 +613,8 @@ impl Renderer {
             width,
             height,
             cached_q: None,
-            background_valid: false,
+            kept: None,
+            blends: 0,
             h_to_q: vec![None; m],
             background_q: RgbImage::new(width, height),
             padded,
@@ -640,6 +695,11 @@ impl Renderer {
         &self.gains
     }
 
+    /// Backgrounds blended so far (the frames that did not copy a kept one).
+    pub fn background_blends(&self) -> u64 {
+        self.blends
+    }
+
     /// Output size.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
@@ -647,18 +707,14 @@ impl Renderer {
 
     /// Writes the blended background `B_q` (eq. 3) into `out`, recomputing `H_(f,q)` and
     /// `H_(c,q)` when q changed. `B_q` is blended straight into `out`; it is also kept (written
-    /// in the same pass) when q is the previous frame's or `keep` asks (a blend of layers reads
-    /// it), and then copied while q stays.
+    /// in the same pass) when q is the previous frame's, when `keep` asks (a blend of layers
+    /// reads it) or when background reuse is on, and then copied while q stays (or, with reuse,
+    /// while the viewpoint stays near it).
     fn prepare_q(&mut self, q: f64, out: &mut RgbImage, keep: bool) -> Result<()> {
         let same = self.cached_q == Some(q);
-        if same && self.background_valid {
-            out.as_mut().copy_from_slice(self.background_q.as_raw());
-            return Ok(());
-        }
         if !same {
             self.prepare_homographies(q)?;
         }
-        let keep = same || keep;
         let QSplit {
             floor: f,
             ceil: c,
@@ -666,6 +722,20 @@ impl Renderer {
         } = split_q(q);
         let hf = self.h_to_q[f].expect("computed with q");
         let hc = self.h_to_q[c].expect("computed with q");
+        let reuse = self.params.background_reuse_px;
+        if let Some(k) = &self.kept {
+            let near = || {
+                reuse > 0.0
+                    && k.pair == (f, c)
+                    && k.displacement([&hf, &hc], out.dimensions())
+                        .is_some_and(|d| d <= reuse)
+            };
+            if k.q == q || near() {
+                out.as_mut().copy_from_slice(self.background_q.as_raw());
+                return Ok(());
+            }
+        }
+        let keep = same || keep || reuse > 0.0;
         let (wf, wc) = if f == c {
             (1.0, 0.0)
         } else {
@@ -691,14 +761,18 @@ impl Renderer {
             out,
             keep.then_some(self.background_q.as_mut()),
         );
-        self.background_valid = keep;
+        self.blends += 1;
+        self.kept = keep.then_some(Kept {
+            q,
+            pair: (f, c),
+            h: [hf, hc],
+        });
         Ok(())
     }
 
     /// `H_(p,q)` for q's pair and nearest view; the others cleared.
     fn prepare_homographies(&mut self, q: f64) -> Result<()> {
         self.cached_q = None;
-        self.background_valid = false;
         let QSplit {
             floor: f,
             ceil: c,
@@ -798,7 +872,7 @@ impl Renderer {
         if self.layer.dimensions() != out.dimensions() {
             self.layer = RgbImage::new(out.width(), out.height());
         }
-        if !self.background_valid {
+        if self.kept.is_none() {
             // A blend that started after prepare_q's check (never: it keeps B_q for any blend).
             return Err(Error::InvalidParameter {
                 name: "render state",
@@ -1278,6 +1352,54 @@ mod tests {
                 out.as_raw().iter().any(|&v| v != 0),
                 "q {q}: a textured frame"
             );
+        }
+    }
+
+    #[test]
+    fn background_reuse_shows_the_kept_background_only_within_its_threshold() {
+        let mut scene = tiny();
+        for (p, v) in scene.views.iter_mut().enumerate() {
+            v.background = RgbImage::from_fn(23, 17, |x, y| {
+                image::Rgb([(x * 11 + y * 3) as u8, (y * 13 + p as u32 * 40) as u8, 90])
+            });
+        }
+        let scene = std::sync::Arc::new(scene);
+        let params = RenderParams {
+            background_reuse_px: 0.05,
+            ..RenderParams::default()
+        };
+        let fresh = |q: f64| {
+            let mut r = Renderer::new(scene.clone(), RenderParams::default()).unwrap();
+            let c = Player::new().advance(&scene, q).unwrap();
+            let mut out = RgbImage::new(23, 17);
+            r.render_into(&NoObjects, q, &c, &mut out).unwrap();
+            out
+        };
+        let mut r = Renderer::new(scene.clone(), params).unwrap();
+        let mut p = Player::new();
+        let mut out = RgbImage::new(23, 17);
+        let mut show = |q: f64| {
+            let c = p.advance(&scene, q).unwrap();
+            r.render_into(&NoObjects, q, &c, &mut out).unwrap();
+            (out.clone(), r.background_blends())
+        };
+        // The views' points are 1 px apart, so q moves the background 1 px per view.
+        assert_eq!(show(0.3), (fresh(0.3), 1));
+        // 0.0001 px: the kept background, not the exact one.
+        let (frame, blends) = show(0.3001);
+        assert_eq!((frame == fresh(0.3), blends), (true, 1));
+        assert!(fresh(0.3001) != fresh(0.3), "the exact frames differ");
+        // 0.1 px, over the threshold: blended again, exactly.
+        assert_eq!(show(0.4), (fresh(0.4), 2));
+        // Another pair of views: blended whatever the distance.
+        assert_eq!(show(1.0), (fresh(1.0), 3));
+        for bad in [-0.1, f64::NAN, MAX_BACKGROUND_REUSE_PX + 0.1] {
+            let params = RenderParams {
+                background_reuse_px: bad,
+                ..RenderParams::default()
+            };
+            let e = Renderer::new(scene.clone(), params).err().expect("refused");
+            assert!(e.to_string().contains("background_reuse_px"), "{e}");
         }
     }
 
