@@ -945,23 +945,20 @@ fn analyze_view(
     let mut inside = Duration::ZERO;
     if let Some(frames) = cache {
         // Frames in chunks: each chunk's frames converted, blurred and masked in parallel (one
-        // frame per thread, buffers reused), then handed to the observer in order. The cache
-        // shrinks as it goes: a chunk's frames are dropped once converted.
+        // frame per thread, buffers reused) while the previous chunk goes to the observer in
+        // order (object store writes, the motion tally) on this thread. The cache shrinks as it
+        // goes: a chunk's frames are dropped once converted.
         let blur = GaussianBlur::new(&params.blur)?;
         let (w, h) = bg_blur.dimensions();
         let chunk = (4 * rayon::current_num_threads()).max(8);
-        let mut rgb: Vec<RgbImage> = (0..chunk.min(frames.len()))
-            .map(|_| RgbImage::new(w, h))
-            .collect();
-        let mut frames = frames.into_iter();
-        let mut i = 0;
-        loop {
-            let part: Vec<Frame> = frames.by_ref().take(chunk).collect();
-            if part.is_empty() {
-                break;
-            }
-            let computed: Vec<Result<(Mask, Option<Thumb>)>> = part
-                .into_par_iter()
+        let buffers = || -> Vec<RgbImage> {
+            (0..chunk.min(frames.len()))
+                .map(|_| RgbImage::new(w, h))
+                .collect()
+        };
+        let (mut ready, mut spare) = (buffers(), buffers());
+        let compute = |part: Vec<Frame>, rgb: &mut Vec<RgbImage>| {
+            part.into_par_iter()
                 .zip(rgb.par_iter_mut())
                 .map_init(
                     || (BlurScratch::default(), RgbImage::new(w, h)),
@@ -973,16 +970,33 @@ fn analyze_view(
                         Ok((mask_of(blurred)?, thumb))
                     },
                 )
-                .collect();
-            for (r, f) in computed.into_iter().zip(&rgb) {
-                let (m, thumb) = r?;
-                observer.object_frame(p, i, &shown(&m), f)?;
-                kept.push(f, &m, &background, alpha);
-                masks.push(m);
-                thumbs.extend(thumb);
-                observer.tick();
-                i += 1;
-            }
+                .collect::<Vec<Result<(Mask, Option<Thumb>)>>>()
+        };
+        let mut frames = frames.into_iter();
+        let mut pending = compute(frames.by_ref().take(chunk).collect(), &mut ready);
+        let mut i = 0;
+        while !pending.is_empty() {
+            let part: Vec<Frame> = frames.by_ref().take(chunk).collect();
+            let (next, flushed) = std::thread::scope(|scope| {
+                let worker = scope.spawn(|| compute(part, &mut spare));
+                let mut flush = || -> Result<()> {
+                    for (r, f) in pending.drain(..).zip(&ready) {
+                        let (m, thumb) = r?;
+                        observer.object_frame(p, i, &shown(&m), f)?;
+                        kept.push(f, &m, &background, alpha);
+                        masks.push(m);
+                        thumbs.extend(thumb);
+                        observer.tick();
+                        i += 1;
+                    }
+                    Ok(())
+                };
+                let flushed = flush();
+                (worker.join(), flushed)
+            });
+            flushed?;
+            pending = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            std::mem::swap(&mut ready, &mut spare);
         }
         timings.masks += t.elapsed();
     } else {

@@ -342,25 +342,13 @@ pub fn noise_mask(frame: &RgbImage, background: &RgbImage, thresholds: &[u8]) ->
             got_h: frame.height(),
         });
     }
-    // 64 pixels per mask word.
-    let (f, b) = (frame.as_raw(), background.as_raw());
-    let words = f
-        .chunks(3 * 64)
-        .zip(b.chunks(3 * 64))
-        .zip(thresholds.chunks(64))
-        .map(|((f, b), t)| {
-            let mut bits = 0u64;
-            for (k, ((p, q), &t)) in f.chunks_exact(3).zip(b.chunks_exact(3)).zip(t).enumerate() {
-                let d = p[0]
-                    .abs_diff(q[0])
-                    .max(p[1].abs_diff(q[1]))
-                    .max(p[2].abs_diff(q[2]));
-                bits |= ((d > t) as u64) << k;
-            }
-            bits
-        })
-        .collect();
-    Ok(Mask::from_words(frame.width(), frame.height(), words))
+    Ok(crate::simd::dispatch(crate::mask::PerPixelDiff {
+        width: frame.width(),
+        height: frame.height(),
+        frame: frame.as_raw(),
+        background: background.as_raw(),
+        thresholds,
+    }))
 }
 
 /// One row of [`MotionKept::push`]: `(sum |F1 - F0|, sum |a1 F1 - a0 F0 + (a0 - a1) B|)` over
@@ -369,8 +357,12 @@ struct KeptRow<'a> {
     f0: &'a [u8],
     f1: &'a [u8],
     g: &'a [u8],
-    al0: &'a [i32],
-    al1: &'a [i32],
+    /// The row's dynamic-region alpha (empty: none).
+    alpha: &'a [u8],
+    /// The two frames' masks, and the row's first pixel index in them.
+    m0: &'a [u64],
+    m1: &'a [u64],
+    start: usize,
 }
 
 impl crate::simd::Kernel for KeptRow<'_> {
@@ -379,14 +371,26 @@ impl crate::simd::Kernel for KeptRow<'_> {
     #[inline(always)]
     fn run(self) -> (u64, u64) {
         let (mut real, mut kept) = (0u64, 0u64);
-        for ((((p0, p1), q), &a0), &a1) in self
+        let w = self.f0.len() / 3;
+        for (x, ((p0, p1), q)) in self
             .f0
             .chunks_exact(3)
             .zip(self.f1.chunks_exact(3))
             .zip(self.g.chunks_exact(3))
-            .zip(self.al0)
-            .zip(self.al1)
+            .enumerate()
         {
+            let i = self.start + x;
+            let d = if self.alpha.len() == w {
+                self.alpha[x] as i32
+            } else {
+                0
+            };
+            // The dynamic alpha where it is set, else the mask bit as 0 or 255.
+            let shown = |m: &[u64]| {
+                let bit = ((m[i / 64] >> (i % 64)) & 1) as i32;
+                d | (((d == 0) as i32) * 255 * bit)
+            };
+            let (a0, a1) = (shown(self.m0), shown(self.m1));
             for c in 0..3 {
                 let (v0, v1, gv) = (p0[c] as i32, p1[c] as i32, q[c] as i32);
                 real += (v1 - v0).unsigned_abs() as u64;
@@ -434,37 +438,18 @@ impl MotionKept {
                 .zip(bg.par_chunks(3 * w))
                 .enumerate()
                 .with_min_len(8)
-                .map_init(
-                    || (vec![0i32; w], vec![0i32; w]),
-                    |(al0, al1), (y, ((f0, f1), g))| {
-                        let zeros = [0u8; 0];
-                        let dyn_row =
-                            alpha.map_or(&zeros[..], |al| &al.as_raw()[y * w..(y + 1) * w]);
-                        for x in 0..w {
-                            let i = y * w + x;
-                            let d = dyn_row.get(x).copied().unwrap_or(0) as i32;
-                            // The dynamic alpha where it is set, else the mask bit as 0 or 255.
-                            let pick = |words: &[u64]| {
-                                let bit = ((words[i / 64] >> (i % 64)) & 1) as i32;
-                                if d != 0 {
-                                    d
-                                } else {
-                                    255 * bit
-                                }
-                            };
-                            al0[x] = pick(w0);
-                            al1[x] = pick(w1);
-                        }
-                        let (real, kept) = crate::simd::dispatch(KeptRow {
-                            f0,
-                            f1,
-                            g,
-                            al0,
-                            al1,
-                        });
-                        (real as f64, kept as f64 / 255.0)
-                    },
-                )
+                .map(|(y, ((f0, f1), g))| {
+                    let (real, kept) = crate::simd::dispatch(KeptRow {
+                        f0,
+                        f1,
+                        g,
+                        alpha: alpha.map_or(&[][..], |al| &al.as_raw()[y * w..(y + 1) * w]),
+                        m0: w0,
+                        m1: w1,
+                        start: y * w,
+                    });
+                    (real as f64, kept as f64 / 255.0)
+                })
                 .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
             self.real += real;
             self.kept += kept;
