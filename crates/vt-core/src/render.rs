@@ -1129,99 +1129,167 @@ fn composite(
     let inv = h.raw().1;
     let row_len = ow as usize * 3;
     let rows = &mut out.as_mut()[region.1 as usize * row_len..region.3 as usize * row_len];
-    let sample = |x: i64, y: i64| -> Option<usize> {
-        let (lx, ly) = (x - patch.x0 as i64, y - patch.y0 as i64);
-        if lx < 0 || ly < 0 || lx >= pw || ly >= ph {
-            return None;
-        }
-        let i = (ly * pw + lx) as usize;
-        (patch.mask[i] != 0).then_some(i)
+    let ctx = CompositeCtx {
+        patch,
+        inv,
+        interp,
+        gain,
+        alpha,
+        dynamic,
+        x0,
+        y0,
+        pw,
+        ph,
+        region,
     };
-    // Rows in parallel (each pixel is its own computation, so the same bytes).
+    // Rows in parallel (each pixel is its own computation, so the same bytes), each through
+    // the SIMD dispatch (floor and rounding inline instead of library calls).
     rows.par_chunks_mut(row_len)
         .enumerate()
         .for_each(|(r, raw)| {
-            let y = region.1 + r as u32;
-            let yf = y as f64;
-            for x in region.0..region.2 {
-                let xf = x as f64;
-                let w = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
-                if w == 0.0 {
-                    continue;
-                }
-                let sx = (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / w;
-                let sy = (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / w;
-                if !(sx.is_finite() && sy.is_finite())
-                    || sx < x0 - 1.0
-                    || sy < y0 - 1.0
-                    || sx > x0 + pw as f64
-                    || sy > y0 + ph as f64
-                {
-                    continue;
-                }
-                let mut colour = [0f32; 3];
-                match interp {
-                    Interpolation::Nearest => {
-                        let Some(i) =
-                            sample(sx.round_ties_even() as i64, sy.round_ties_even() as i64)
-                        else {
-                            continue;
-                        };
-                        for c in 0..3 {
-                            colour[c] = patch.rgb[i * 3 + c] as f32;
-                        }
+            crate::simd::dispatch(CompositeRow {
+                ctx: &ctx,
+                y: region.1 + r as u32,
+                raw,
+            })
+        });
+}
+
+/// What every row of [`composite`] reads.
+#[derive(Clone, Copy)]
+struct CompositeCtx<'a> {
+    patch: &'a ObjectPatch,
+    inv: &'a nalgebra::Matrix3<f64>,
+    interp: Interpolation,
+    gain: [f32; 3],
+    alpha: f32,
+    dynamic: Option<&'a image::GrayImage>,
+    x0: f64,
+    y0: f64,
+    pw: i64,
+    ph: i64,
+    region: (u32, u32, u32, u32),
+}
+
+impl CompositeCtx<'_> {
+    /// The patch index of object pixel `(x, y)` (view coordinates), if it is one.
+    #[inline(always)]
+    fn sample(&self, x: i64, y: i64) -> Option<usize> {
+        let (lx, ly) = (x - self.patch.x0 as i64, y - self.patch.y0 as i64);
+        if lx < 0 || ly < 0 || lx >= self.pw || ly >= self.ph {
+            return None;
+        }
+        let i = (ly * self.pw + lx) as usize;
+        (self.patch.mask[i] != 0).then_some(i)
+    }
+}
+
+/// One output row of [`composite`] as a [`crate::simd::Kernel`].
+struct CompositeRow<'a, 'b> {
+    ctx: &'a CompositeCtx<'b>,
+    y: u32,
+    raw: &'a mut [u8],
+}
+
+impl crate::simd::Kernel for CompositeRow<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let CompositeRow { ctx, y, raw } = self;
+        let CompositeCtx {
+            patch,
+            inv,
+            interp,
+            gain,
+            alpha,
+            dynamic,
+            x0,
+            y0,
+            pw,
+            ph,
+            region,
+        } = *ctx;
+        let sample = |x: i64, y: i64| ctx.sample(x, y);
+        let yf = y as f64;
+        for x in region.0..region.2 {
+            let xf = x as f64;
+            let w = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
+            if w == 0.0 {
+                continue;
+            }
+            let sx = (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / w;
+            let sy = (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / w;
+            if !(sx.is_finite() && sy.is_finite())
+                || sx < x0 - 1.0
+                || sy < y0 - 1.0
+                || sx > x0 + pw as f64
+                || sy > y0 + ph as f64
+            {
+                continue;
+            }
+            let mut colour = [0f32; 3];
+            match interp {
+                Interpolation::Nearest => {
+                    let Some(i) = sample(sx.round_ties_even() as i64, sy.round_ties_even() as i64)
+                    else {
+                        continue;
+                    };
+                    for c in 0..3 {
+                        colour[c] = patch.rgb[i * 3 + c] as f32;
                     }
-                    Interpolation::Bilinear | Interpolation::BilinearFixed => {
-                        let (fx0, fy0) = (sx.floor(), sy.floor());
-                        let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
-                        let (ix, iy) = (fx0 as i64, fy0 as i64);
-                        let taps = [
-                            (ix, iy, (1.0 - fx) * (1.0 - fy)),
-                            (ix + 1, iy, fx * (1.0 - fy)),
-                            (ix, iy + 1, (1.0 - fx) * fy),
-                            (ix + 1, iy + 1, fx * fy),
-                        ];
-                        let mut cover = 0f32;
-                        for &(tx, ty, wt) in &taps {
-                            if let Some(i) = sample(tx, ty) {
-                                cover += wt;
-                                for c in 0..3 {
-                                    colour[c] += wt * patch.rgb[i * 3 + c] as f32;
-                                }
+                }
+                Interpolation::Bilinear | Interpolation::BilinearFixed => {
+                    let (fx0, fy0) = (sx.floor(), sy.floor());
+                    let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
+                    let (ix, iy) = (fx0 as i64, fy0 as i64);
+                    let taps = [
+                        (ix, iy, (1.0 - fx) * (1.0 - fy)),
+                        (ix + 1, iy, fx * (1.0 - fy)),
+                        (ix, iy + 1, (1.0 - fx) * fy),
+                        (ix + 1, iy + 1, fx * fy),
+                    ];
+                    let mut cover = 0f32;
+                    for &(tx, ty, wt) in &taps {
+                        if let Some(i) = sample(tx, ty) {
+                            cover += wt;
+                            for c in 0..3 {
+                                colour[c] += wt * patch.rgb[i * 3 + c] as f32;
                             }
                         }
-                        if cover < 0.5 {
-                            continue;
-                        }
-                        for v in &mut colour {
-                            *v /= cover;
-                        }
                     }
-                }
-                let o = x as usize * 3;
-                let alpha = match dynamic {
-                    Some(d) => {
-                        let (dw, dh) = (d.width() as i64, d.height() as i64);
-                        let (ax, ay) = (
-                            (sx.round_ties_even() as i64).clamp(0, dw - 1),
-                            (sy.round_ties_even() as i64).clamp(0, dh - 1),
-                        );
-                        let a = d.as_raw()[(ay * dw + ax) as usize];
-                        if a > 0 {
-                            alpha * a as f32 / 255.0
-                        } else {
-                            alpha
-                        }
+                    if cover < 0.5 {
+                        continue;
                     }
-                    None => alpha,
-                };
-                for c in 0..3 {
-                    let v = colour[c] / gain[c];
-                    let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
-                    raw[o + c] = round_u8(blended);
+                    for v in &mut colour {
+                        *v /= cover;
+                    }
                 }
             }
-        });
+            let o = x as usize * 3;
+            let alpha = match dynamic {
+                Some(d) => {
+                    let (dw, dh) = (d.width() as i64, d.height() as i64);
+                    let (ax, ay) = (
+                        (sx.round_ties_even() as i64).clamp(0, dw - 1),
+                        (sy.round_ties_even() as i64).clamp(0, dh - 1),
+                    );
+                    let a = d.as_raw()[(ay * dw + ax) as usize];
+                    if a > 0 {
+                        alpha * a as f32 / 255.0
+                    } else {
+                        alpha
+                    }
+                }
+                None => alpha,
+            };
+            for c in 0..3 {
+                let v = colour[c] / gain[c];
+                let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
+                raw[o + c] = round_u8(blended);
+            }
+        }
+    }
 }
 
 #[cfg(test)]
