@@ -58,6 +58,10 @@ fn main() {
                 "method" => match v {
                     "paper" => view = ViewParams::paper(view.guided.clone()),
                     "refine" => view.refine = true,
+                    "vote" => {
+                        view.refine = true;
+                        view.voting = Some(Default::default());
+                    }
                     _ => view.method = Method::Textured,
                 },
                 "refs" => view.texture.references = f() as usize,
@@ -83,6 +87,15 @@ fn main() {
                     }
                 }
                 "pthr" => photo.threshold = f(),
+                "grow" => view.grow = f() as u32,
+                "vlevels" => view.voting.as_mut().expect("method=vote first").levels = f() as usize,
+                "vgw" => {
+                    view.voting
+                        .as_mut()
+                        .expect("method=vote first")
+                        .guide_weight = f()
+                }
+                "vem" => view.voting.as_mut().expect("method=vote first").em_iters = f() as usize,
                 "ero" => sil.erode = f() as u32,
                 "patch" => view.guided = GuidedParams::fast_for(f() as usize),
                 _ => panic!("unknown key {k}"),
@@ -97,7 +110,7 @@ fn main() {
             .iter()
             .map(|i| threshold_silhouette(i, &sil))
             .collect();
-        let mut acc = [0.0f64; 11];
+        let mut acc = [0.0f64; 17];
         for &k in &views {
             let keep: Vec<usize> = (0..cams.len()).filter(|&i| i != k).collect();
             let sc: Vec<_> = keep.iter().map(|&i| cams[i].clone()).collect();
@@ -112,6 +125,14 @@ fn main() {
                 ..Default::default()
             };
             let (r, imgs) = leave_one_out(&cams, &images, &mm, k, &hull, &photo, &view).unwrap();
+            // Also inside the Middlebury recipe's silhouette (0.19, dilate 10, erode 7).
+            let recipe = threshold_silhouette(&images[k], &SilhouetteParams::default());
+            let sc = |img| {
+                vt_fv::pipeline::score(img, &imgs.truth, &recipe)
+                    .unwrap()
+                    .inside
+            };
+            let (ob, og) = (sc(&imgs.rough_blur2), sc(&imgs.guided));
             if let Ok(out) = std::env::var("VT_SAVE") {
                 let e = vt_fv::pipeline::error_map(&imgs.guided, &imgs.truth, &masks[k]);
                 e.save(format!("{out}/{name}_{k}_error.png")).unwrap();
@@ -131,10 +152,16 @@ fn main() {
                 r.silhouette_iou,
                 secs,
                 r.model_secs(),
+                r.rough_blur2.whole.psnr,
+                r.guided.whole.psnr,
+                ob.psnr,
+                og.psnr,
+                ob.ssim,
+                og.ssim,
             ];
             println!(
-                "{name:<14} view {k:>2}: PSNR photo {:.2} rough {:.2} blur2 {:.2} guided {:.2} | SSIM {:.3} {:.3} {:.3} {:.3} | IoU {:.3} | {:.2} s (model {:.2}) {:?}",
-                row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10], r.times
+                "{name:<14} view {k:>2}: PSNR photo {:.2} rough {:.2} blur2 {:.2} guided {:.2} | SSIM {:.3} {:.3} {:.3} {:.3} | IoU {:.3} | whole image blur2 {:.2} guided {:.2} | recipe sil. blur2 {:.2} / {:.3} guided {:.2} / {:.3} | {:.2} s (model {:.2}) {:?}",
+                row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[11], row[12], row[13], row[15], row[14], row[16], row[9], row[10], r.times
             );
             for (a, v) in acc.iter_mut().zip(row) {
                 *a += v / views.len() as f64;
@@ -144,12 +171,12 @@ fn main() {
     }
     println!("\nmeans over views {:?}, grid {grid}:", views);
     println!(
-        "config          PSNR photo  rough  blur2 guided | SSIM photo rough blur2 guided | IoU | s"
+        "config          PSNR photo  rough  blur2 guided | SSIM photo rough blur2 guided | IoU | whole blur2 guided | recipe blur2 guided | s"
     );
     for (name, m) in means {
         println!(
-            "{name:<14} {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:.3} {:.3} {:.3} {:.3} | {:.3} | {:.2}",
-            m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9]
+            "{name:<14} {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:.3} {:.3} {:.3} {:.3} | {:.3} | {:>6.2} {:>6.2} | {:.2} / {:.3} {:.2} / {:.3} | {:.2}",
+            m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[11], m[12], m[13], m[15], m[14], m[16], m[9]
         );
     }
 }

@@ -134,7 +134,7 @@ struct Level {
     th: usize,
 }
 
-fn half(px: &[[u8; 3]], w: usize, h: usize) -> (Vec<[u8; 3]>, usize, usize) {
+pub(crate) fn half(px: &[[u8; 3]], w: usize, h: usize) -> (Vec<[u8; 3]>, usize, usize) {
     let (hw, hh) = ((w / 2).max(1), (h / 2).max(1));
     let mut out = Vec::with_capacity(hw * hh);
     for y in 0..hh {
@@ -328,7 +328,7 @@ fn level_patch(patch: usize, level: usize) -> usize {
 }
 
 /// Doubles a coarse field onto a `w x h` level.
-fn upsample(coarse: &Nnf, w: usize, h: usize, src: &Source) -> Nnf {
+pub(crate) fn upsample(coarse: &Nnf, w: usize, h: usize, src: &Source) -> Nnf {
     let mut pos = Vec::with_capacity(w * h);
     for y in 0..h {
         for x in 0..w {

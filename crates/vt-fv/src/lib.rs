@@ -69,6 +69,7 @@ pub mod guided;
 pub mod patchmatch;
 pub mod pipeline;
 pub mod texture;
+pub mod voting;
 
 pub use guided::{guided_synthesis, GuidedParams};
 pub use pipeline::{leave_one_out, novel_view, EvalReport, Method, NovelView, ViewParams};

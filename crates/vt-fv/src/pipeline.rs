@@ -10,9 +10,10 @@ use crate::eval::{psnr, ssim};
 use crate::guided::{guided_synthesis, GuidedParams};
 use crate::hull::{visual_hull, HullParams};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
-use crate::render::{clip_to_silhouettes, render_rough, ClipParams, Rendered};
+use crate::render::{clip_to_silhouettes, grow_to_silhouettes, render_rough, ClipParams, Rendered};
 use crate::silhouette::Mask;
 use crate::texture::{model_centre, nearest_by_direction, texture_view, TextureParams};
+use crate::voting::{voting_synthesis, VotingParams};
 use crate::{Error, Result};
 
 /// The reference camera whose viewing direction is closest in angle to `cam`'s (the paper picks
@@ -56,6 +57,14 @@ pub struct ViewParams {
     /// silhouettes are given ([`novel_view_in`]; `Some` by default, `None` = splats as they
     /// fall).
     pub clip: Option<ClipParams>,
+    /// [`Method::Textured`] with the reference silhouettes: before texturing, grow the
+    /// (clipped) render's coverage this many pixel rings out to the visual hull
+    /// ([`grow_to_silhouettes`], searched as `clip` says) so the texturing fills the rim and
+    /// cracks no splat covers (4; 0 = off). The rough render itself is left as it is.
+    pub grow: u32,
+    /// With `refine`: refine by patch voting ([`crate::voting`]) with these settings instead
+    /// of the paper's synthesis (`None`, the default).
+    pub voting: Option<VotingParams>,
 }
 
 impl Default for ViewParams {
@@ -66,6 +75,8 @@ impl Default for ViewParams {
             texture: TextureParams::default(),
             refine: false,
             clip: Some(ClipParams::default()),
+            grow: 0,
+            voting: None,
         }
     }
 }
@@ -87,6 +98,7 @@ impl ViewParams {
             method: Method::Paper,
             guided,
             clip: None,
+            grow: 0,
             ..Self::default()
         }
     }
@@ -169,7 +181,8 @@ pub struct NovelView {
     pub guided: RgbImage,
     /// The nearest reference photo (the synthesis input), index into the cameras.
     pub reference: usize,
-    /// Seconds per stage, in order: rough render, clip (with silhouettes), texturing, synthesis.
+    /// Seconds per stage, in order: rough render, clip and grow (with silhouettes), texturing,
+    /// synthesis.
     pub times: Vec<(&'static str, f64)>,
 }
 
@@ -246,15 +259,29 @@ pub fn novel_view_in(
     let (guide, reference, synthesise) = match p.method {
         Method::Paper => (rough.image.clone(), reference, true),
         Method::Textured => {
+            let grown = match (silhouettes, &p.clip) {
+                (Some(m), Some(c)) if p.grow > 0 => {
+                    let t = Instant::now();
+                    let mut g = rough.clone();
+                    grow_to_silhouettes(&mut g, model, cam, cams, m, c, p.grow);
+                    times.push(("grow", t.elapsed().as_secs_f64()));
+                    Some(g)
+                }
+                _ => None,
+            };
             let t = Instant::now();
-            let tex = texture_view(model, cams, images, cam, &rough, &p.texture)?;
+            let base = grown.as_ref().unwrap_or(&rough);
+            let tex = texture_view(model, cams, images, cam, base, &p.texture)?;
             times.push(("texturing", t.elapsed().as_secs_f64()));
             (tex.image, tex.references[0], p.refine)
         }
     };
     let guided = if synthesise {
         let t = Instant::now();
-        let g = guided_synthesis(&images[reference], &guide, &p.guided)?;
+        let g = match (&p.voting, p.method) {
+            (Some(v), Method::Textured) => voting_synthesis(&images[reference], &guide, v)?,
+            _ => guided_synthesis(&images[reference], &guide, &p.guided)?,
+        };
         times.push(("synthesis", t.elapsed().as_secs_f64()));
         g
     } else {
@@ -373,7 +400,8 @@ pub struct EvalReport {
     pub silhouette_iou: f64,
     /// Surface voxels of the model.
     pub surface_voxels: usize,
-    /// Seconds per stage: visual hull, photo hull, rough render, clip, texturing, synthesis, scoring.
+    /// Seconds per stage: visual hull, photo hull, rough render, clip, grow, texturing, synthesis,
+    /// scoring.
     pub times: Vec<(&'static str, f64)>,
 }
 
@@ -402,7 +430,7 @@ impl EvalReport {
 
     /// Seconds to make the new view (render, texturing, synthesis).
     pub fn view_secs(&self) -> f64 {
-        self.stage_secs(&["rough render", "clip", "texturing", "synthesis"])
+        self.stage_secs(&["rough render", "clip", "grow", "texturing", "synthesis"])
     }
 
     fn stage_secs(&self, names: &[&str]) -> f64 {

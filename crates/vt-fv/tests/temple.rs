@@ -8,6 +8,7 @@ use image::RgbImage;
 use nalgebra::Vector3;
 use vt_fv::camera::parse_par;
 use vt_fv::hull::{auto_bounds, HullParams};
+use vt_fv::pipeline::score as score_in;
 use vt_fv::silhouette::{threshold_silhouette, SilhouetteParams};
 use vt_fv::{leave_one_out, Camera, GuidedParams, Mask, PhotoParams, ViewParams};
 
@@ -104,11 +105,17 @@ fn load_full() -> (Vec<Camera>, Vec<RgbImage>, Vec<Mask>, Vec<Mask>) {
     (cams, imgs, carve, score)
 }
 
-/// The "done when" on one view (templeSR0009, whose pose no other camera shares): the
-/// default result beats the rough render and its sigma-2 blur by >= 1 dB PSNR and >= 0.03 SSIM
-/// inside the withheld silhouette, and the rough render's silhouette IoU is >= 0.9. Measured:
-/// rough 16.89 dB / 0.377, blur2 18.38 / 0.435, result 20.59 / 0.662, IoU 0.935 (about 3 s in
-/// release). Gated: VT_SLOW_TESTS=1.
+/// The "done when" on two views whose pose no other camera shares: the default result
+/// beats the rough render and its sigma-2 blur by >= 1 dB PSNR and >= 0.03 SSIM inside the
+/// withheld silhouette, both [`SilhouetteParams::scoring`]'s and the Middlebury recipe's
+/// ([`SilhouetteParams::default`], which takes in lit background cloth and grows the outline),
+/// and the rough render's IoU with the scoring silhouette is >= 0.9. templeSR0010 sits next to
+/// the pose that views 1 and 11 share (its two nearest cameras): textured from that pose twice
+/// it scored 16.6 dB, below blur2's 19.0. Measured (scoring / recipe silhouette):
+/// templeSR0009 rough 16.89 / 16.07, blur2 18.38 / 17.69, result 20.59 / 19.29 dB (SSIM 0.662 /
+/// 0.612 against blur2 0.435 / 0.431), IoU 0.935; templeSR0010 rough 17.42 / 16.84, blur2
+/// 18.99 / 18.50, result 20.75 / 19.98 dB (SSIM 0.642 / 0.581 against 0.456 / 0.435), IoU
+/// 0.946; about 3 s per view in release. Gated: VT_SLOW_TESTS=1.
 #[test]
 fn temple_default_beats_rough_and_blur_by_a_margin() {
     if !std::env::var("VT_SLOW_TESTS").is_ok_and(|v| v == "1") {
@@ -116,54 +123,74 @@ fn temple_default_beats_rough_and_blur_by_a_margin() {
         return;
     }
     let (cams, imgs, carve, score) = load_full();
-    let k = cams
-        .iter()
-        .position(|c| c.name == "templeSR0009.png")
+    for name in ["templeSR0009.png", "templeSR0010.png"] {
+        let k = cams.iter().position(|c| c.name == name).unwrap();
+        let mut masks = carve.clone();
+        masks[k] = score[k].clone();
+        let keep: Vec<Mask> = (0..cams.len())
+            .filter(|&i| i != k)
+            .map(|i| carve[i].clone())
+            .collect();
+        let keep_cams: Vec<Camera> = (0..cams.len())
+            .filter(|&i| i != k)
+            .map(|i| cams[i].clone())
+            .collect();
+        let bounds = auto_bounds(&keep_cams, &keep, &HullParams::default()).unwrap();
+        let hull = HullParams {
+            dims: vt_fv::hull::dims_for(&bounds, 128),
+            bounds: Some(bounds),
+            ..Default::default()
+        };
+        let t = Instant::now();
+        let (r, imgs_k) = leave_one_out(
+            &cams,
+            &imgs,
+            &masks,
+            k,
+            &hull,
+            &PhotoParams::default(),
+            &ViewParams::default(),
+        )
         .unwrap();
-    let mut masks = carve.clone();
-    masks[k] = score[k].clone();
-    let keep: Vec<Mask> = (0..cams.len())
-        .filter(|&i| i != k)
-        .map(|i| carve[i].clone())
-        .collect();
-    let keep_cams: Vec<Camera> = (0..cams.len())
-        .filter(|&i| i != k)
-        .map(|i| cams[i].clone())
-        .collect();
-    let bounds = auto_bounds(&keep_cams, &keep, &HullParams::default()).unwrap();
-    let hull = HullParams {
-        dims: vt_fv::hull::dims_for(&bounds, 128),
-        bounds: Some(bounds),
-        ..Default::default()
-    };
-    let t = Instant::now();
-    let (r, _) = leave_one_out(
-        &cams,
-        &imgs,
-        &masks,
-        k,
-        &hull,
-        &PhotoParams::default(),
-        &ViewParams::default(),
-    )
-    .unwrap();
-    eprintln!("{r:#?} in {:?}", t.elapsed());
-    let (g, rough, blur) = (r.guided.inside, r.rough.inside, r.rough_blur2.inside);
-    for (name, base) in [("rough", rough), ("rough_blur2", blur)] {
+        eprintln!("{name}: {r:#?} in {:?}", t.elapsed());
+        let recipe = threshold_silhouette(&imgs[k], &SilhouetteParams::default());
+        let in_recipe = |img: &RgbImage| score_in(img, &imgs_k.truth, &recipe).unwrap().inside;
+        let sets = [
+            (
+                "scoring",
+                r.guided.inside,
+                r.rough.inside,
+                r.rough_blur2.inside,
+            ),
+            (
+                "recipe",
+                in_recipe(&imgs_k.guided),
+                in_recipe(&imgs_k.rough),
+                in_recipe(&imgs_k.rough_blur2),
+            ),
+        ];
+        for (sil, g, rough, blur) in sets {
+            for (base_name, base) in [("rough", rough), ("rough_blur2", blur)] {
+                assert!(
+                    g.psnr >= base.psnr + 1.0,
+                    "{name}, {sil} silhouette: PSNR {:.2} not 1 dB above {base_name} {:.2}",
+                    g.psnr,
+                    base.psnr
+                );
+                assert!(
+                    g.ssim >= base.ssim + 0.03,
+                    "{name}, {sil} silhouette: SSIM {:.3} not 0.03 above {base_name} {:.3}",
+                    g.ssim,
+                    base.ssim
+                );
+            }
+        }
         assert!(
-            g.psnr >= base.psnr + 1.0,
-            "PSNR {:.2} not 1 dB above {name} {:.2}",
-            g.psnr,
-            base.psnr
-        );
-        assert!(
-            g.ssim >= base.ssim + 0.03,
-            "SSIM {:.3} not 0.03 above {name} {:.3}",
-            g.ssim,
-            base.ssim
+            r.silhouette_iou >= 0.9,
+            "{name}: IoU {:.3}",
+            r.silhouette_iou
         );
     }
-    assert!(r.silhouette_iou >= 0.9, "IoU {:.3}", r.silhouette_iou);
 }
 
 /// Always on, small: 16 views at 320x240, 64^3 voxels, view 4 withheld; the default result
