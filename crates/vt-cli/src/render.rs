@@ -116,13 +116,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
     })?;
     pb.finish_and_clear();
     sink.finish()?;
+    let jumps = played.wraps + played.switches;
+    let seam = match played.mean_seam {
+        Some(m) => format!(
+            "mean seam score {m:.3} over {} of {jumps} jumps",
+            played.measured
+        ),
+        None if jumps == 0 => "no jumps".into(),
+        None => "seams not measurable by masks: nothing moves outside the dynamic regions".into(),
+    };
     println!(
-        "rendered {} frames to {} ({} loop wraps, {} view switches, mean seam score {:.3})",
+        "rendered {} frames to {} ({} loop wraps, {} view switches, {seam})",
         played.frames,
         args.out.display(),
         played.wraps,
         played.switches,
-        played.mean_seam
     );
     Ok(())
 }

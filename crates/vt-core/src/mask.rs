@@ -212,6 +212,25 @@ impl Mask {
         }
     }
 
+    /// Pixels set in this mask and not in `other` (same size; panics otherwise).
+    pub fn difference(&self, other: &Mask) -> Mask {
+        assert_eq!(
+            (self.width, self.height),
+            (other.width, other.height),
+            "difference of masks of different sizes"
+        );
+        Mask {
+            width: self.width,
+            height: self.height,
+            words: self
+                .words
+                .iter()
+                .zip(&other.words)
+                .map(|(a, b)| a & !b)
+                .collect(),
+        }
+    }
+
     /// Range of words holding any set bit (empty range when nothing is set).
     pub fn active_words(&self) -> Range<usize> {
         let first = self.words.iter().position(|&w| w != 0);
@@ -663,13 +682,14 @@ mod tests {
         }
 
         #[test]
-        fn union_is_the_per_pixel_or(a in arbitrary_mask(40), seed in any::<u64>()) {
+        fn union_and_difference_are_per_pixel(a in arbitrary_mask(40), seed in any::<u64>()) {
             let b = Mask::from_fn(a.width(), a.height(), |x, y| {
                 (seed ^ (x as u64 * 31 + y as u64 * 17)).count_ones().is_multiple_of(3)
             });
-            let u = a.union(&b);
+            let (u, d) = (a.union(&b), a.difference(&b));
             for y in 0..a.height() { for x in 0..a.width() {
                 prop_assert_eq!(u.get(x, y), a.get(x, y) || b.get(x, y));
+                prop_assert_eq!(d.get(x, y), a.get(x, y) && !b.get(x, y));
             }}
         }
 

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use vt_core::analysis::{AnalyzeParams, SceneAnalysis};
 use vt_core::model::MotionModel;
-use vt_core::{Homography, Point};
+use vt_core::{Homography, Mask, Point};
 
 use crate::{Error, Result};
 
@@ -536,13 +536,26 @@ impl LoadedScene {
 
     /// Seam score of one jump, from the masks in the object stores: how far the new frame's mask is
     /// from the one ordinary playback would have shown, in units of the target view's mean mask
-    /// step inside its loop (`steps`, from [`LoadedScene::mask_steps`]).
+    /// step inside its loop (`steps`, from [`LoadedScene::mask_steps`]). None when the masks
+    /// cannot tell: no link, or no mask change outside the dynamic region inside the loop.
+    ///
+    /// Only pixels outside both views' dynamic regions count: a store's mask holds its view's
+    /// whole dynamic region in every frame (the region is shown from the source frames), so
+    /// within a view the region never changes and the unit excludes it; across views, the two
+    /// regions differ by their outlines, which no frame choice can change.
     pub fn jump_seam(&self, choice: &vt_core::render::FrameChoice, steps: &[f64]) -> Option<f64> {
         let (cv, cj) = choice.continuation?;
         let (v, j) = (choice.view, choice.frame);
         let stores = &self.objects.stores;
+        let support = |p: usize| {
+            self.render.views[p].dynamic.as_deref().map(|a| {
+                let raw = a.as_raw();
+                Mask::from_index_fn(a.width(), a.height(), |i| raw[i] > 0)
+            })
+        };
         let mut cont = stores[cv].mask(cj);
-        // Carry the continuation's mask view by view into the new view.
+        let mut cont_support = support(cv);
+        // Carry the continuation's mask (and its region) view by view into the new view.
         let mut p = cv;
         while p != v {
             let (link, np) = if v > p {
@@ -551,12 +564,27 @@ impl LoadedScene {
                 (&self.file.views[p].to_prev, p - 1)
             };
             let h: Homography = link.as_ref()?.homography().ok()?;
-            cont = vt_core::warp::warp_mask(&cont, &h, cont.width(), cont.height());
+            let warp = |m: &Mask| vt_core::warp::warp_mask(m, &h, m.width(), m.height());
+            cont = warp(&cont);
+            cont_support = cont_support.as_ref().map(warp);
             p = np;
         }
+        let mut new = stores[v].mask(j);
+        let excluded = match (support(v), cont_support) {
+            (Some(a), Some(b)) => Some(a.union(&b)),
+            (a, b) => a.or(b),
+        };
+        if let Some(x) = excluded {
+            cont = cont.difference(&x);
+            new = new.difference(&x);
+        }
+        // No mask change outside the regions within the loop: masks cannot measure this jump.
         let step = *steps.get(v)?;
+        if step <= 0.0 {
+            return None;
+        }
         Some(vt_core::transition::seam_score(
-            vt_core::mask::xor_count(&cont, &stores[v].mask(j)),
+            vt_core::mask::xor_count(&cont, &new),
             1,
             step,
         ))
@@ -603,7 +631,8 @@ impl LoadedScene {
             frames: qs.len(),
             wraps: player.wraps,
             switches: player.switches,
-            mean_seam: seams.iter().sum::<f64>() / seams.len().max(1) as f64,
+            measured: seams.len(),
+            mean_seam: (!seams.is_empty()).then(|| seams.iter().sum::<f64>() / seams.len() as f64),
         })
     }
 
@@ -728,8 +757,10 @@ pub struct Playback {
     pub wraps: u64,
     /// View switches of the player.
     pub switches: u64,
-    /// Mean seam score of the wraps and switches (0 when there were none).
-    pub mean_seam: f64,
+    /// Wraps and switches whose seam the masks could measure ([`LoadedScene::jump_seam`]).
+    pub measured: usize,
+    /// Their mean seam score (None when none could be measured).
+    pub mean_seam: Option<f64>,
 }
 
 /// `vt analyze`'s summary of an analysis: one table row per view (frames, loop, cost, seams,
