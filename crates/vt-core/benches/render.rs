@@ -36,23 +36,26 @@
 //! renders, so a speed change can be shown to keep every output byte (run it before and after).
 //!
 //! Measured on the 2-core shared development machine (Intel Xeon Processor @ 2.10GHz, 2 vCPUs,
-//! AVX-512), 2026-11-22, under load average 5.1-5.5 from other builds (never quiet), exact
-//! bilinear, moving, medians of 5 repetitions, 0 allocations per frame (CPU ms / wall fps /
-//! fps that CPU time allows on one free core):
+//! AVX-512), 2026-11-22, under load average 3.8-4.8 from other builds (never quiet): this
+//! bench built from the code before this round and after it, run alternately twice each
+//! (`VT_RENDER_REPS=7`, goal rows: exact bilinear, moving, no crossfade), 0 allocations per
+//! frame. CPU ms per frame (both runs), wall fps (both runs):
 //!
-//! | scene | 1280x720 | 1920x1080 |
-//! | --- | --- | --- |
-//! | translation | 9.0 ms / 74 fps / 111 | 21.0 ms / 31 fps / 48 |
-//! | homography | 13.2 ms / 47 fps / 76 | 25.7 ms / 42 fps / 39 |
+//! | row | before: CPU ms | after: CPU ms | before: wall fps | after: wall fps |
+//! | --- | --- | --- | --- | --- |
+//! | 1280x720 translation | 17.0, 17.0 | 8.9, 9.3 | 56, 57 | 112, 109 |
+//! | 1280x720 homography | 18.6, 18.5 | 9.3, 9.3 | 53, 71 | 107, 107 |
+//! | 1920x1080 translation | 38.4, 39.5 | 20.3, 20.6 | 26, 23 | 46, 47 |
+//! | 1920x1080 homography | 47.4, 47.2 | 22.0, 23.6 | 21, 21 | 68, 43 |
 //!
-//! Background (moving - still) 7.6-11.3 ms at 720p and 17.7-22.4 ms at 1080p; objects (still,
-//! which also copies the kept background) 1.5-1.9 and 3.3 ms. Quieter moments of the same day
-//! gave 9.9 ms at 720p and 25.1 ms at 1080p on the homography scene (100 and 40 wall fps). The
-//! CPU time per frame is within one free core's budget for both goals (60 fps at 720p: 16.7 ms;
-//! 30 fps at 1080p: 33 ms); wall fps follows the load. Before this round, same machine, load
-//! 2.7-6: 16.2-18.5 ms at 720p (54-61 wall fps) and 37.8-45.6 ms at 1080p (14-26 wall fps): the
-//! padded backgrounds (no border branch in the gather, which AVX-512 then gathers 8 pixels at a
-//! time), the background written straight into the frame, and AVX-512 dispatch.
+//! Per stage after (CPU ms): background (moving - still) 7.4-7.9 at 720p, 17.0-20.2 at 1080p
+//! (before: 15.3-16.9 and 34.8-43.5); objects (still, which also copies the kept background)
+//! 1.4-1.5 and 3.2-3.4 (before 1.6-1.7 and 3.6-3.9). After, the CPU time per frame fits one
+//! free core for both goals (60 fps at 720p: 16.7 ms; 30 fps at 1080p: 33.3 ms), so the goals
+//! held in wall fps at this load; at load 5-5.5 a full run gave 47-74 wall fps at 720p and
+//! 31-42 at 1080p. What changed: the padded backgrounds (no border branch in the gather, which
+//! AVX-512 then gathers 8 pixels at a time), the background written straight into the frame
+//! (once), AVX-512 dispatch, and the objects' rows under the dispatch.
 
 // A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
 #![allow(unsafe_code)]
