@@ -230,8 +230,9 @@ pub struct AnalyzeParams {
     /// [`crate::loops::find_loops`]; distinct = more than `window` frames apart in m or n).
     #[serde(default)]
     pub alternative_loops: usize,
-    /// The median background from at most this many evenly spaced frames of each view
-    /// ([`FrameSample`]: every k-th frame, k a power of two); 0 = every frame (the thesis).
+    /// The median background from at most this many evenly spaced frames of each view (the
+    /// middle frame of each of that many equal spans when the frames fit the cache; streamed,
+    /// every k-th frame with k a power of two, [`FrameSample`]); 0 = every frame (the thesis).
     /// Scenes written before it existed used every frame.
     #[serde(default)]
     pub median_frames: usize,
@@ -781,6 +782,41 @@ impl SceneAnalysis {
     }
 }
 
+/// Pass 1's consumers of frames that do not stay in the cache.
+struct Streamed {
+    /// The noise model's sample.
+    noise: Option<FrameSample>,
+    /// The median's sample (None: every frame).
+    median: Option<FrameSample>,
+    /// The every-frame median, once frames stream.
+    all: Option<MedianAccumulator>,
+    every_frame: bool,
+    /// Conversion buffer.
+    rgb: RgbImage,
+}
+
+impl Streamed {
+    /// Frame `i`, in order; converted to RGB only if something keeps it.
+    fn take(&mut self, i: usize, frame: FrameRef<'_>) -> Result<()> {
+        let wanted = self.noise.as_ref().is_some_and(|s| s.wants(i))
+            || self.median.as_ref().is_some_and(|s| s.wants(i));
+        if !(wanted || self.every_frame) {
+            return Ok(());
+        }
+        let rgb = frame.rgb(&mut self.rgb);
+        for s in [&mut self.noise, &mut self.median].into_iter().flatten() {
+            s.offer(i, rgb);
+        }
+        if self.every_frame {
+            let (w, h) = rgb.dimensions();
+            self.all
+                .get_or_insert_with(|| MedianAccumulator::new(w, h))
+                .push(rgb)?;
+        }
+        Ok(())
+    }
+}
+
 fn analyze_view(
     p: usize,
     src: &mut dyn FrameSource,
@@ -793,20 +829,23 @@ fn analyze_view(
     let label = |extra: &str| format!("view {p} ({name}){extra}");
 
     // Pass 1: keep frames (in the source's form: 4:2:0 video frames take half the bytes of RGB)
-    // while they fit the cache budget; past it, the second pass decodes again. The median comes
-    // from an evenly spaced sample of frames, or from every frame (streamed into a histogram
-    // median when they do not fit).
+    // while they fit the cache budget. Past it, frames stream: the ones held so far and every
+    // later one go to the samples (and, for an every-frame median, a histogram median), and the
+    // second pass decodes again. Cached frames are sampled only once the pass is over.
     observer.start(Stage::Background, Some(p), None);
     let every_frame = params.median_frames == 0;
-    let mut acc: Option<MedianAccumulator> = None;
     let mut cache: Option<Vec<Frame>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
-    let mut sample = params
-        .noise
-        .enabled()
-        .then(|| FrameSample::new(params.noise.sample_frames));
-    let mut median_sample = (!every_frame).then(|| FrameSample::new(params.median_frames));
-    let (mut rgb_buf, mut spill_buf) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
+    let mut streamed = Streamed {
+        noise: params
+            .noise
+            .enabled()
+            .then(|| FrameSample::new(params.noise.sample_frames)),
+        median: (!every_frame).then(|| FrameSample::new(params.median_frames)),
+        all: None,
+        every_frame,
+        rgb: RgbImage::new(0, 0),
+    };
     let mut inside = Duration::ZERO;
     let t_pass = Instant::now();
     let too_many = |e: Error| match e {
@@ -840,34 +879,19 @@ fn analyze_view(
             _ => {}
         }
         cached_bytes += frame.byte_len();
-        let fits = cache.is_some() && cached_bytes <= params.cache_bytes;
-        let sampled = sample.as_ref().is_some_and(|s| s.wants(i))
-            || median_sample.as_ref().is_some_and(|s| s.wants(i));
-        if sampled || (every_frame && !fits) {
-            let rgb = frame.rgb(&mut rgb_buf);
-            if let Some(s) = sample.as_mut() {
-                s.offer(i, rgb);
-            }
-            if let Some(s) = median_sample.as_mut() {
-                s.offer(i, rgb);
-            }
-            if every_frame && !fits {
-                let a = acc.get_or_insert_with(|| MedianAccumulator::new(dims.0, dims.1));
-                for f in cache.take().unwrap_or_default() {
-                    a.push(f.as_ref().rgb(&mut spill_buf)).map_err(too_many)?;
-                }
-                a.push(rgb).map_err(too_many)?;
-            }
-        }
         match cache.as_mut() {
-            Some(c) if fits => c.push(frame.to_owned()),
-            _ => cache = None,
+            Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.to_owned()),
+            _ => {
+                for (j, f) in cache.take().unwrap_or_default().iter().enumerate() {
+                    streamed.take(j, f.as_ref()).map_err(too_many)?;
+                }
+                streamed.take(i, frame).map_err(too_many)?;
+            }
         }
         observer.tick();
         inside += t.elapsed();
         Ok(())
     })?;
-    drop((rgb_buf, spill_buf));
     timings.decode += t_pass.elapsed().saturating_sub(inside);
     observer.finish();
     let need = params.loops.window + params.loops.min_length;
@@ -883,14 +907,35 @@ fn analyze_view(
         });
     }
     let t = Instant::now();
-    let background = match (median_sample, &cache, acc) {
-        (Some(s), _, _) => temporal_median(s.frames()).map_err(too_many)?,
-        (None, Some(frames), _) => {
-            let refs: Vec<FrameRef<'_>> = frames.iter().map(Frame::as_ref).collect();
-            temporal_median_frames(&refs).map_err(too_many)?
+    let (background, sample) = match &cache {
+        // Cached: the median from exactly evenly spaced frames (the middle of each of K equal
+        // spans, which a stream of unknown length cannot pick), the noise sample as streamed.
+        Some(frames) => {
+            let n = frames.len();
+            let k = if every_frame {
+                n
+            } else {
+                params.median_frames.min(n)
+            };
+            let refs: Vec<FrameRef<'_>> = (0..k)
+                .map(|i| frames[((2 * i + 1) * n) / (2 * k)].as_ref())
+                .collect();
+            let background = temporal_median_frames(&refs).map_err(too_many)?;
+            streamed.median = None;
+            streamed.every_frame = false;
+            for (j, f) in frames.iter().enumerate() {
+                streamed.take(j, f.as_ref())?;
+            }
+            (background, streamed.noise)
         }
-        (None, None, Some(acc)) => acc.median()?,
-        (None, None, None) => unreachable!("frames go to the cache or the accumulator"),
+        None => {
+            let background = match (streamed.median, streamed.all) {
+                (Some(s), _) => temporal_median(s.frames()).map_err(too_many)?,
+                (None, Some(acc)) => acc.median()?,
+                (None, None) => unreachable!("streamed frames go to a sample or the accumulator"),
+            };
+            (background, streamed.noise)
+        }
     };
     let bg_blur = gaussian_blur(&background, &params.blur)?;
     timings.median += t.elapsed() + inside;
