@@ -17,7 +17,9 @@ use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, 
 use crate::loops::{check_loop_input, loops_from_pair_costs, pair_costs, Loop, LoopParams};
 use crate::median::{temporal_median, temporal_median_frames, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
-use crate::noise::{noise_mask, noise_model, FrameSample, MotionKept, NoiseModel, NoiseParams};
+use crate::noise::{
+    noise_mask, noise_model, pair_change, FrameSample, MotionKept, NoiseModel, NoiseParams,
+};
 use crate::transition::{
     seam_score, transition_range, transitions_from_pair_costs, warp_masks, xor_pair_costs,
 };
@@ -1002,8 +1004,15 @@ fn analyze_view(
                 .collect()
         };
         let (mut ready, mut spare) = (buffers(), buffers());
-        let compute = |part: Vec<Frame>, rgb: &mut Vec<RgbImage>| {
-            part.into_par_iter()
+        // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
+        // with `prev`, the previous chunk's last frame and mask.
+        type Computed = (Vec<(Mask, Option<Thumb>)>, (f64, f64));
+        let compute = |part: Vec<Frame>,
+                       rgb: &mut Vec<RgbImage>,
+                       prev: Option<(&RgbImage, &Mask)>|
+         -> Result<Computed> {
+            let masks: Vec<(Mask, Option<Thumb>)> = part
+                .into_par_iter()
                 .zip(rgb.par_iter_mut())
                 .map_init(
                     || (BlurScratch::default(), RgbImage::new(w, h)),
@@ -1015,20 +1024,40 @@ fn analyze_view(
                         Ok((mask_of(blurred)?, thumb))
                     },
                 )
-                .collect::<Vec<Result<(Mask, Option<Thumb>)>>>()
+                .collect::<Result<_>>()?;
+            let rgb: &[RgbImage] = rgb;
+            let change = (0..masks.len())
+                .into_par_iter()
+                .map(|k| {
+                    let before = match k {
+                        0 => prev,
+                        _ => Some((&rgb[k - 1], &masks[k - 1].0)),
+                    };
+                    before.map_or((0.0, 0.0), |(f0, m0)| {
+                        pair_change(f0, m0, &rgb[k], &masks[k].0, &background, alpha)
+                    })
+                })
+                .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+            Ok((masks, change))
         };
         let mut frames = frames.into_iter();
-        let mut pending = compute(frames.by_ref().take(chunk).collect(), &mut ready);
+        let (mut pending, change) =
+            compute(frames.by_ref().take(chunk).collect(), &mut ready, None)?;
+        kept.add(change);
         let mut i = 0;
         while !pending.is_empty() {
             let part: Vec<Frame> = frames.by_ref().take(chunk).collect();
+            let last_mask = pending.last().map(|(m, _)| m.clone());
+            let prev = pending
+                .len()
+                .checked_sub(1)
+                .map(|k| &ready[k])
+                .zip(last_mask.as_ref());
             let (next, flushed) = std::thread::scope(|scope| {
-                let worker = scope.spawn(|| compute(part, &mut spare));
+                let worker = scope.spawn(|| compute(part, &mut spare, prev));
                 let mut flush = || -> Result<()> {
-                    for (r, f) in pending.drain(..).zip(&ready) {
-                        let (m, thumb) = r?;
+                    for ((m, thumb), f) in pending.drain(..).zip(&ready) {
                         observer.object_frame(p, i, &shown(&m), f)?;
-                        kept.push(f, &m, &background, alpha);
                         masks.push(m);
                         thumbs.extend(thumb);
                         observer.tick();
@@ -1040,7 +1069,9 @@ fn analyze_view(
                 (worker.join(), flushed)
             });
             flushed?;
-            pending = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            let (next, change) = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+            kept.add(change);
+            pending = next;
             std::mem::swap(&mut ready, &mut spare);
         }
         timings.masks += t.elapsed();

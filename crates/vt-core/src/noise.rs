@@ -351,7 +351,43 @@ pub fn noise_mask(frame: &RgbImage, background: &RgbImage, thresholds: &[u8]) ->
     }))
 }
 
-/// One row of [`MotionKept::push`]: `(sum |F1 - F0|, sum |a1 F1 - a0 F0 + (a0 - a1) B|)` over
+/// The real and the shown change between consecutive frames `(f0, m0)` and `(f1, m1)`, summed
+/// over pixels and channels, in grey levels ([`MotionKept`]'s terms; one thread).
+pub fn pair_change(
+    f0: &RgbImage,
+    m0: &Mask,
+    f1: &RgbImage,
+    m1: &Mask,
+    background: &RgbImage,
+    alpha: Option<&GrayImage>,
+) -> (f64, f64) {
+    // In integers: with alphas in 0..=255, 255 R_t = a_t F_t + (255 - a_t) B, so
+    // 255 (R_{t+1} - R_t) = a1 F1 - a0 F0 + (a0 - a1) B; `kept` sums it over 255.
+    let w = f1.width() as usize;
+    let (mut real, mut kept) = (0u64, 0u64);
+    for (y, ((r0, r1), g)) in f0
+        .as_raw()
+        .chunks_exact(3 * w)
+        .zip(f1.as_raw().chunks_exact(3 * w))
+        .zip(background.as_raw().chunks_exact(3 * w))
+        .enumerate()
+    {
+        let (r, k) = crate::simd::dispatch(KeptRow {
+            f0: r0,
+            f1: r1,
+            g,
+            alpha: alpha.map_or(&[][..], |al| &al.as_raw()[y * w..(y + 1) * w]),
+            m0: m0.words(),
+            m1: m1.words(),
+            start: y * w,
+        });
+        real += r;
+        kept += k;
+    }
+    (real as f64, kept as f64 / 255.0)
+}
+
+/// One row of [`pair_change`]: `(sum |F1 - F0|, sum |a1 F1 - a0 F0 + (a0 - a1) B|)` over
 /// pixels and channels (the second is 255 times the shown change).
 struct KeptRow<'a> {
     f0: &'a [u8],
@@ -427,30 +463,7 @@ impl MotionKept {
         alpha: Option<&GrayImage>,
     ) {
         if let Some((pf, pm)) = &mut self.prev {
-            // In integers: with alphas in 0..=255, 255 R_t = a_t F_t + (255 - a_t) B, so
-            // 255 (R_{t+1} - R_t) = a1 F1 - a0 F0 + (a0 - a1) B; `kept` sums it over 255.
-            let (a, b, bg) = (pf.as_raw(), frame.as_raw(), background.as_raw());
-            let (w0, w1) = (pm.words(), mask.words());
-            let w = frame.width() as usize;
-            let (real, kept) = a
-                .par_chunks(3 * w)
-                .zip(b.par_chunks(3 * w))
-                .zip(bg.par_chunks(3 * w))
-                .enumerate()
-                .with_min_len(8)
-                .map(|(y, ((f0, f1), g))| {
-                    let (real, kept) = crate::simd::dispatch(KeptRow {
-                        f0,
-                        f1,
-                        g,
-                        alpha: alpha.map_or(&[][..], |al| &al.as_raw()[y * w..(y + 1) * w]),
-                        m0: w0,
-                        m1: w1,
-                        start: y * w,
-                    });
-                    (real as f64, kept as f64 / 255.0)
-                })
-                .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+            let (real, kept) = pair_change(pf, pm, frame, mask, background, alpha);
             self.real += real;
             self.kept += kept;
             // Reuse the buffers: no allocation per frame once warm.
@@ -461,6 +474,13 @@ impl MotionKept {
             }
         }
         self.prev = Some((frame.clone(), mask.clone()));
+    }
+
+    /// Adds a pair's `(real, kept)` change measured apart ([`pair_change`]); pairs may come in
+    /// any order, but each consecutive pair once, and none through [`MotionKept::push`] too.
+    pub fn add(&mut self, (real, kept): (f64, f64)) {
+        self.real += real;
+        self.kept += kept;
     }
 
     /// The kept share in [0, 1] (1 for a video without change).
