@@ -53,20 +53,32 @@ pub fn change_thumb(frame: &RgbImage, background: &RgbImage, factor: u32) -> Thu
     let (f, b) = (frame.as_raw(), background.as_raw());
     let mut data = vec![0i16; tw as usize * th as usize];
     let scale = 4.0 / (3.0 * (factor * factor) as f32);
+    // Block sums row by row: each block's 3 * factor contiguous bytes per row summed at once.
+    let block = 3 * factor as usize;
+    let mut acc = vec![0i32; tw as usize];
     for ty in 0..th {
-        for tx in 0..tw {
-            let mut acc = 0i32;
-            for y in ty * factor..(ty + 1) * factor {
-                let row = y as usize * w as usize;
-                for x in tx * factor..(tx + 1) * factor {
-                    let i = (row + x as usize) * 3;
-                    acc += f[i] as i32 + f[i + 1] as i32 + f[i + 2] as i32
-                        - b[i] as i32
-                        - b[i + 1] as i32
-                        - b[i + 2] as i32;
-                }
+        acc.fill(0);
+        for y in ty * factor..(ty + 1) * factor {
+            let row = y as usize * w as usize * 3;
+            let (fr, br) = (
+                &f[row..row + tw as usize * block],
+                &b[row..row + tw as usize * block],
+            );
+            for ((a, fc), bc) in acc
+                .iter_mut()
+                .zip(fr.chunks_exact(block))
+                .zip(br.chunks_exact(block))
+            {
+                let sf: i32 = fc.iter().map(|&v| v as i32).sum();
+                let sb: i32 = bc.iter().map(|&v| v as i32).sum();
+                *a += sf - sb;
             }
-            data[(ty * tw + tx) as usize] = (acc as f32 * scale).round() as i16;
+        }
+        for (d, &a) in data[(ty * tw) as usize..((ty + 1) * tw) as usize]
+            .iter_mut()
+            .zip(&acc)
+        {
+            *d = (a as f32 * scale).round() as i16;
         }
     }
     Thumb {
@@ -216,6 +228,42 @@ mod tests {
         assert_eq!(t.data[0], 120); // +30 grey levels, times 4
         assert!(t.data[1..].iter().all(|&v| v == 0));
         assert_eq!(thumb_cost(&t, &change_thumb(&bg, &bg, 2), None), 120);
+    }
+
+    #[test]
+    fn change_thumb_is_the_block_mean_of_the_channel_sums() {
+        let mut rng = crate::rng::Rng::new(4);
+        let mut random = |w, h| {
+            RgbImage::from_fn(w, h, |_, _| {
+                let v = rng.next_u64();
+                image::Rgb([v as u8, (v >> 8) as u8, (v >> 16) as u8])
+            })
+        };
+        for (w, h, factor) in [(37u32, 23u32, 3u32), (40, 16, 4), (5, 5, 1)] {
+            let (f, b) = (random(w, h), random(w, h));
+            let t = change_thumb(&f, &b, factor);
+            let (tw, th) = (w / factor, h / factor);
+            assert_eq!((t.width, t.height), (tw, th));
+            for ty in 0..th {
+                for tx in 0..tw {
+                    let mut acc = 0i32;
+                    for y in ty * factor..(ty + 1) * factor {
+                        for x in tx * factor..(tx + 1) * factor {
+                            for c in 0..3 {
+                                acc +=
+                                    f.get_pixel(x, y).0[c] as i32 - b.get_pixel(x, y).0[c] as i32;
+                            }
+                        }
+                    }
+                    let want = (acc as f32 * 4.0 / (3.0 * (factor * factor) as f32)).round() as i16;
+                    assert_eq!(
+                        t.data[(ty * tw + tx) as usize],
+                        want,
+                        "{w}x{h}/{factor} ({tx}, {ty})"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

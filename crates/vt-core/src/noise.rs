@@ -408,30 +408,41 @@ impl crate::simd::Kernel for KeptRow<'_> {
     fn run(self) -> (u64, u64) {
         let (mut real, mut kept) = (0u64, 0u64);
         let w = self.f0.len() / 3;
-        for (x, ((p0, p1), q)) in self
-            .f0
-            .chunks_exact(3)
-            .zip(self.f1.chunks_exact(3))
-            .zip(self.g.chunks_exact(3))
-            .enumerate()
-        {
+        let has_alpha = self.alpha.len() == w;
+        // Pixels in runs that share a mask word: each word read once, its bits shifted out.
+        let mut x = 0;
+        while x < w {
             let i = self.start + x;
-            let d = if self.alpha.len() == w {
-                self.alpha[x] as i32
-            } else {
-                0
-            };
-            // The dynamic alpha where it is set, else the mask bit as 0 or 255.
-            let shown = |m: &[u64]| {
-                let bit = ((m[i / 64] >> (i % 64)) & 1) as i32;
-                d | (((d == 0) as i32) * 255 * bit)
-            };
-            let (a0, a1) = (shown(self.m0), shown(self.m1));
-            for c in 0..3 {
-                let (v0, v1, gv) = (p0[c] as i32, p1[c] as i32, q[c] as i32);
-                real += (v1 - v0).unsigned_abs() as u64;
-                kept += (a1 * v1 - a0 * v0 + (a0 - a1) * gv).unsigned_abs() as u64;
+            let (wi, off) = (i / 64, i % 64);
+            let n = (64 - off).min(w - x);
+            let (b0, b1) = (self.m0[wi] >> off, self.m1[wi] >> off);
+            let span = x..x + n;
+            let (f0, f1, g) = (
+                &self.f0[3 * span.start..3 * span.end],
+                &self.f1[3 * span.start..3 * span.end],
+                &self.g[3 * span.start..3 * span.end],
+            );
+            for k in 0..n {
+                let d = if has_alpha {
+                    self.alpha[x + k] as i32
+                } else {
+                    0
+                };
+                // The dynamic alpha where it is set, else the mask bit as 0 or 255.
+                let keep = ((d == 0) as i32) * 255;
+                let a0 = d | (keep * ((b0 >> k) & 1) as i32);
+                let a1 = d | (keep * ((b1 >> k) & 1) as i32);
+                for c in 0..3 {
+                    let (v0, v1, gv) = (
+                        f0[3 * k + c] as i32,
+                        f1[3 * k + c] as i32,
+                        g[3 * k + c] as i32,
+                    );
+                    real += (v1 - v0).unsigned_abs() as u64;
+                    kept += (a1 * v1 - a0 * v0 + (a0 - a1) * gv).unsigned_abs() as u64;
+                }
             }
+            x += n;
         }
         (real, kept)
     }
