@@ -784,6 +784,14 @@ impl SceneAnalysis {
     }
 }
 
+/// The frames of an `n`-frame view the median background uses when they are all at hand
+/// ([`AnalyzeParams::median_frames`] = `k`): the middle frame of each of `k` equal spans, or
+/// every frame when `k` is 0 or at least `n`.
+pub fn median_frame_indices(n: usize, k: usize) -> Vec<usize> {
+    let k = if k == 0 { n } else { k.min(n) };
+    (0..k).map(|i| ((2 * i + 1) * n) / (2 * k)).collect()
+}
+
 /// Pass 1's consumers of frames that do not stay in the cache.
 struct Streamed {
     /// The noise model's sample.
@@ -913,14 +921,9 @@ fn analyze_view(
         // Cached: the median from exactly evenly spaced frames (the middle of each of K equal
         // spans, which a stream of unknown length cannot pick), the noise sample as streamed.
         Some(frames) => {
-            let n = frames.len();
-            let k = if every_frame {
-                n
-            } else {
-                params.median_frames.min(n)
-            };
-            let refs: Vec<FrameRef<'_>> = (0..k)
-                .map(|i| frames[((2 * i + 1) * n) / (2 * k)].as_ref())
+            let refs: Vec<FrameRef<'_>> = median_frame_indices(frames.len(), params.median_frames)
+                .into_iter()
+                .map(|i| frames[i].as_ref())
                 .collect();
             let background = temporal_median_frames(&refs).map_err(too_many)?;
             streamed.median = None;

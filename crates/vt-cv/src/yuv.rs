@@ -9,7 +9,6 @@
 use image::RgbImage;
 use opencv::core::Mat;
 use opencv::imgproc;
-use opencv::prelude::*;
 use vt_core::yuv::{Yuv420Image, YuvMatrix, YuvRange};
 
 use crate::convert::mat_to_rgb;

@@ -58,6 +58,84 @@ fn analysis_table(ctx: &mut Ctx) -> Result<Table> {
     Ok(t)
 }
 
+/// Analysis of a real video at a real size, end to end from the file: tree.avi's hand-free
+/// frames upscaled to 768x576 and looped, encoded to H.264, against decoding the same file.
+fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
+    use vt_core::analysis::{FrameRef, FrameSource};
+    let tr = tree(ctx)?;
+    let (w, h, n) = (768u32, 576u32, ctx.pick(160usize, 800));
+    let hand_free = 54.min(tr.frames.len());
+    let scaled: Vec<RgbImage> = tr.frames[..hand_free]
+        .iter()
+        .map(|f| image::imageops::resize(f, w, h, image::imageops::FilterType::Triangle))
+        .collect();
+    let path = ctx.work.path().join("tree-768x576.mp4");
+    vt_io::video::encode_h264(&path, w, h, 25.0, 18, n, &mut |i| {
+        Ok(scaled[i % scaled.len()].clone())
+    })?;
+    let mut src = vt_io::frames::VideoSource::open(&path)?;
+    let (decode, decoded) = timed(ctx.pick(1, 3), || {
+        src.for_each_native(&mut |_, f: FrameRef<'_>| {
+            std::hint::black_box(f.dimensions());
+            Ok(())
+        })
+    });
+    decoded?;
+    let mut t = Table::new(
+        "perf-analysis-real",
+        "Analysis of a real video at 768x576 against decoding it",
+        format!(
+            "tree.avi's hand-free frames upscaled to {w}x{h} and looped to {n} frames, H.264: \
+             the whole single-view analysis at default settings, end to end from the file \
+             (decode, median of {} evenly spaced frames, noise-model masks, dynamic region, \
+             appearance, loop), against decoding the file alone (ffmpeg through vt-io, frames \
+             thrown away). The every-frame median row is the same analysis with \
+             --median-frames 0; its background error column is the default's distance from it.",
+            vt_core::analysis::DEFAULT_MEDIAN_FRAMES
+        ),
+        &[
+            "what",
+            "seconds",
+            "ratio to decode",
+            "background vs every-frame median (grey levels)",
+        ],
+    );
+    t.row(vec![
+        json!("decode (ffmpeg)"),
+        json!(decode),
+        json!(1.0),
+        json!("-"),
+    ]);
+    let mut run = |median_frames: usize| -> Result<(f64, vt_core::analysis::SceneAnalysis)> {
+        let params = AnalyzeParams {
+            median_frames,
+            ..Default::default()
+        };
+        let (secs, a) = timed(1, || analyze(&mut [&mut src], &[], &params, &mut Quiet));
+        Ok((secs, a?))
+    };
+    let (fast, a) = run(vt_core::analysis::DEFAULT_MEDIAN_FRAMES)?;
+    let (exact, b) = run(0)?;
+    let err =
+        vt_core::metrics::mean_abs_diff(&a.views[0].background, &b.views[0].background, None)?;
+    t.row(vec![
+        json!(format!(
+            "analysis (default, {} frames for the median)",
+            vt_core::analysis::DEFAULT_MEDIAN_FRAMES
+        )),
+        json!(fast),
+        json!(fast / decode),
+        json!(err),
+    ]);
+    t.row(vec![
+        json!("analysis, every-frame median"),
+        json!(exact),
+        json!(exact / decode),
+        json!(0.0),
+    ]);
+    Ok(t)
+}
+
 fn render_table(ctx: &mut Ctx) -> Result<Table> {
     let sa = synth_a(ctx)?;
     let frames_per_view = ctx.pick(40, 72);
@@ -423,6 +501,7 @@ fn synthesis_table(ctx: &mut Ctx) -> Result<Table> {
 pub fn build(ctx: &mut Ctx) -> Result<Vec<Item>> {
     let mut items = vec![
         Item::Table(analysis_table(ctx)?),
+        Item::Table(real_size_table(ctx)?),
         Item::Table(render_table(ctx)?),
         Item::Table(opencv_table(ctx)?),
         Item::Table(synthesis_table(ctx)?),
