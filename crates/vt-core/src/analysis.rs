@@ -1009,7 +1009,7 @@ fn analyze_view(
         let (mut ready, mut spare) = (buffers(), buffers());
         // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
         // with `prev`, the previous chunk's last frame and mask.
-        type Computed = (Vec<(Mask, Option<Thumb>)>, (f64, f64));
+        type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
         let compute = |part: Vec<Frame>,
                        rgb: &mut Vec<RgbImage>,
                        prev: Option<(&RgbImage, &Mask)>|
@@ -1036,11 +1036,11 @@ fn analyze_view(
                         0 => prev,
                         _ => Some((&rgb[k - 1], &masks[k - 1].0)),
                     };
-                    before.map_or((0.0, 0.0), |(f0, m0)| {
+                    before.map_or((0, 0), |(f0, m0)| {
                         pair_change(f0, m0, &rgb[k], &masks[k].0, &background, alpha)
                     })
                 })
-                .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
             Ok((masks, change))
         };
         let mut frames = frames.into_iter();

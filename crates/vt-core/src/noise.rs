@@ -352,7 +352,8 @@ pub fn noise_mask(frame: &RgbImage, background: &RgbImage, thresholds: &[u8]) ->
 }
 
 /// The real and the shown change between consecutive frames `(f0, m0)` and `(f1, m1)`, summed
-/// over pixels and channels, in grey levels ([`MotionKept`]'s terms; one thread).
+/// over pixels and channels ([`MotionKept`]'s terms; one thread): `(real, kept)`, the real change
+/// in grey levels and the shown one in 1/255 grey levels (exact integers).
 pub fn pair_change(
     f0: &RgbImage,
     m0: &Mask,
@@ -360,9 +361,9 @@ pub fn pair_change(
     m1: &Mask,
     background: &RgbImage,
     alpha: Option<&GrayImage>,
-) -> (f64, f64) {
+) -> (u64, u64) {
     // In integers: with alphas in 0..=255, 255 R_t = a_t F_t + (255 - a_t) B, so
-    // 255 (R_{t+1} - R_t) = a1 F1 - a0 F0 + (a0 - a1) B; `kept` sums it over 255.
+    // 255 (R_{t+1} - R_t) = a1 F1 - a0 F0 + (a0 - a1) B, summed as is.
     let w = f1.width() as usize;
     let (mut real, mut kept) = (0u64, 0u64);
     for (y, ((r0, r1), g)) in f0
@@ -384,7 +385,7 @@ pub fn pair_change(
         real += r;
         kept += k;
     }
-    (real as f64, kept as f64 / 255.0)
+    (real, kept)
 }
 
 /// One row of [`pair_change`]: `(sum |F1 - F0|, sum |a1 F1 - a0 F0 + (a0 - a1) B|)` over
@@ -455,8 +456,11 @@ impl crate::simd::Kernel for KeptRow<'_> {
 #[derive(Debug, Clone, Default)]
 pub struct MotionKept {
     prev: Option<(RgbImage, Mask)>,
-    real: f64,
-    kept: f64,
+    /// `sum |F_{t+1} - F_t|`, grey levels.
+    real: u64,
+    /// `sum |R_{t+1} - R_t|`, in 1/255 grey levels (integers, so the order pairs are added in
+    /// never changes the figure).
+    kept: u64,
 }
 
 impl MotionKept {
@@ -489,15 +493,15 @@ impl MotionKept {
 
     /// Adds a pair's `(real, kept)` change measured apart ([`pair_change`]); pairs may come in
     /// any order, but each consecutive pair once, and none through [`MotionKept::push`] too.
-    pub fn add(&mut self, (real, kept): (f64, f64)) {
+    pub fn add(&mut self, (real, kept): (u64, u64)) {
         self.real += real;
         self.kept += kept;
     }
 
     /// The kept share in [0, 1] (1 for a video without change).
     pub fn share(&self) -> f64 {
-        if self.real > 0.0 {
-            (self.kept / self.real).min(1.0)
+        if self.real > 0 {
+            (self.kept as f64 / 255.0 / self.real as f64).min(1.0)
         } else {
             1.0
         }
