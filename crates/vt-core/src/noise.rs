@@ -525,6 +525,20 @@ mod tests {
     }
 
     #[test]
+    fn wants_says_which_frames_offer_keeps() {
+        for cap in [2usize, 3, 5, 8] {
+            let mut s = FrameSample::new(cap);
+            for i in 0..200usize {
+                let img = RgbImage::from_pixel(1, 1, image::Rgb([i as u8, (i >> 8) as u8, 0]));
+                let wanted = s.wants(i);
+                s.offer(i, &img);
+                let kept = s.frames().last() == Some(&img);
+                assert_eq!(wanted, kept, "cap {cap}, frame {i}");
+            }
+        }
+    }
+
+    #[test]
     fn fluttering_pixels_are_dynamic_and_quiet_ones_are_not() {
         // Left half flutters by +-30 every other frame; right half has +-1 noise.
         let bg = RgbImage::from_pixel(20, 10, image::Rgb([100, 100, 100]));
