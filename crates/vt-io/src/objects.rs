@@ -27,6 +27,17 @@ const MAGIC: &[u8; 8] = b"VTOBJ1\0\0";
 const END: &[u8; 8] = b"VTOBJEND";
 const HEADER: usize = 16;
 
+/// The 64 mask bits from bit `at` on (bits past the end read as 0).
+fn bits_at(words: &[u64], at: usize) -> u64 {
+    let (w, o) = (at / 64, at % 64);
+    let lo = words.get(w).copied().unwrap_or(0) >> o;
+    if o == 0 {
+        lo
+    } else {
+        lo | (words.get(w + 1).copied().unwrap_or(0) << (64 - o))
+    }
+}
+
 /// Writes a store frame by frame.
 pub struct ObjectWriter {
     path: PathBuf,
@@ -74,28 +85,44 @@ impl ObjectWriter {
         for v in [x0, y0, x1, y1] {
             rec.extend_from_slice(&v.to_le_bytes());
         }
-        let mut bits = vec![0u8; n_bits.div_ceil(8)];
+        // The box's bits and its set pixels' RGB, 64 mask bits at a time: bits copied as words,
+        // pixels as runs.
+        let mut box_words = vec![0u64; n_bits.div_ceil(64)];
         let mut rgb = Vec::with_capacity(3 * set);
         let (words, px) = (mask.words(), raw.as_raw());
-        let w = self.width as usize;
+        let (w, bw) = (self.width as usize, (x1 - x0) as usize);
         let mut i = 0;
         for y in y0 as usize..y1 as usize {
-            // Runs of set pixels are copied whole.
-            let mut run: Option<usize> = None;
-            for x in x0 as usize..x1 as usize {
-                let at = y * w + x;
-                if (words[at / 64] >> (at % 64)) & 1 == 1 {
-                    bits[i / 8] |= 1 << (i % 8);
-                    run.get_or_insert(at);
-                } else if let Some(start) = run.take() {
-                    rgb.extend_from_slice(&px[3 * start..3 * at]);
+            let row = y * w + x0 as usize;
+            for c in (0..bw).step_by(64) {
+                let n = (bw - c).min(64);
+                let mut bits = bits_at(words, row + c);
+                if n < 64 {
+                    bits &= (1u64 << n) - 1;
                 }
-                i += 1;
+                let (at, off) = ((i + c) / 64, (i + c) % 64);
+                box_words[at] |= bits << off;
+                if off > 0 && n > 64 - off {
+                    box_words[at + 1] |= bits >> (64 - off);
+                }
+                let mut k = 0;
+                while bits != 0 {
+                    let skip = bits.trailing_zeros() as usize;
+                    bits >>= skip;
+                    let len = bits.trailing_ones() as usize;
+                    bits = if len == 64 { 0 } else { bits >> len };
+                    let start = row + c + k + skip;
+                    rgb.extend_from_slice(&px[3 * start..3 * (start + len)]);
+                    k += skip + len;
+                }
             }
-            if let Some(start) = run {
-                rgb.extend_from_slice(&px[3 * start..3 * (y * w + x1 as usize)]);
-            }
+            i += bw;
         }
+        let bits: Vec<u8> = box_words
+            .iter()
+            .flat_map(|w| w.to_le_bytes())
+            .take(n_bits.div_ceil(8))
+            .collect();
         rec.extend_from_slice(&bits);
         rec.extend_from_slice(&rgb);
         self.offsets.push(self.pos);
@@ -349,6 +376,59 @@ impl vt_core::render::ObjectFrames for SceneObjects {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The record layout written pixel by pixel, as the format describes it.
+    fn reference_record(mask: &Mask, raw: &RgbImage) -> Vec<u8> {
+        let (x0, y0, x1, y1) = mask.bounding_box().unwrap_or((0, 0, 0, 0));
+        let mut rec: Vec<u8> = [x0, y0, x1, y1]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let n = ((x1 - x0) * (y1 - y0)) as usize;
+        let mut bits = vec![0u8; n.div_ceil(8)];
+        let mut rgb = Vec::new();
+        let mut i = 0;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if mask.get(x, y) {
+                    bits[i / 8] |= 1 << (i % 8);
+                    rgb.extend_from_slice(&raw.get_pixel(x, y).0);
+                }
+                i += 1;
+            }
+        }
+        rec.extend(bits);
+        rec.extend(rgb);
+        rec
+    }
+
+    #[test]
+    fn records_match_the_per_pixel_layout() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut rng = vt_core::rng::Rng::new(17);
+        for (w, h) in [(13u32, 9u32), (64, 3), (70, 9), (131, 5), (200, 2)] {
+            let raw = RgbImage::from_fn(w, h, |x, y| image::Rgb([x as u8, y as u8, (x * y) as u8]));
+            let path = dir.path().join(format!("o{w}x{h}.bin"));
+            let mut writer = ObjectWriter::create(&path, w, h).unwrap();
+            let mut want = Vec::new();
+            // Sparse, dense, runs across words, a full box, an empty one.
+            for density in [3u64, 50, 97, 100, 0] {
+                let seed = rng.next_u64();
+                let m = Mask::from_fn(w, h, |x, y| {
+                    vt_core::rng::mix(seed ^ ((x as u64) << 20) ^ y as u64) % 100 < density
+                });
+                writer.push(&m, &raw).unwrap();
+                want.push(reference_record(&m, &raw));
+            }
+            writer.finish().unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            let mut at = HEADER;
+            for rec in &want {
+                assert_eq!(&bytes[at..at + rec.len()], &rec[..], "{w}x{h}");
+                at += rec.len();
+            }
+        }
+    }
 
     #[test]
     fn round_trip_and_corruption() {
