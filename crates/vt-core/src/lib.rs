@@ -7,7 +7,9 @@
 //! online, [`render`] (eq. 3-6): the source-frame player and the intermediate-view renderer.
 //!
 //! Images are the `image` crate's [`image::RgbImage`]; pixel centres sit at integer
-//! coordinates `(x, y) = (column, row)`, origin top-left, as in OpenCV.
+//! coordinates `(x, y) = (column, row)`, origin top-left, as in OpenCV. Video frames may also
+//! arrive as planar 4:2:0 ([`yuv`]), the decoders' own form, which the analysis keeps between
+//! its passes and converts to RGB where it needs pixels.
 #![deny(missing_docs)]
 
 pub mod align;
