@@ -1007,26 +1007,29 @@ fn analyze_view(
                 .collect()
         };
         let (mut ready, mut spare) = (buffers(), buffers());
+        // Blur buffers, one per frame of a chunk (one chunk is computed at a time).
+        let mut blurs: Vec<(BlurScratch, RgbImage)> = (0..ready.len())
+            .map(|_| (BlurScratch::default(), RgbImage::new(w, h)))
+            .collect();
         // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
         // with `prev`, the previous chunk's last frame and mask.
         type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
         let compute = |part: Vec<Frame>,
                        rgb: &mut Vec<RgbImage>,
+                       blurs: &mut Vec<(BlurScratch, RgbImage)>,
                        prev: Option<(&RgbImage, &Mask)>|
          -> Result<Computed> {
             let masks: Vec<(Mask, Option<Thumb>)> = part
                 .into_par_iter()
                 .zip(rgb.par_iter_mut())
-                .map_init(
-                    || (BlurScratch::default(), RgbImage::new(w, h)),
-                    |(scratch, blurred), (f, out)| {
-                        f.as_ref().to_rgb_into(out);
-                        drop(f);
-                        blur.apply_into(out, blurred, scratch)?;
-                        let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
-                        Ok((mask_of(blurred)?, thumb))
-                    },
-                )
+                .zip(blurs.par_iter_mut())
+                .map(|((f, out), (scratch, blurred))| {
+                    f.as_ref().to_rgb_into(out);
+                    drop(f);
+                    blur.apply_into(out, blurred, scratch)?;
+                    let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
+                    Ok((mask_of(blurred)?, thumb))
+                })
                 .collect::<Result<_>>()?;
             let rgb: &[RgbImage] = rgb;
             let change = (0..masks.len())
@@ -1044,8 +1047,12 @@ fn analyze_view(
             Ok((masks, change))
         };
         let mut frames = frames.into_iter();
-        let (mut pending, change) =
-            compute(frames.by_ref().take(chunk).collect(), &mut ready, None)?;
+        let (mut pending, change) = compute(
+            frames.by_ref().take(chunk).collect(),
+            &mut ready,
+            &mut blurs,
+            None,
+        )?;
         kept.add(change);
         let mut i = 0;
         while !pending.is_empty() {
@@ -1057,7 +1064,7 @@ fn analyze_view(
                 .map(|k| &ready[k])
                 .zip(last_mask.as_ref());
             let (next, flushed) = std::thread::scope(|scope| {
-                let worker = scope.spawn(|| compute(part, &mut spare, prev));
+                let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
                 let mut flush = || -> Result<()> {
                     for ((m, thumb), f) in pending.drain(..).zip(&ready) {
                         observer.object_frame(p, i, &shown(&m), f)?;

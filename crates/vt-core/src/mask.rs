@@ -195,29 +195,20 @@ impl Mask {
 
     /// Pixels set in either mask (same size; panics otherwise).
     pub fn union(&self, other: &Mask) -> Mask {
-        assert_eq!(
-            (self.width, self.height),
-            (other.width, other.height),
-            "union of masks of different sizes"
-        );
-        Mask {
-            width: self.width,
-            height: self.height,
-            words: self
-                .words
-                .iter()
-                .zip(&other.words)
-                .map(|(a, b)| a | b)
-                .collect(),
-        }
+        self.combine(other, "union", |a, b| a | b)
     }
 
     /// Pixels set in this mask and not in `other` (same size; panics otherwise).
     pub fn difference(&self, other: &Mask) -> Mask {
+        self.combine(other, "difference", |a, b| a & !b)
+    }
+
+    /// `op` word by word (it must keep bits past `width * height` clear, as `|` and `& !` do).
+    fn combine(&self, other: &Mask, what: &str, op: impl Fn(u64, u64) -> u64) -> Mask {
         assert_eq!(
             (self.width, self.height),
             (other.width, other.height),
-            "difference of masks of different sizes"
+            "{what} of masks of different sizes"
         );
         Mask {
             width: self.width,
@@ -226,7 +217,7 @@ impl Mask {
                 .words
                 .iter()
                 .zip(&other.words)
-                .map(|(a, b)| a & !b)
+                .map(|(&a, &b)| op(a, b))
                 .collect(),
         }
     }

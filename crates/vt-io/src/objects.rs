@@ -46,6 +46,10 @@ pub struct ObjectWriter {
     height: u32,
     offsets: Vec<u64>,
     pos: u64,
+    /// The record being built (reused).
+    rec: Vec<u8>,
+    /// Its box's mask bits as words (reused).
+    box_words: Vec<u64>,
 }
 
 impl ObjectWriter {
@@ -65,6 +69,8 @@ impl ObjectWriter {
             height,
             offsets: Vec::new(),
             pos: HEADER as u64,
+            rec: Vec::new(),
+            box_words: Vec::new(),
         })
     }
 
@@ -80,15 +86,18 @@ impl ObjectWriter {
         }
         let (x0, y0, x1, y1) = mask.bounding_box().unwrap_or((0, 0, 0, 0));
         let n_bits = ((x1 - x0) * (y1 - y0)) as usize;
-        let set = mask.count_ones() as usize;
-        let mut rec = Vec::with_capacity(16 + n_bits.div_ceil(8) + 3 * set);
+        let nb = n_bits.div_ceil(8);
+        // One record buffer and one bit buffer, reused from frame to frame: the header, the
+        // box's bits (filled in below), then its set pixels' RGB appended as found.
+        let (rec, box_words) = (&mut self.rec, &mut self.box_words);
+        rec.clear();
         for v in [x0, y0, x1, y1] {
             rec.extend_from_slice(&v.to_le_bytes());
         }
-        // The box's bits and its set pixels' RGB, 64 mask bits at a time: bits copied as words,
-        // pixels as runs.
-        let mut box_words = vec![0u64; n_bits.div_ceil(64)];
-        let mut rgb = Vec::with_capacity(3 * set);
+        rec.resize(16 + nb, 0);
+        box_words.clear();
+        box_words.resize(n_bits.div_ceil(64), 0);
+        // 64 mask bits at a time: bits copied as words, pixels as runs.
         let (words, px) = (mask.words(), raw.as_raw());
         let (w, bw) = (self.width as usize, (x1 - x0) as usize);
         let mut i = 0;
@@ -112,23 +121,23 @@ impl ObjectWriter {
                     let len = bits.trailing_ones() as usize;
                     bits = if len == 64 { 0 } else { bits >> len };
                     let start = row + c + k + skip;
-                    rgb.extend_from_slice(&px[3 * start..3 * (start + len)]);
+                    rec.extend_from_slice(&px[3 * start..3 * (start + len)]);
                     k += skip + len;
                 }
             }
             i += bw;
         }
-        let bits: Vec<u8> = box_words
-            .iter()
-            .flat_map(|w| w.to_le_bytes())
-            .take(n_bits.div_ceil(8))
-            .collect();
-        rec.extend_from_slice(&bits);
-        rec.extend_from_slice(&rgb);
+        for (dst, src) in rec[16..16 + nb]
+            .iter_mut()
+            .zip(box_words.iter().flat_map(|w| w.to_le_bytes()))
+        {
+            *dst = src;
+        }
+        let rec = &self.rec;
         self.offsets.push(self.pos);
         self.pos += rec.len() as u64;
         self.out
-            .write_all(&rec)
+            .write_all(rec)
             .map_err(|e| Error::io(&self.path, e))
     }
 
