@@ -20,7 +20,8 @@ pub struct AnalyzeArgs {
     /// One video (mp4/avi/mov/mkv) or folder of PNG/JPG frames per view, in camera order.
     #[arg(required = true)]
     views: Vec<PathBuf>,
-    /// Points file: one line per view with the same K >= 4 points as x y pairs (needed for 2+ views).
+    /// Points file: one line per view with the same K >= 4 points as x y pairs (without it,
+    /// neighbouring views are registered automatically from their median backgrounds).
     #[arg(long)]
     points: Option<PathBuf>,
     /// Output scene directory (written atomically; an existing one is replaced only on success).
@@ -137,6 +138,7 @@ impl AnalyzeArgs {
                 dynamic: self.dynamic == "on",
                 ..Default::default()
             },
+            register: Default::default(),
         };
         params.check().map_err(|e| match e {
             vt_core::Error::InvalidParameter { name, value, why } => match flag_of(name) {
@@ -173,11 +175,6 @@ pub const MAX_CACHE_MB: usize = 1 << 20;
 pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
     let params = args.params()?;
     let m = args.views.len();
-    if m > 1 && args.points.is_none() {
-        bail!(
-            "--points is required with {m} views (the homographies between views come from them)"
-        );
-    }
     let mut sources: Vec<ViewSource> = args
         .views
         .iter()
@@ -210,7 +207,7 @@ pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
     })?;
     observer.finish_objects()?;
     let fps = vt_io::video::views_frame_rate(&args.views);
-    let scene = write_analysis(dir.path(), &analysis, &points, &params, fps)?;
+    let scene = write_analysis(dir.path(), &analysis, &params, fps)?;
     dir.commit()?;
     let total_secs = started.elapsed().as_secs_f64();
     print!(

@@ -174,14 +174,20 @@ fn wrap_and_step(frames: &[(vt_core::render::FrameChoice, RgbImage)], spread: us
     (wraps.iter().cloned().fold(0.0, f64::max), mean_step)
 }
 
-/// The generated 5-view scene and its truth.
+/// The generated scene and its truth.
 struct Real {
     dir: PathBuf,
+    views: usize,
     truth: RealScene,
 }
 
 fn real_scene(root: &Path, name: &str, noise: &str, frames: &str) -> Real {
+    real_scene_of(root, name, noise, frames, 5)
+}
+
+fn real_scene_of(root: &Path, name: &str, noise: &str, frames: &str, views: usize) -> Real {
     let dir = root.join(name);
+    let n_views = views.to_string();
     vt_ok(&[
         "synth",
         "real",
@@ -189,7 +195,7 @@ fn real_scene(root: &Path, name: &str, noise: &str, frames: &str) -> Real {
         "--out",
         s(&dir),
         "--views",
-        "5",
+        &n_views,
         "--frames",
         frames,
         "--usable",
@@ -204,30 +210,31 @@ fn real_scene(root: &Path, name: &str, noise: &str, frames: &str) -> Real {
         json["offsets"].as_array().unwrap().len(),
         truth.offsets().len()
     );
-    Real { dir, truth }
+    Real { dir, views, truth }
 }
 
 fn analyze_real(real: &Real, out: &Path, extra: &[&str]) -> LoadedScene {
-    let views: Vec<String> = (0..5)
+    let points = real.dir.join("points.txt");
+    let mut args = vec!["--points", s(&points)];
+    args.extend_from_slice(extra);
+    analyze_real_with(real, out, &args).0
+}
+
+/// Analyses the scene's views with `extra` flags (no points file unless given); returns the
+/// scene and vt's summary.
+fn analyze_real_with(real: &Real, out: &Path, extra: &[&str]) -> (LoadedScene, String) {
+    let views: Vec<String> = (0..real.views)
         .map(|p| s(&real.dir.join(format!("view_{p:02}.mp4"))).to_string())
         .collect();
-    let points = real.dir.join("points.txt");
     let mut args = vec!["analyze"];
     args.extend(views.iter().map(String::as_str));
-    args.extend_from_slice(&[
-        "--points",
-        s(&points),
-        "--out",
-        s(out),
-        "--min-length",
-        "40",
-    ]);
+    args.extend_from_slice(&["--out", s(out), "--min-length", "40"]);
     args.extend_from_slice(extra);
     let stdout = vt_ok(&args);
     if verbose() {
         eprintln!("{stdout}");
     }
-    LoadedScene::open(out).unwrap()
+    (LoadedScene::open(out).unwrap(), stdout)
 }
 
 /// Share of transition-table entries within +-1 frame of the truth.
@@ -253,6 +260,45 @@ fn transitions_within_one(scene: &LoadedScene, truth: &RealScene) -> f64 {
         }
     }
     good as f64 / all.max(1) as f64
+}
+
+#[test]
+fn real_scene_registered_without_points() {
+    // Issue #18: four views of tree.avi on a slanted plane, no points file. The homographies
+    // come from the backgrounds alone (features, RANSAC, GRIC on the inliers, refinement).
+    let tmp = tempfile::tempdir().unwrap();
+    let real = real_scene_of(tmp.path(), "auto", "2", "100", 4);
+    let out = tmp.path().join("auto-scene");
+    let (scene, stdout) = analyze_real_with(&real, &out, &[]);
+    let corner = corner_error(&scene, &real.truth);
+    let within = transitions_within_one(&scene, &real.truth);
+    if verbose() {
+        eprintln!(
+            "auto registration, 4 views: corner error {corner:.3} px, transitions within +-1 {:.1}%",
+            100.0 * within
+        );
+    }
+    assert!(corner <= 0.5, "corner error {corner} px");
+    assert!(within >= 0.95, "transitions within +-1 frame: {within}");
+    // The summary says how each link was registered and where to look.
+    for p in 0..3 {
+        let line = format!("registered {p}->{}", p + 1);
+        assert!(stdout.contains(&line), "{stdout}");
+        assert!(out.join(format!("fit_{p:03}.png")).is_file());
+    }
+    let json = read_json(&out.join("scene.json"));
+    let reg = &json["views"][0]["to_next"]["registration"];
+    assert!(reg["inliers"].as_u64().unwrap() >= 20, "{reg}");
+    // The virtual points are the same physical points: view p's carried by H to view p + 1.
+    for p in 0..3 {
+        let h = scene.file.views[p].to_next.as_ref().unwrap().homography().unwrap();
+        let (a, b) = (&scene.file.views[p].points, &scene.file.views[p + 1].points);
+        assert_eq!(a.len(), 4);
+        for (pa, pb) in a.iter().zip(b) {
+            let q = h.apply(vt_core::Point::new(pa[0], pa[1])).unwrap();
+            assert!((q.x - pb[0]).abs() < 1e-6 && (q.y - pb[1]).abs() < 1e-6);
+        }
+    }
 }
 
 /// Largest corner error of the scene's `H_(p,p+1)` against the truth, pixels.

@@ -17,6 +17,7 @@ use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, 
 use crate::loops::{check_loop_input, loops_from_pair_costs, pair_costs, Loop, LoopParams};
 use crate::median::{temporal_median, temporal_median_frames, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
+use crate::register::RegisterParams;
 use crate::noise::{
     noise_mask, noise_model, pair_change, FrameSample, MotionKept, NoiseModel, NoiseParams,
 };
@@ -242,6 +243,10 @@ pub struct AnalyzeParams {
     /// (not serialised into scenes: it changes speed, never results).
     #[serde(skip, default = "default_cache")]
     pub cache_bytes: usize,
+    /// Automatic registration, used when several views come without marked points (its
+    /// figures go into the scene per link).
+    #[serde(skip, default)]
+    pub register: RegisterParams,
 }
 
 fn default_cache() -> usize {
@@ -321,6 +326,7 @@ impl AnalyzeParams {
             );
         }
         self.noise.check()?;
+        self.register.check()?;
         if !(self.appearance.is_finite() && (0.0..=1000.0).contains(&self.appearance)) {
             let why = "the appearance weight must be in 0..=1000 (0 = masks only)";
             return bad("appearance", self.appearance.to_string(), why.into());
@@ -342,6 +348,7 @@ impl Default for AnalyzeParams {
             alternative_loops: 0,
             median_frames: DEFAULT_MEDIAN_FRAMES,
             cache_bytes: default_cache(),
+            register: RegisterParams::default(),
         }
     }
 }
@@ -357,6 +364,8 @@ pub enum Stage {
     Loop,
     /// Model selection and homographies.
     Homographies,
+    /// Automatic registration of neighbouring backgrounds (no marked points).
+    Registration,
     /// Eq. (2).
     Transitions,
 }
@@ -369,6 +378,7 @@ impl std::fmt::Display for Stage {
             Stage::Masks => "masks",
             Stage::Loop => "loop search",
             Stage::Homographies => "model + homographies",
+            Stage::Registration => "registration",
             Stage::Transitions => "transitions",
         })
     }
@@ -505,10 +515,16 @@ pub struct SceneAnalysis {
     pub selection: Option<Selection>,
     /// `links[p]` joins view p and p + 1.
     pub links: Vec<Link>,
+    /// The points of each view: the marked ones, or, registered automatically, four points
+    /// around the plane's inliers in view 0 carried through the homographies in use (the same
+    /// K physical points in every view, as B-1's `x(q)` needs).
+    pub points: Vec<Vec<Point>>,
     /// Points consistent with the refined homographies (the marked points carried through the
     /// chain and averaged over the views; None unless some link was refined). The renderer's
     /// `x_p`.
     pub refined_points: Option<Vec<Vec<Point>>>,
+    /// The automatic registration of each link (empty when points were marked).
+    pub registration: Vec<crate::register::PairRegistration>,
     /// Where the time went.
     pub timings: Timings,
 }
@@ -524,7 +540,9 @@ fn size_err(what: String, expected: (u32, u32), got: (u32, u32)) -> Error {
 }
 
 /// Runs A-1..A-3 on `sources` (one per view, in order) with `points[p]` the marked points of view p
-/// (the same K physical points in every view; may be empty when there is a single view).
+/// (the same K physical points in every view). With several views and `points` empty, each
+/// neighbour pair is registered from its median backgrounds ([`crate::register`]): the model is
+/// selected by GRIC on the inlier matches and refined as for marked points.
 pub fn analyze(
     sources: &mut [&mut dyn FrameSource],
     points: &[Vec<Point>],
@@ -539,7 +557,8 @@ pub fn analyze(
             why: "at least one view is needed".into(),
         });
     }
-    if m > 1 {
+    let auto = m > 1 && points.is_empty();
+    if m > 1 && !auto {
         if points.len() != m {
             return Err(Error::DegeneratePoints(format!(
                 "{m} views but points for {} views",
@@ -558,7 +577,7 @@ pub fn analyze(
     let mut timings = Timings::default();
     // The points are cheap to check: select the model and fit homographies before any decoding.
     let mut selection = None;
-    if m > 1 {
+    if m > 1 && !auto {
         let t0 = Instant::now();
         observer.start(Stage::Homographies, None, Some((m - 1) as u64));
         let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
@@ -578,6 +597,69 @@ pub fn analyze(
     }
     let (width, height) = size.expect("every view has at least one frame");
 
+    // Correspondences per link: the marked points of both views, or the automatic inliers.
+    let mut registration = Vec::new();
+    let pair_points: Vec<(Vec<Point>, Vec<Point>)> = if auto {
+        let t0 = Instant::now();
+        observer.start(Stage::Registration, None, Some((m - 1) as u64));
+        let focus: Vec<Option<Mask>> = views
+            .iter()
+            .map(|v| {
+                v.dynamic_alpha.as_ref().map(|al| {
+                    let raw = al.as_raw();
+                    Mask::from_fn(width, height, |x, y| raw[(y * width + x) as usize] > 0)
+                })
+            })
+            .collect();
+        let grey: Vec<image::GrayImage> = views
+            .par_iter()
+            .map(|v| crate::register::grey(&v.background))
+            .collect();
+        let features: Vec<Vec<crate::register::Feature>> = grey
+            .par_iter()
+            .map(|g| crate::register::detect(g, &params.register))
+            .collect();
+        for p in 0..m - 1 {
+            let r = crate::register::register_features(
+                &features[p],
+                &features[p + 1],
+                (width, height),
+                focus[p].as_ref(),
+                &params.register,
+                (p, p + 1),
+            )?;
+            observer.tick();
+            registration.push(r);
+        }
+        let pairs: Vec<(Vec<Point>, Vec<Point>)> = registration
+            .iter()
+            .map(|r| r.inliers.iter().copied().unzip())
+            .collect();
+        // GRIC's sigma from the matches themselves: a transfer residual carries both views'
+        // localisation noise (RMS about 2 sigma), corrected for the homography's 8 parameters.
+        let (mut sq, mut dof) = (0.0, 0.0);
+        for r in &registration {
+            let n = r.inliers.len() as f64;
+            sq += r.rms * r.rms * n;
+            dof += n - 4.0;
+        }
+        let sigma = ((sq / dof.max(1.0)).sqrt() / 2.0).max(0.05);
+        let refs: Vec<(&[Point], &[Point])> =
+            pairs.iter().map(|(a, b)| (a.as_slice(), b.as_slice())).collect();
+        let model = ModelParams {
+            sigma,
+            ..params.model
+        };
+        selection = Some(select_model(&refs, &model)?);
+        observer.finish();
+        timings.homographies += t0.elapsed();
+        pairs
+    } else {
+        (0..m.saturating_sub(1))
+            .map(|p| (points[p].clone(), points[p + 1].clone()))
+            .collect()
+    };
+
     // Refinement of H_(p,p+1) from the backgrounds, inside the marked points' hull and outside
     // the dynamic region (the whole hull when too little of it is static).
     let refine_all = |sel: &Selection| -> Result<(Vec<Homography>, Vec<Option<Refinement>>)> {
@@ -586,7 +668,8 @@ pub fn analyze(
         // Marking deviation implied by the fits: the RMS residual over all links, scaled up by
         // the residual degrees of freedom (2K measurements, `dof` used by the model), and halved
         // because a residual carries the noise of both views' points (about 2 sigma).
-        let k2 = 2.0 * points[0].len() as f64;
+        let k2 = 2.0 * pair_points.iter().map(|(a, _)| a.len()).sum::<usize>() as f64
+            / pair_points.len().max(1) as f64;
         let dof = sel.model.dof() as f64;
         let mean_sq = sel.fits.iter().map(|f| f.rms * f.rms).sum::<f64>() / sel.fits.len() as f64;
         let sigma_hat = mean_sq.sqrt() * (k2 / (k2 - dof).max(1.0)).sqrt() / 2.0;
@@ -597,7 +680,8 @@ pub fn analyze(
                 refinements.push(None);
                 continue;
             }
-            let hull = crate::align::hull_mask(&points[p], width, height);
+            let (src, dst) = (&pair_points[p].0, &pair_points[p].1);
+            let hull = crate::align::hull_mask(src, width, height);
             let region = match &views[p].dynamic_alpha {
                 Some(al) => {
                     let raw = al.as_raw();
@@ -625,7 +709,7 @@ pub fn analyze(
             // marked plane aligns well but to the wrong plane). The marking deviation is the one
             // the fits' residuals imply: exact points (synthetic scenes, or just enough points
             // for the model) leave no room, and the points decide.
-            let points_rms = a.homography.rms_error(&points[p], &points[p + 1]);
+            let points_rms = a.homography.rms_error(src, dst);
             let fit_rms = sel.fits[p].rms;
             let bound = (2.0 * fit_rms).max(fit_rms + 3.0 * sigma_hat);
             let kept = a.improved && points_rms <= bound;
@@ -650,8 +734,9 @@ pub fn analyze(
         // the points. When a simpler model was selected, refine under the full homography too
         // and take it if it lowers the photometric error over all links by 5% or more.
         if params.refine && !sel.forced && sel.model != MotionModel::Homography {
-            let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
-                .map(|p| (points[p].as_slice(), points[p + 1].as_slice()))
+            let pairs: Vec<(&[Point], &[Point])> = pair_points
+                .iter()
+                .map(|(a, b)| (a.as_slice(), b.as_slice()))
                 .collect();
             let force = ModelParams {
                 force: Some(MotionModel::Homography),
@@ -681,11 +766,16 @@ pub fn analyze(
                 }
             }
         }
-        if refinements.iter().flatten().any(|r| r.kept) {
+        if !auto && refinements.iter().flatten().any(|r| r.kept) {
             refined_points = crate::align::consistent_points(points, &used);
         }
         timings.homographies += t0.elapsed();
     }
+    let points = if auto {
+        carried_points(&registration[0], &used, width, height)?
+    } else {
+        points.to_vec()
+    };
 
     let mut links = Vec::new();
     if let Some(sel) = &selection {
@@ -741,9 +831,45 @@ pub fn analyze(
         views,
         selection,
         links,
+        points,
         refined_points,
+        registration,
         timings,
     })
+}
+
+/// The virtual points of automatic registration: the corners of the box around view 0's inliers
+/// (the plane's matches), carried to every view through `hs` (view p to p + 1), so they are the
+/// same four physical points of the plane in every view.
+fn carried_points(
+    first: &crate::register::PairRegistration,
+    hs: &[Homography],
+    width: u32,
+    height: u32,
+) -> Result<Vec<Vec<Point>>> {
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for (a, _) in &first.inliers {
+        (x0, y0, x1, y1) = (x0.min(a.x), y0.min(a.y), x1.max(a.x), y1.max(a.y));
+    }
+    // At least a tenth of the image each way, centred on the inliers' box.
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let hw = ((x1 - x0) / 2.0).max(width as f64 / 20.0);
+    let hh = ((y1 - y0) / 2.0).max(height as f64 / 20.0);
+    let base = vec![
+        Point::new(cx - hw, cy - hh),
+        Point::new(cx + hw, cy - hh),
+        Point::new(cx + hw, cy + hh),
+        Point::new(cx - hw, cy + hh),
+    ];
+    let mut out = vec![base];
+    for (p, h) in hs.iter().enumerate() {
+        let next: Option<Vec<Point>> = out[p].iter().map(|&q| h.apply(q)).collect();
+        out.push(next.ok_or_else(|| Error::Registration {
+            pair: (p, p + 1),
+            why: "the plane's points leave the image plane (a point maps to infinity)".into(),
+        })?);
+    }
+    Ok(out)
 }
 
 /// Eq. (2) from view `a` to view `b` (`h` maps a to b), with the appearance term when both views

@@ -74,6 +74,14 @@ pub enum Error {
         /// The rule it breaks.
         why: String,
     },
+    /// Two views' backgrounds that automatic registration could not verify a mapping between.
+    #[error("views {} and {}: cannot register the backgrounds automatically: {why}; mark the same points on every view and pass them with --points", pair.0, pair.1)]
+    Registration {
+        /// The view pair (p, p + 1).
+        pair: (usize, usize),
+        /// The figures: features, matches, inliers, coverage, residual.
+        why: String,
+    },
     /// Point correspondences that cannot determine a transformation.
     #[error("degenerate points: {0}")]
     DegeneratePoints(String),

@@ -157,6 +157,54 @@ pub struct LinkEntry {
     /// The background alignment's figures (absent when refinement was off).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refinement: Option<vt_core::analysis::Refinement>,
+    /// How the link was registered without marked points (absent: from the points file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub registration: Option<RegistrationEntry>,
+}
+
+/// The figures of an automatic registration ([`vt_core::register`]), in scene.json.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegistrationEntry {
+    /// Where the plane was estimated: "focus" (around the moving region) or "whole".
+    pub plane: String,
+    /// Features detected in the two backgrounds.
+    pub features: [usize; 2],
+    /// Mutual-best matches passing the ratio test.
+    pub matches: usize,
+    /// Inlier matches of the plane.
+    pub inliers: usize,
+    /// Cells of an 8x8 grid holding an inlier.
+    pub cells: usize,
+    /// RMS transfer error of the inliers under the robust homography, pixels.
+    pub rms: f64,
+    /// Matches outside the focus region that the plane explains, and all of them.
+    pub rest: [usize; 2],
+    /// The fit picture, relative to the scene.
+    pub picture: String,
+}
+
+impl RegistrationEntry {
+    fn new(r: &vt_core::register::PairRegistration, p: usize) -> Self {
+        Self {
+            plane: match r.plane {
+                vt_core::register::PlaneSource::Focus => "focus",
+                vt_core::register::PlaneSource::Whole => "whole",
+            }
+            .into(),
+            features: [r.features.0, r.features.1],
+            matches: r.matches,
+            inliers: r.inliers.len(),
+            cells: r.cells,
+            rms: r.rms,
+            rest: [r.rest_inliers.0, r.rest_inliers.1],
+            picture: fit_name(p),
+        }
+    }
+}
+
+/// File name of the fit picture of link p -> p + 1 ([`vt_core::register::fit_picture`]).
+pub fn fit_name(p: usize) -> String {
+    format!("fit_{p:03}.png")
 }
 
 fn rows(h: &Homography) -> [[f64; 3]; 3] {
@@ -176,6 +224,7 @@ impl LinkEntry {
             rms,
             points_homography: None,
             refinement: None,
+            registration: None,
         }
     }
 
@@ -231,11 +280,12 @@ pub fn dynamic_name(p: usize) -> String {
 
 /// Writes an analysis into a scene directory (whose object stores
 /// [`crate::objects::StoreWriter`] wrote as the masks arrived): each view's median background,
-/// its dynamic-region alpha, and scene.json with the views' source frame rate `fps`.
+/// its dynamic-region alpha, each link's fit picture (the next view's background warped onto
+/// this one in a checkerboard, the points drawn: [`fit_name`]), and scene.json with the views'
+/// source frame rate `fps`.
 pub fn write_analysis(
     dir: &Path,
     a: &SceneAnalysis,
-    points: &[Vec<Point>],
     params: &AnalyzeParams,
     fps: Option<f64>,
 ) -> Result<SceneFile> {
@@ -243,7 +293,17 @@ pub fn write_analysis(
         crate::frames::write_png(&dir.join(background_name(p)), &v.background)?;
     }
     write_dynamic(dir, a)?;
-    let mut scene = SceneFile::from_analysis(a, points, params);
+    for (p, l) in a.links.iter().enumerate() {
+        let pts: Vec<Point> = match a.registration.get(p) {
+            Some(r) => r.inliers.iter().map(|(s, _)| *s).collect(),
+            None => a.points.get(p).cloned().unwrap_or_default(),
+        };
+        let (bg, next) = (&a.views[p].background, &a.views[p + 1].background);
+        let cell = (a.width.max(a.height) / 12).max(8);
+        let pic = vt_core::register::fit_picture(bg, next, &l.homography, &pts, cell);
+        crate::frames::write_png(&dir.join(fit_name(p)), &pic)?;
+    }
+    let mut scene = SceneFile::from_analysis(a, params);
     scene.fps = fps;
     scene.write(dir)?;
     Ok(scene)
@@ -270,7 +330,8 @@ pub fn objects_name(p: usize) -> String {
 
 impl SceneFile {
     /// Builds scene.json's contents from an analysis.
-    pub fn from_analysis(a: &SceneAnalysis, points: &[Vec<Point>], params: &AnalyzeParams) -> Self {
+    pub fn from_analysis(a: &SceneAnalysis, params: &AnalyzeParams) -> Self {
+        let points = &a.points;
         let model = a.selection.as_ref().map(|s| ModelEntry {
             chosen: s.model,
             forced: s.forced,
@@ -302,7 +363,13 @@ impl SceneFile {
                         loop_seam: v.loop_seam,
                         loop_: v.best_loop.into(),
                         alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
-                        to_next: next.map(|l| LinkEntry::from_link(l, true)),
+                        to_next: next.map(|l| LinkEntry {
+                            registration: a
+                                .registration
+                                .get(p)
+                                .map(|r| RegistrationEntry::new(r, p)),
+                            ..LinkEntry::from_link(l, true)
+                        }),
                         to_prev: prev.map(|l| LinkEntry::from_link(l, false)),
                         refined_points: a.refined_points.as_ref().and_then(|r| {
                             r.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
@@ -850,6 +917,29 @@ impl std::fmt::Display for AnalysisSummary<'_> {
                 sel.model,
                 if sel.forced { ", forced" } else { "" },
                 scores.join(", ")
+            )?;
+        }
+        for (p, r) in a.registration.iter().enumerate() {
+            let rest = if r.rest_inliers.1 > 0 {
+                format!(
+                    "; the rest of the background fits it at {} of {} matches ({:.0}%)",
+                    r.rest_inliers.0,
+                    r.rest_inliers.1,
+                    100.0 * r.rest_inliers.0 as f64 / r.rest_inliers.1 as f64
+                )
+            } else {
+                String::new()
+            };
+            writeln!(
+                f,
+                "registered {p}->{}: plane {}, {} inliers of {} matches in {} of 64 cells, residual {:.2} px{rest}; see {}",
+                p + 1,
+                r.plane,
+                r.inliers.len(),
+                r.matches,
+                r.cells,
+                r.rms,
+                fit_name(p)
             )?;
         }
         let vt_core::analysis::Timings {

@@ -42,7 +42,7 @@ pub fn build_scene(
     let analysis = analyze(&mut refs, points, params, &mut store)?;
     let secs = t.elapsed().as_secs_f64();
     store.finish()?;
-    vt_io::scene::write_analysis(dir, &analysis, points, params, None)?;
+    vt_io::scene::write_analysis(dir, &analysis, params, None)?;
     let loaded = LoadedScene::open(dir)?;
     Ok((analysis, secs, loaded))
 }
