@@ -291,7 +291,12 @@ fn real_scene_registered_without_points() {
     assert!(reg["inliers"].as_u64().unwrap() >= 20, "{reg}");
     // The virtual points are the same physical points: view p's carried by H to view p + 1.
     for p in 0..3 {
-        let h = scene.file.views[p].to_next.as_ref().unwrap().homography().unwrap();
+        let h = scene.file.views[p]
+            .to_next
+            .as_ref()
+            .unwrap()
+            .homography()
+            .unwrap();
         let (a, b) = (&scene.file.views[p].points, &scene.file.views[p + 1].points);
         assert_eq!(a.len(), 4);
         for (pa, pb) in a.iter().zip(b) {

@@ -173,11 +173,11 @@ fn level_scale(l: usize) -> Matrix3<f64> {
 
 /// The photometric error over `pts` (level coordinates of region pixels in a, with their grey
 /// values) for homography `h`, after the best gain and offset: (RMS, count, alpha, beta).
-fn error(pts: &[(f64, f64, f32)], b: &Grey, h: &[f64; 8]) -> (f64, usize, f64, f64) {
+fn error(pts: &[(f64, f64, f32, usize)], b: &[&Grey], h: &[f64; 8]) -> (f64, usize, f64, f64) {
     let mut pairs = Vec::with_capacity(pts.len());
-    for &(x, y, ia) in pts {
+    for &(x, y, ia, i) in pts {
         if let Some((u, v)) = apply8(h, x, y) {
-            if let Some((ib, _, _)) = b.sample_grad(u, v) {
+            if let Some((ib, _, _)) = b[i].sample_grad(u, v) {
                 pairs.push((ia as f64, ib as f64));
             }
         }
@@ -276,29 +276,75 @@ pub fn align_backgrounds(
     model: MotionModel,
     params: &AlignParams,
 ) -> Result<Alignment> {
-    check_inputs(a, b, region)?;
+    align_stack(&[(a, b)], init, region, model, params)
+}
+
+/// [`align_backgrounds`] for a stack of image pairs that share one homography (each `b` is its
+/// `a` seen through it), one gain and offset: the sum of their squared errors is minimised.
+/// Used for the moving object's silhouettes at matching phases in two views.
+pub fn align_stack(
+    pairs: &[(&RgbImage, &RgbImage)],
+    init: &Homography,
+    region: &Mask,
+    model: MotionModel,
+    params: &AlignParams,
+) -> Result<Alignment> {
+    for (a, b) in pairs {
+        check_inputs(pairs[0].0, a, region)?;
+        check_inputs(a, b, region)?;
+    }
     let levels = params.levels.clamp(1, 8);
-    let mut pyr_a = vec![Grey::from_rgb(a)];
-    let mut pyr_b = vec![Grey::from_rgb(b)];
+    // pyr[l][i]: pair i's images at level l.
+    let mut pyr: Vec<Vec<(Grey, Grey)>> = vec![pairs
+        .iter()
+        .map(|(a, b)| (Grey::from_rgb(a), Grey::from_rgb(b)))
+        .collect()];
     for l in 1..levels {
-        if pyr_a[l - 1].w < 32 || pyr_a[l - 1].h < 32 {
+        let Some(first) = pyr[l - 1].first() else {
+            break;
+        };
+        if first.0.w < 32 || first.0.h < 32 {
             break;
         }
-        pyr_a.push(pyr_a[l - 1].half());
-        pyr_b.push(pyr_b[l - 1].half());
+        let next = pyr[l - 1]
+            .iter()
+            .map(|(a, b)| (a.half(), b.half()))
+            .collect();
+        pyr.push(next);
     }
     let basis = model_basis(model);
     let k = basis.ncols();
-    let full_pts = region_points(&pyr_a[0], region, 0, usize::MAX);
+    let stack_points = |l: usize, cap: usize| -> Vec<(f64, f64, f32, usize)> {
+        let per = cap / pyr[l].len().max(1);
+        pyr[l]
+            .iter()
+            .enumerate()
+            .flat_map(|(i, (ga, _))| {
+                region_points(ga, region, l, per)
+                    .into_iter()
+                    .map(move |(x, y, v)| (x, y, v, i))
+            })
+            .collect()
+    };
+    // The errors before and after: every region pixel of one pair (the background refinement),
+    // at most 4x the per-level cap over a stack.
+    let full_cap = if pairs.len() > 1 {
+        4 * params.max_pixels
+    } else {
+        usize::MAX
+    };
+    let full_pts = stack_points(0, full_cap);
+    let full_b: Vec<&Grey> = pyr[0].iter().map(|(_, b)| b).collect();
     let init_v = to_vec(&init.matrix());
-    let (error_before, pixels, _, _) = error(&full_pts, &pyr_b[0], &init_v);
+    let (error_before, pixels, _, _) = error(&full_pts, &full_b, &init_v);
     let mut h_full = init.matrix();
-    for l in (0..pyr_a.len()).rev() {
-        let (ga, gb) = (&pyr_a[l], &pyr_b[l]);
+    for l in (0..pyr.len()).rev() {
+        let gb: Vec<&Grey> = pyr[l].iter().map(|(_, b)| b).collect();
+        let gb = &gb;
         let s = level_scale(l);
         let s_inv = s.try_inverse().expect("scale is invertible");
         let mut h = to_vec(&(s * h_full * s_inv));
-        let pts = region_points(ga, region, l, params.max_pixels);
+        let pts = stack_points(l, params.max_pixels);
         if pts.len() < 4 * k {
             continue;
         }
@@ -307,7 +353,7 @@ pub fn align_backgrounds(
         for _ in 0..params.iterations {
             let mut jtj = DMatrix::<f64>::zeros(k, k);
             let mut jtr = DVector::<f64>::zeros(k);
-            for &(x, y, ia) in &pts {
+            for &(x, y, ia, i) in &pts {
                 let d = h[6] * x + h[7] * y + 1.0;
                 if d.abs() < 1e-12 {
                     continue;
@@ -316,7 +362,7 @@ pub fn align_backgrounds(
                     (h[0] * x + h[1] * y + h[2]) / d,
                     (h[3] * x + h[4] * y + h[5]) / d,
                 );
-                let Some((ib, gx, gy)) = gb.sample_grad(u, v) else {
+                let Some((ib, gx, gy)) = gb[i].sample_grad(u, v) else {
                     continue;
                 };
                 let r = ib as f64 - alpha * ia as f64 - beta;
@@ -372,7 +418,7 @@ pub fn align_backgrounds(
         h_full = s_inv * to_mat(&h) * s;
     }
     let refined = to_vec(&h_full);
-    let (error_after, _, _, _) = error(&full_pts, &pyr_b[0], &refined);
+    let (error_after, _, _, _) = error(&full_pts, &full_b, &refined);
     let improved = error_after.is_finite() && error_after < error_before;
     let homography = if improved {
         Homography::from_matrix(h_full).unwrap_or(*init)

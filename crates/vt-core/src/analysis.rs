@@ -17,10 +17,10 @@ use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, 
 use crate::loops::{check_loop_input, loops_from_pair_costs, pair_costs, Loop, LoopParams};
 use crate::median::{temporal_median, temporal_median_frames, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
-use crate::register::RegisterParams;
 use crate::noise::{
     noise_mask, noise_model, pair_change, FrameSample, MotionKept, NoiseModel, NoiseParams,
 };
+use crate::register::RegisterParams;
 use crate::transition::{
     seam_score, transition_range, transitions_from_pair_costs, warp_masks, xor_pair_costs,
 };
@@ -525,6 +525,9 @@ pub struct SceneAnalysis {
     pub refined_points: Option<Vec<Vec<Point>>>,
     /// The automatic registration of each link (empty when points were marked).
     pub registration: Vec<crate::register::PairRegistration>,
+    /// The moving object's own plane per link, when registered automatically (None where
+    /// nothing moves; [`ObjectPlane::kept`] says whether it replaced the background's).
+    pub object_planes: Vec<Option<ObjectPlane>>,
     /// Where the time went.
     pub timings: Timings,
 }
@@ -644,8 +647,10 @@ pub fn analyze(
             dof += n - 4.0;
         }
         let sigma = ((sq / dof.max(1.0)).sqrt() / 2.0).max(0.05);
-        let refs: Vec<(&[Point], &[Point])> =
-            pairs.iter().map(|(a, b)| (a.as_slice(), b.as_slice())).collect();
+        let refs: Vec<(&[Point], &[Point])> = pairs
+            .iter()
+            .map(|(a, b)| (a.as_slice(), b.as_slice()))
+            .collect();
         let model = ModelParams {
             sigma,
             ..params.model
@@ -726,6 +731,7 @@ pub fn analyze(
     let mut used: Vec<Homography> = Vec::new();
     let mut refinements: Vec<Option<Refinement>> = Vec::new();
     let mut refined_points = None;
+    let mut object_planes: Vec<Option<ObjectPlane>> = Vec::new();
     if let Some(sel) = selection.clone() {
         let t0 = Instant::now();
         (used, refinements) = refine_all(&sel)?;
@@ -763,6 +769,24 @@ pub fn analyze(
                         ..full
                     });
                     (used, refinements) = (u2, r2);
+                }
+            }
+        }
+        if auto {
+            let model = selection
+                .as_ref()
+                .map_or(MotionModel::Homography, |s| s.model);
+            object_planes = choose_object_planes(
+                &views,
+                &used,
+                &pair_points,
+                model,
+                (width, height),
+                params.loops.window,
+            )?;
+            for (p, o) in object_planes.iter().enumerate() {
+                if let Some(o) = o.filter(|o| o.kept) {
+                    used[p] = o.homography;
                 }
             }
         }
@@ -834,8 +858,255 @@ pub fn analyze(
         points,
         refined_points,
         registration,
+        object_planes,
         timings,
     })
+}
+
+/// The moving object's own plane, from its footprint and its silhouettes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ObjectPlane {
+    /// The homography found (view p to p + 1).
+    #[serde(skip, default = "Homography::identity")]
+    pub homography: Homography,
+    /// The model it was found under (the simplest within 2% of the best error).
+    pub model: MotionModel,
+    /// RMS error of the silhouettes at matching phases (grey levels of the blurred masks)
+    /// under the background's homography.
+    pub error_before: f64,
+    /// The same under the object's plane.
+    pub error_after: f64,
+    /// Whether it replaced the background's homography (it lowered the silhouettes' error by
+    /// at least a fifth).
+    pub kept: bool,
+}
+
+/// Aligns the image pairs under each model, from `start` or, without it, from that model's fit
+/// to the feature matches: (homography, model, error) per model that could be aligned.
+fn align_models(
+    pairs: &[(RgbImage, RgbImage)],
+    region: &Mask,
+    start: Option<&Homography>,
+    matches: &(Vec<Point>, Vec<Point>),
+) -> Result<Vec<(Homography, MotionModel, f64)>> {
+    let refs: Vec<(&RgbImage, &RgbImage)> = pairs.iter().map(|(x, y)| (x, y)).collect();
+    let mut results = Vec::new();
+    for model in MotionModel::ALL {
+        let init = match start {
+            Some(h) => *h,
+            None => match crate::model::fit_model(model, &matches.0, &matches.1, 1.0) {
+                Ok(f) => f.homography,
+                Err(_) => continue,
+            },
+        };
+        let al = crate::align::align_stack(&refs, &init, region, model, &OBJECT_ALIGN)?;
+        if al.error_after.is_finite() {
+            results.push((al.homography, model, al.error_after));
+        }
+    }
+    Ok(results)
+}
+
+/// The simplest model whose summed error is within 2% of the best (`errors[link][model]`).
+fn simplest_within(errors: &[Vec<(Homography, MotionModel, f64)>]) -> Option<MotionModel> {
+    let total = |model: MotionModel| -> Option<f64> {
+        errors
+            .iter()
+            .map(|l| l.iter().find(|r| r.1 == model).map(|r| r.2))
+            .sum()
+    };
+    let sums: Vec<(MotionModel, f64)> = MotionModel::ALL
+        .into_iter()
+        .filter_map(|m| total(m).map(|t| (m, t)))
+        .collect();
+    let best = sums.iter().map(|s| s.1).min_by(f64::total_cmp)?;
+    sums.into_iter().find(|s| s.1 <= 1.02 * best).map(|s| s.0)
+}
+
+/// The moving object's own plane for every link, starting from the background's homographies
+/// `hs`: the footprints (share of frames each pixel moves: phase-free) are aligned first, then
+/// the silhouettes at matching phases (eq. (2) under the footprints' estimate), twice. The
+/// model is chosen for the whole scene: the simplest whose summed error is within 2% of the
+/// best. A link's plane is kept when it lowers its silhouettes' error by at least a fifth
+/// against the background's homography (an object standing on the background's plane keeps
+/// the background's, finer estimate). None for a link where nothing moves.
+fn choose_object_planes(
+    views: &[ViewResult],
+    hs: &[Homography],
+    matches: &[(Vec<Point>, Vec<Point>)],
+    model: MotionModel,
+    (width, height): (u32, u32),
+    window: usize,
+) -> Result<Vec<Option<ObjectPlane>>> {
+    let links = hs.len();
+    // First a cheap look: the silhouettes at the phases the background's homographies match,
+    // aligned from them under the scene's model. When no link's error drops by a tenth, the
+    // object stands on the background's plane (or too little moves to tell): keep it.
+    let mut quick = Vec::new();
+    for p in 0..links {
+        let Some(st) = silhouette_stack(&views[p], &views[p + 1], &hs[p], width, height, window)?
+        else {
+            quick.push(None);
+            continue;
+        };
+        let refs: Vec<(&RgbImage, &RgbImage)> = st.pairs.iter().map(|(x, y)| (x, y)).collect();
+        let al = crate::align::align_stack(&refs, &hs[p], &st.region, model, &OBJECT_ALIGN)?;
+        quick.push(Some(ObjectPlane {
+            homography: al.homography,
+            model,
+            error_before: al.error_before,
+            error_after: al.error_after,
+            kept: false,
+        }));
+    }
+    if quick
+        .iter()
+        .flatten()
+        .all(|o| !(o.error_after < 0.9 * o.error_before))
+    {
+        return Ok(quick);
+    }
+    let footprints: Vec<Option<RgbImage>> = views
+        .iter()
+        .map(|v| crate::register::footprint(&v.masks))
+        .collect();
+    // Stage 1: footprints.
+    let mut fp: Vec<Vec<(Homography, MotionModel, f64)>> = Vec::new();
+    for p in 0..links {
+        let (Some(fa), Some(fb)) = (&footprints[p], &footprints[p + 1]) else {
+            fp.push(Vec::new());
+            continue;
+        };
+        let raw = fa.as_raw();
+        let region =
+            Mask::from_fn(width, height, |x, y| raw[3 * (y * width + x) as usize] > 0).dilate(6);
+        fp.push(align_models(
+            &[(fa.clone(), fb.clone())],
+            &region,
+            None,
+            &matches[p],
+        )?);
+    }
+    let Some(model) = simplest_within(&fp) else {
+        return Ok(vec![None; links]);
+    };
+    let mut current: Vec<Option<Homography>> = fp
+        .iter()
+        .map(|l| l.iter().find(|r| r.1 == model).map(|r| r.0))
+        .collect();
+    // Stage 2: silhouettes at matching phases, phases found again after the first round.
+    let mut chosen = vec![None; links];
+    for _round in 0..SILHOUETTE_ROUNDS {
+        let mut stacks = Vec::new();
+        let mut results = Vec::new();
+        for p in 0..links {
+            let stack = match current[p] {
+                Some(h) => silhouette_stack(&views[p], &views[p + 1], &h, width, height, window)?,
+                None => None,
+            };
+            results.push(match &stack {
+                Some(st) => align_models(&st.pairs, &st.region, current[p].as_ref(), &matches[p])?,
+                None => Vec::new(),
+            });
+            stacks.push(stack);
+        }
+        let Some(model) = simplest_within(&results) else {
+            return Ok(vec![None; links]);
+        };
+        for p in 0..links {
+            let (Some(st), Some(r)) = (&stacks[p], results[p].iter().find(|r| r.1 == model)) else {
+                chosen[p] = None;
+                continue;
+            };
+            let refs: Vec<(&RgbImage, &RgbImage)> = st.pairs.iter().map(|(x, y)| (x, y)).collect();
+            let score = crate::align::AlignParams {
+                iterations: 0,
+                ..Default::default()
+            };
+            let error_before = crate::align::align_stack(
+                &refs,
+                &hs[p],
+                &st.region,
+                MotionModel::Homography,
+                &score,
+            )?
+            .error_before;
+            current[p] = Some(r.0);
+            chosen[p] = Some(ObjectPlane {
+                homography: r.0,
+                model,
+                error_before,
+                error_after: r.2,
+                kept: r.2 < 0.8 * error_before,
+            });
+        }
+    }
+    Ok(chosen)
+}
+
+/// The object-plane alignments' settings: fewer pixels and iterations than the background's
+/// refinement (four models, three stages; blurred silhouettes are smooth).
+const OBJECT_ALIGN: crate::align::AlignParams = crate::align::AlignParams {
+    levels: 4,
+    iterations: 15,
+    max_pixels: 12_000,
+};
+
+/// Silhouette pairs per link for the object's plane.
+const SILHOUETTE_PAIRS: usize = 16;
+/// Rounds of phase matching and silhouette alignment.
+const SILHOUETTE_ROUNDS: usize = 2;
+
+/// The moving object's silhouettes at matching phases of two views, blurred (for
+/// [`crate::align::align_stack`]), and the region of view a they cover.
+struct SilhouetteStack {
+    pairs: Vec<(RgbImage, RgbImage)>,
+    region: Mask,
+}
+
+/// Up to 16 frame pairs (s in a, its eq. (2) match t in b under `h`) evenly over a's loop.
+fn silhouette_stack(
+    a: &ViewResult,
+    b: &ViewResult,
+    h: &Homography,
+    width: u32,
+    height: u32,
+    window: usize,
+) -> Result<Option<SilhouetteStack>> {
+    let table = transitions(a, b, h, width, height, window)?;
+    let candidates: Vec<(usize, usize)> = (a.best_loop.start..=a.best_loop.end)
+        .filter_map(|s| table.get(s).copied().flatten().map(|(t, _)| (s, t)))
+        .filter(|&(s, t)| a.masks[s].count_ones() > 0 && b.masks[t].count_ones() > 0)
+        .collect();
+    if candidates.len() < 4 {
+        return Ok(None);
+    }
+    let step = candidates.len().div_ceil(SILHOUETTE_PAIRS);
+    let blur = GaussianParams {
+        ksize: 7,
+        sigma: 1.5,
+    };
+    let image = |m: &Mask| -> Result<RgbImage> {
+        let mut img = RgbImage::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                if m.get(x, y) {
+                    img.put_pixel(x, y, image::Rgb([255, 255, 255]));
+                }
+            }
+        }
+        gaussian_blur(&img, &blur)
+    };
+    let mut pairs = Vec::new();
+    let mut region = Mask::new(width, height);
+    for &(s, t) in candidates.iter().step_by(step) {
+        region = region.union(&a.masks[s]);
+        pairs.push((image(&a.masks[s])?, image(&b.masks[t])?));
+    }
+    Ok(Some(SilhouetteStack {
+        pairs,
+        region: region.dilate(4),
+    }))
 }
 
 /// The virtual points of automatic registration: the corners of the box around view 0's inliers

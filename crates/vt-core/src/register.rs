@@ -92,31 +92,59 @@ impl RegisterParams {
             })
         };
         if !(1..=100_000).contains(&self.max_features) {
-            return bad("register.max_features", self.max_features.to_string(), "1 to 100000");
+            return bad(
+                "register.max_features",
+                self.max_features.to_string(),
+                "1 to 100000",
+            );
         }
         if !(1..=8).contains(&self.levels) {
             return bad("register.levels", self.levels.to_string(), "1 to 8");
         }
         if !(self.scale.is_finite() && self.scale > 1.0 && self.scale <= 2.0) {
-            return bad("register.scale", self.scale.to_string(), "above 1, at most 2");
+            return bad(
+                "register.scale",
+                self.scale.to_string(),
+                "above 1, at most 2",
+            );
         }
         if !(self.ratio > 0.0 && self.ratio <= 1.0) {
             return bad("register.ratio", self.ratio.to_string(), "in (0, 1]");
         }
         if !(self.threshold.is_finite() && self.threshold > 0.0 && self.threshold <= 100.0) {
-            return bad("register.threshold", self.threshold.to_string(), "a positive number of pixels, at most 100");
+            return bad(
+                "register.threshold",
+                self.threshold.to_string(),
+                "a positive number of pixels, at most 100",
+            );
         }
         if !(1..=1_000_000).contains(&self.iterations) {
-            return bad("register.iterations", self.iterations.to_string(), "1 to 1000000");
+            return bad(
+                "register.iterations",
+                self.iterations.to_string(),
+                "1 to 1000000",
+            );
         }
         if self.min_inliers < 4 {
-            return bad("register.min_inliers", self.min_inliers.to_string(), "at least 4 (a homography)");
+            return bad(
+                "register.min_inliers",
+                self.min_inliers.to_string(),
+                "at least 4 (a homography)",
+            );
         }
         if self.min_cells > 64 {
-            return bad("register.min_cells", self.min_cells.to_string(), "at most 64 (an 8x8 grid)");
+            return bad(
+                "register.min_cells",
+                self.min_cells.to_string(),
+                "at most 64 (an 8x8 grid)",
+            );
         }
         if self.focus_px > 4096 {
-            return bad("register.focus_px", self.focus_px.to_string(), "at most 4096");
+            return bad(
+                "register.focus_px",
+                self.focus_px.to_string(),
+                "at most 4096",
+            );
         }
         Ok(())
     }
@@ -246,7 +274,10 @@ pub fn detect(img: &GrayImage, params: &RegisterParams) -> Vec<Feature> {
     let mut levels = vec![img.clone()];
     for l in 1..params.levels.clamp(1, 8) {
         let f = params.scale.powi(l as i32);
-        let (w, h) = ((w0 as f64 / f).round() as u32, (h0 as f64 / f).round() as u32);
+        let (w, h) = (
+            (w0 as f64 / f).round() as u32,
+            (h0 as f64 / f).round() as u32,
+        );
         if w < 4 * EDGE || h < 4 * EDGE {
             break;
         }
@@ -274,7 +305,13 @@ pub fn detect(img: &GrayImage, params: &RegisterParams) -> Vec<Feature> {
     per_level.into_iter().flatten().collect()
 }
 
-fn level_features(img: &GrayImage, level: u8, want: usize, threshold: u8, full: (u32, u32)) -> Vec<Feature> {
+fn level_features(
+    img: &GrayImage,
+    level: u8,
+    want: usize,
+    threshold: u8,
+    full: (u32, u32),
+) -> Vec<Feature> {
     let (w, h) = img.dimensions();
     if w <= 2 * EDGE || h <= 2 * EDGE {
         return Vec::new();
@@ -368,7 +405,12 @@ fn nearest(d: &[u64; 4], set: &[Feature]) -> (u32, u32, usize) {
 
 /// Matches by Hamming distance: `(i, j)` when `b[j]` is `a[i]`'s best and `a[i]` is `b[j]`'s,
 /// the best is at most `max_distance` and below `ratio` times the second best.
-pub fn match_features(a: &[Feature], b: &[Feature], ratio: f32, max_distance: u32) -> Vec<(usize, usize)> {
+pub fn match_features(
+    a: &[Feature],
+    b: &[Feature],
+    ratio: f32,
+    max_distance: u32,
+) -> Vec<(usize, usize)> {
     let fwd: Vec<(u32, u32, usize)> = a.par_iter().map(|f| nearest(&f.descriptor, b)).collect();
     let back: Vec<usize> = b.par_iter().map(|f| nearest(&f.descriptor, a).2).collect();
     fwd.iter()
@@ -409,8 +451,14 @@ fn four_point(src: [&Point; 4], dst: [&Point; 4]) -> Option<nalgebra::Matrix3<f6
         let (x, y) = ((src[i].x - cs.x) * ss, (src[i].y - cs.y) * ss);
         let (u, v) = ((dst[i].x - cd.x) * sd, (dst[i].y - cd.y) * sd);
         let r = 2 * i;
-        a.set_row(r, &SVector::<f64, 8>::from([x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y]).transpose());
-        a.set_row(r + 1, &SVector::<f64, 8>::from([0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y]).transpose());
+        a.set_row(
+            r,
+            &SVector::<f64, 8>::from([x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y]).transpose(),
+        );
+        a.set_row(
+            r + 1,
+            &SVector::<f64, 8>::from([0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y]).transpose(),
+        );
         b[r] = u;
         b[r + 1] = v;
     }
@@ -434,13 +482,22 @@ fn transfer2(m: &nalgebra::Matrix3<f64>, s: &Point, d: &Point) -> f64 {
 }
 
 fn inliers_of(m: &nalgebra::Matrix3<f64>, src: &[Point], dst: &[Point], t2: f64) -> Vec<bool> {
-    src.iter().zip(dst).map(|(s, d)| transfer2(m, s, d) <= t2).collect()
+    src.iter()
+        .zip(dst)
+        .map(|(s, d)| transfer2(m, s, d) <= t2)
+        .collect()
 }
 
 /// A robust homography: RANSAC on 4-point samples (adaptive count, confidence 0.999) then
 /// local optimisation on the inliers. Returns the homography and the inlier flags, or None when
 /// no sample gives a finite, invertible map with at least 4 inliers.
-pub fn ransac(src: &[Point], dst: &[Point], threshold: f64, iterations: usize, seed: u64) -> Option<(Homography, Vec<bool>)> {
+pub fn ransac(
+    src: &[Point],
+    dst: &[Point],
+    threshold: f64,
+    iterations: usize,
+    seed: u64,
+) -> Option<(Homography, Vec<bool>)> {
     let n = src.len().min(dst.len());
     if n < 4 {
         return None;
@@ -497,7 +554,10 @@ pub fn ransac(src: &[Point], dst: &[Point], threshold: f64, iterations: usize, s
         };
         let m2 = fit.homography.matrix();
         let f2 = inliers_of(&m2, &src[..n], &dst[..n], t2);
-        let (c1, c2) = (flags.iter().filter(|&&f| f).count(), f2.iter().filter(|&&f| f).count());
+        let (c1, c2) = (
+            flags.iter().filter(|&&f| f).count(),
+            f2.iter().filter(|&&f| f).count(),
+        );
         if c2 < c1 {
             break;
         }
@@ -683,10 +743,22 @@ pub fn register_features(
 /// A picture to judge a fit at a glance: `a` and `b` warped into a by `h` (a to b) in a
 /// checkerboard of `cell`-pixel squares (a misfit shows as broken edges at the squares'
 /// borders), with `points` (a's) drawn as small crosses.
-pub fn fit_picture(a: &RgbImage, b: &RgbImage, h: &Homography, points: &[Point], cell: u32) -> RgbImage {
+pub fn fit_picture(
+    a: &RgbImage,
+    b: &RgbImage,
+    h: &Homography,
+    points: &[Point],
+    cell: u32,
+) -> RgbImage {
     let (w, hgt) = a.dimensions();
     // b warped into a's frame: out(x) = b(H x); warp_rgb takes the map from output to source.
-    let warped = crate::warp::warp_rgb(b, &h.inverse(), w, hgt, crate::warp::Interpolation::Bilinear);
+    let warped = crate::warp::warp_rgb(
+        b,
+        &h.inverse(),
+        w,
+        hgt,
+        crate::warp::Interpolation::Bilinear,
+    );
     let cell = cell.max(1);
     let mut out = RgbImage::from_fn(w, hgt, |x, y| {
         if ((x / cell) + (y / cell)) % 2 == 0 {
@@ -708,4 +780,39 @@ pub fn fit_picture(a: &RgbImage, b: &RgbImage, h: &Homography, points: &[Point],
         }
     }
     out
+}
+
+/// The moving object's footprint: the share of frames each pixel is in the moving-object mask,
+/// scaled to 0..=255 and replicated to RGB (for [`crate::align::align_backgrounds`]). Over whole
+/// periods it depends only on where on its plane the object moves, so two views' footprints
+/// are related by the object plane's homography, which the static background may not show
+/// (an object swaying in front of a far wall). None when nothing moves.
+pub fn footprint(masks: &[Mask]) -> Option<RgbImage> {
+    let first = masks.first()?;
+    let (w, h) = (first.width(), first.height());
+    let n = w as usize * h as usize;
+    let mut count = vec![0u32; n];
+    for m in masks {
+        for (wi, &word) in m.words().iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let b = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let i = wi * 64 + b;
+                if i < n {
+                    count[i] += 1;
+                }
+            }
+        }
+    }
+    if count.iter().all(|&c| c == 0) {
+        return None;
+    }
+    let k = masks.len() as f64;
+    let mut out = RgbImage::new(w, h);
+    for (px, &c) in out.as_mut().chunks_exact_mut(3).zip(&count) {
+        let v = (255.0 * c as f64 / k).round() as u8;
+        px.copy_from_slice(&[v, v, v]);
+    }
+    Some(out)
 }

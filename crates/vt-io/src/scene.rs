@@ -181,11 +181,21 @@ pub struct RegistrationEntry {
     pub rest: [usize; 2],
     /// The fit picture, relative to the scene.
     pub picture: String,
+    /// The moving object's own plane (footprint, then silhouettes at matching phases): its
+    /// model, the silhouettes' error under the background's homography and under it, and
+    /// whether it was used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object_plane: Option<vt_core::analysis::ObjectPlane>,
 }
 
 impl RegistrationEntry {
-    fn new(r: &vt_core::register::PairRegistration, p: usize) -> Self {
+    fn new(
+        r: &vt_core::register::PairRegistration,
+        object: Option<vt_core::analysis::ObjectPlane>,
+        p: usize,
+    ) -> Self {
         Self {
+            object_plane: object,
             plane: match r.plane {
                 vt_core::register::PlaneSource::Focus => "focus",
                 vt_core::register::PlaneSource::Whole => "whole",
@@ -341,54 +351,54 @@ impl SceneFile {
                 .map(|(k, v)| (k.name().to_string(), *v))
                 .collect(),
         });
-        let views =
-            a.views
-                .iter()
-                .enumerate()
-                .map(|(p, v)| {
-                    let none = vec![None; v.n_frames];
-                    let next = a.links.get(p);
-                    let prev = if p > 0 { a.links.get(p - 1) } else { None };
-                    ViewEntry {
-                        name: v.name.clone(),
-                        frames: v.n_frames,
-                        points: points
-                            .get(p)
-                            .map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
-                            .unwrap_or_default(),
-                        background: background_name(p),
-                        objects: objects_name(p),
-                        moving_fraction: v.moving_fraction,
-                        mean_step: v.mean_step,
-                        loop_seam: v.loop_seam,
-                        loop_: v.best_loop.into(),
-                        alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
-                        to_next: next.map(|l| LinkEntry {
-                            registration: a
-                                .registration
-                                .get(p)
-                                .map(|r| RegistrationEntry::new(r, p)),
-                            ..LinkEntry::from_link(l, true)
+        let views = a
+            .views
+            .iter()
+            .enumerate()
+            .map(|(p, v)| {
+                let none = vec![None; v.n_frames];
+                let next = a.links.get(p);
+                let prev = if p > 0 { a.links.get(p - 1) } else { None };
+                ViewEntry {
+                    name: v.name.clone(),
+                    frames: v.n_frames,
+                    points: points
+                        .get(p)
+                        .map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
+                        .unwrap_or_default(),
+                    background: background_name(p),
+                    objects: objects_name(p),
+                    moving_fraction: v.moving_fraction,
+                    mean_step: v.mean_step,
+                    loop_seam: v.loop_seam,
+                    loop_: v.best_loop.into(),
+                    alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
+                    to_next: next.map(|l| LinkEntry {
+                        registration: a.registration.get(p).map(|r| {
+                            RegistrationEntry::new(r, a.object_planes.get(p).copied().flatten(), p)
                         }),
-                        to_prev: prev.map(|l| LinkEntry::from_link(l, false)),
-                        refined_points: a.refined_points.as_ref().and_then(|r| {
-                            r.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())
-                        }),
-                        transitions: Transitions {
-                            next: next
-                                .map(|l| l.to_next.clone())
-                                .unwrap_or_else(|| none.clone()),
-                            prev: prev.map(|l| l.to_prev.clone()).unwrap_or(none),
-                            next_seam: next.map(|l| l.to_next_seam.clone()).unwrap_or_default(),
-                            prev_seam: prev.map(|l| l.to_prev_seam.clone()).unwrap_or_default(),
-                        },
-                        dynamic: v.dynamic_alpha.as_ref().map(|_| dynamic_name(p)),
-                        dynamic_fraction: v.dynamic_fraction,
-                        motion_kept: Some(v.motion_kept),
-                        noise_sigma: v.noise_sigma,
-                    }
-                })
-                .collect();
+                        ..LinkEntry::from_link(l, true)
+                    }),
+                    to_prev: prev.map(|l| LinkEntry::from_link(l, false)),
+                    refined_points: a
+                        .refined_points
+                        .as_ref()
+                        .and_then(|r| r.get(p).map(|ps| ps.iter().map(|q| [q.x, q.y]).collect())),
+                    transitions: Transitions {
+                        next: next
+                            .map(|l| l.to_next.clone())
+                            .unwrap_or_else(|| none.clone()),
+                        prev: prev.map(|l| l.to_prev.clone()).unwrap_or(none),
+                        next_seam: next.map(|l| l.to_next_seam.clone()).unwrap_or_default(),
+                        prev_seam: prev.map(|l| l.to_prev_seam.clone()).unwrap_or_default(),
+                    },
+                    dynamic: v.dynamic_alpha.as_ref().map(|_| dynamic_name(p)),
+                    dynamic_fraction: v.dynamic_fraction,
+                    motion_kept: Some(v.motion_kept),
+                    noise_sigma: v.noise_sigma,
+                }
+            })
+            .collect();
         SceneFile {
             format: FORMAT.into(),
             version: VERSION,
@@ -930,9 +940,20 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             } else {
                 String::new()
             };
+            let object = match a.object_planes.get(p).copied().flatten() {
+                Some(o) if o.kept => format!(
+                    "; plane used: the moving object's own ({}, its silhouettes' error {:.2} -> {:.2})",
+                    o.model, o.error_before, o.error_after
+                ),
+                Some(o) => format!(
+                    "; plane used: the background's (the moving object's silhouettes agree: {:.2}, own plane {:.2})",
+                    o.error_before, o.error_after
+                ),
+                None => "; plane used: the background's (nothing moves)".into(),
+            };
             writeln!(
                 f,
-                "registered {p}->{}: plane {}, {} inliers of {} matches in {} of 64 cells, residual {:.2} px{rest}; see {}",
+                "registered {p}->{}: background plane {}, {} inliers of {} matches in {} of 64 cells, residual {:.2} px{rest}{object}; see {}",
                 p + 1,
                 r.plane,
                 r.inliers.len(),

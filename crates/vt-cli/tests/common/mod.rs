@@ -104,9 +104,16 @@ pub fn synth(root: &Path, name: &str, extra: &[&str]) -> Synth {
 
 pub fn analyze(syn: &Synth, out: &Path, extra: &[&str]) -> Value {
     let points = syn.dir.join("points.txt");
+    let mut args = vec!["--points", s(&points)];
+    args.extend_from_slice(extra);
+    analyze_auto(syn, out, &args)
+}
+
+/// `vt analyze` of the views with `extra` flags only (no points file: automatic registration).
+pub fn analyze_auto(syn: &Synth, out: &Path, extra: &[&str]) -> Value {
     let mut args = vec!["analyze"];
     args.extend(syn.views.iter().map(String::as_str));
-    args.extend_from_slice(&["--points", s(&points), "--out", s(out)]);
+    args.extend_from_slice(&["--out", s(out)]);
     args.extend_from_slice(extra);
     vt_ok(&args);
     read_json(&out.join("scene.json"))
