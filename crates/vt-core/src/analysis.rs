@@ -623,7 +623,7 @@ pub fn analyze(
             .map(|g| crate::register::detect(g, &params.register))
             .collect();
         for p in 0..m - 1 {
-            let r = crate::register::register_features(
+            let mut r = crate::register::register_features(
                 &features[p],
                 &features[p + 1],
                 (width, height),
@@ -631,6 +631,7 @@ pub fn analyze(
                 &params.register,
                 (p, p + 1),
             )?;
+            crate::register::refine_inliers(&grey[p], &grey[p + 1], &mut r, &params.register);
             observer.tick();
             registration.push(r);
         }

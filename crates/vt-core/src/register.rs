@@ -633,8 +633,11 @@ pub fn register_pair(
             got_h: b.height(),
         });
     }
-    let (fa, fb) = rayon::join(|| detect(&grey(a), params), || detect(&grey(b), params));
-    register_features(&fa, &fb, a.dimensions(), focus, params, pair)
+    let (ga, gb) = (grey(a), grey(b));
+    let (fa, fb) = rayon::join(|| detect(&ga, params), || detect(&gb, params));
+    let mut reg = register_features(&fa, &fb, a.dimensions(), focus, params, pair)?;
+    refine_inliers(&ga, &gb, &mut reg, params);
+    Ok(reg)
 }
 
 /// [`register_pair`] from detected features (`size` is a's image size).
@@ -815,4 +818,170 @@ pub fn footprint(masks: &[Mask]) -> Option<RgbImage> {
         px.copy_from_slice(&[v, v, v]);
     }
     Some(out)
+}
+
+/// A grey image in `f32` with bilinear samples and gradients.
+struct GreyF {
+    w: usize,
+    h: usize,
+    v: Vec<f32>,
+}
+
+impl GreyF {
+    fn new(img: &GrayImage) -> Self {
+        Self {
+            w: img.width() as usize,
+            h: img.height() as usize,
+            v: img.as_raw().iter().map(|&p| p as f32).collect(),
+        }
+    }
+
+    fn at(&self, x: i64, y: i64) -> Option<f32> {
+        (x >= 0 && y >= 0 && (x as usize) < self.w && (y as usize) < self.h)
+            .then(|| self.v[y as usize * self.w + x as usize])
+    }
+
+    fn sample_grad(&self, x: f64, y: f64) -> Option<(f32, f32, f32)> {
+        if !(x >= 0.0 && y >= 0.0 && x < (self.w - 1) as f64 && y < (self.h - 1) as f64) {
+            return None;
+        }
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+        let i = y0 * self.w + x0;
+        let (a, b, c, d) = (
+            self.v[i],
+            self.v[i + 1],
+            self.v[i + self.w],
+            self.v[i + self.w + 1],
+        );
+        let top = a + (b - a) * fx;
+        let bottom = c + (d - c) * fx;
+        Some((
+            top + (bottom - top) * fy,
+            (b - a) * (1.0 - fy) + (d - c) * fy,
+            (c - a) * (1.0 - fx) + (d - b) * fx,
+        ))
+    }
+}
+
+/// Half size of the patches of [`refine_inliers`].
+const PATCH: i64 = 7;
+
+/// Sub-pixel correspondence of a's pixel `xa` in b: the patch around it, predicted in b by `h`
+/// (so perspective and scale are accounted for), shifted by the translation (with gain and
+/// offset) that minimises the squared difference (Gauss-Newton). None when the patch leaves
+/// either image, is flat, moves more than 3 px, or correlates below 0.8.
+fn refine_point(a: &GreyF, b: &GreyF, h: &Homography, xa: (i64, i64)) -> Option<Point> {
+    let mut samples = Vec::with_capacity(((2 * PATCH + 1) * (2 * PATCH + 1)) as usize);
+    for dy in -PATCH..=PATCH {
+        for dx in -PATCH..=PATCH {
+            let va = a.at(xa.0 + dx, xa.1 + dy)?;
+            let q = h.apply(Point::new((xa.0 + dx) as f64, (xa.1 + dy) as f64))?;
+            samples.push((va as f64, q));
+        }
+    }
+    let n = samples.len() as f64;
+    let mean = samples.iter().map(|s| s.0).sum::<f64>() / n;
+    let var = samples.iter().map(|s| (s.0 - mean).powi(2)).sum::<f64>() / n;
+    if var < 25.0 {
+        return None;
+    }
+    let (mut tx, mut ty, mut alpha, mut beta) = (0.0f64, 0.0f64, 1.0f64, 0.0f64);
+    for _ in 0..12 {
+        let mut jtj = nalgebra::Matrix4::<f64>::zeros();
+        let mut jtr = nalgebra::Vector4::<f64>::zeros();
+        for &(va, q) in &samples {
+            let (vb, gx, gy) = b.sample_grad(q.x + tx, q.y + ty)?;
+            let r = vb as f64 - alpha * va - beta;
+            let j = nalgebra::Vector4::new(gx as f64, gy as f64, -va, -1.0);
+            jtj += j * j.transpose();
+            jtr += j * r;
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        tx += step[0];
+        ty += step[1];
+        alpha += step[2];
+        beta += step[3];
+        if tx.hypot(ty) > 3.0 {
+            return None;
+        }
+        if step[0].hypot(step[1]) < 1e-3 {
+            break;
+        }
+    }
+    // Normalised cross-correlation of the aligned patches.
+    let vb: Vec<f64> = samples
+        .iter()
+        .map(|&(_, q)| b.sample_grad(q.x + tx, q.y + ty).map(|s| s.0 as f64))
+        .collect::<Option<_>>()?;
+    let mb = vb.iter().sum::<f64>() / n;
+    let (mut cov, mut vb2) = (0.0, 0.0);
+    for (s, &v) in samples.iter().zip(&vb) {
+        cov += (s.0 - mean) * (v - mb);
+        vb2 += (v - mb).powi(2);
+    }
+    let ncc = cov / (var * n * vb2).sqrt().max(1e-12);
+    if ncc < 0.8 {
+        return None;
+    }
+    let q = h.apply(Point::new(xa.0 as f64, xa.1 as f64))?;
+    Some(Point::new(q.x + tx, q.y + ty))
+}
+
+/// Makes a registration's inliers sub-pixel: each inlier's point in a (rounded to its pixel) is
+/// matched in b by [`refine_point`] under the robust homography, the homography is fitted again
+/// to the refined pairs (normalised DLT + Levenberg-Marquardt) and the pairs beyond the
+/// threshold dropped once. Corners found on a pyramid level are only as precise as that level
+/// (up to 2 px at the coarsest); this brings the fit down to the patches' precision. Keeps the
+/// registration as it was when fewer than `params.min_inliers` points refine.
+pub fn refine_inliers(
+    a: &GrayImage,
+    b: &GrayImage,
+    reg: &mut PairRegistration,
+    params: &RegisterParams,
+) {
+    let (ga, gb) = (GreyF::new(a), GreyF::new(b));
+    let h = reg.homography;
+    // Each of a's pixels once (features of two levels may round to the same pixel).
+    let mut anchors: Vec<(i64, i64)> = reg
+        .inliers
+        .iter()
+        .map(|(pa, _)| (pa.x.round() as i64, pa.y.round() as i64))
+        .collect();
+    anchors.sort_unstable();
+    anchors.dedup();
+    let refined: Vec<(Point, Point)> = anchors
+        .par_iter()
+        .filter_map(|&xa| {
+            refine_point(&ga, &gb, &h, xa).map(|pb| (Point::new(xa.0 as f64, xa.1 as f64), pb))
+        })
+        .collect();
+    if refined.len() < params.min_inliers {
+        return;
+    }
+    let fit = |pairs: &[(Point, Point)]| {
+        let (s, d): (Vec<Point>, Vec<Point>) = pairs.iter().copied().unzip();
+        Homography::from_correspondences(&s, &d)
+            .ok()
+            .map(|f| f.homography)
+    };
+    let Some(h1) = fit(&refined) else {
+        return;
+    };
+    let t2 = (params.threshold / 2.0).powi(2);
+    let m = h1.matrix();
+    let kept: Vec<(Point, Point)> = refined
+        .into_iter()
+        .filter(|(s, d)| transfer2(&m, s, d) <= t2)
+        .collect();
+    if kept.len() < params.min_inliers {
+        return;
+    }
+    let Some(h2) = fit(&kept) else {
+        return;
+    };
+    let (s, d): (Vec<Point>, Vec<Point>) = kept.iter().copied().unzip();
+    reg.rms = h2.rms_error(&s, &d);
+    reg.homography = h2;
+    reg.inliers = kept;
 }

@@ -15,7 +15,7 @@ use vt_cv::cases::noise;
 /// The mean distance between where `est` and `truth` send the region's pixels (every 8th in
 /// each direction), pixels: the misalignment where the two images overlap. (At a's corners,
 /// outside the overlap, a strong viewpoint change extrapolates a small error into a large one.)
-fn region_error(est: &Homography, truth: &Homography, region: &Mask) -> f64 {
+pub(super) fn region_error(est: &Homography, truth: &Homography, region: &Mask) -> f64 {
     let (mut sum, mut n) = (0.0, 0usize);
     for y in (0..region.height()).step_by(8) {
         for x in (0..region.width()).step_by(8) {
@@ -62,7 +62,7 @@ fn perturbed(truth: &Homography, w: u32, h: u32, px: f64, seed: u64) -> Result<H
 
 /// a's pixels whose image under `truth` lands inside b (inset by `margin`), so neither side is
 /// asked to match what b does not show.
-fn overlap(truth: &Homography, w: u32, h: u32, margin: f64) -> Mask {
+pub(super) fn overlap(truth: &Homography, w: u32, h: u32, margin: f64) -> Mask {
     let mut m = Mask::new(w, h);
     for y in 0..h {
         for x in 0..w {
