@@ -17,7 +17,8 @@ use crate::progress::AnalysisObserver;
 
 #[derive(Args)]
 pub struct AnalyzeArgs {
-    /// One video (mp4/avi/mov/mkv) or folder of PNG/JPG frames per view, in camera order.
+    /// One video (mp4/avi/mov/mkv) or folder of PNG/JPEG/BMP/TIFF frames per view, in camera
+    /// order.
     #[arg(required = true)]
     views: Vec<PathBuf>,
     /// Points file: one line per view with the same K >= 4 points as x y pairs (without it,
@@ -76,6 +77,10 @@ pub struct AnalyzeArgs {
     /// frame step (0 = masks only, the thesis).
     #[arg(long, default_value_t = 1.0)]
     appearance: f32,
+    /// Frame rate of the source, frames per second (default: the videos' median real frame
+    /// rate; frame folders have none, so their scenes play at 30 unless this is given).
+    #[arg(long)]
+    fps: Option<f64>,
     /// Refine the homographies by aligning the median backgrounds (kept only where it lowers the
     /// photometric error and agrees with the points): on or off.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
@@ -103,6 +108,11 @@ impl AnalyzeArgs {
         if self.min_length > vt_io::limits::MAX_FRAMES {
             let max = vt_io::limits::MAX_FRAMES;
             bail!("--min-length {} is more than {max} frames", self.min_length);
+        }
+        if let Some(fps) = self.fps {
+            if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+                bail!("--fps {fps}: a frame rate above 0 and at most 1000 frames per second");
+            }
         }
         if self.cache_mb > MAX_CACHE_MB {
             bail!(
@@ -206,7 +216,9 @@ pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
         _ => e.into(),
     })?;
     observer.finish_objects()?;
-    let fps = vt_io::video::views_frame_rate(&args.views);
+    let fps = args
+        .fps
+        .or_else(|| vt_io::video::views_frame_rate(&args.views));
     let scene = write_analysis(dir.path(), &analysis, &params, fps)?;
     dir.commit()?;
     let total_secs = started.elapsed().as_secs_f64();

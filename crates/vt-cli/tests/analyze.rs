@@ -254,6 +254,46 @@ fn unregistrable_views_are_refused_and_nothing_is_written() {
 }
 
 #[test]
+fn bmp_and_tiff_frame_folders_with_a_frame_rate() {
+    // Issue #18: frames the way users have them. The same synthetic views as PNG, BMP and TIFF
+    // give the same scene; --fps sets the frame rate a frame folder does not carry.
+    let tmp = tempfile::tempdir().unwrap();
+    let syn = synth(tmp.path(), "png", &SMALL);
+    let png = analyze(&syn, &tmp.path().join("png-scene"), &["--min-length", "20"]);
+    let mut other = Synth {
+        dir: syn.dir.clone(),
+        views: Vec::new(),
+    };
+    for (p, view) in syn.views.iter().enumerate() {
+        let ext = ["bmp", "tif", "tiff"][p % 3];
+        let dir = tmp.path().join(format!("{ext}_{p}"));
+        std::fs::create_dir(&dir).unwrap();
+        for e in std::fs::read_dir(view).unwrap() {
+            let path = e.unwrap().path();
+            let img = image::open(&path).unwrap().to_rgb8();
+            let stem = path.file_stem().unwrap().to_str().unwrap().to_string();
+            img.save(dir.join(format!("{stem}.{ext}"))).unwrap();
+        }
+        other.views.push(dir.to_str().unwrap().to_string());
+    }
+    let mixed = analyze(
+        &other,
+        &tmp.path().join("mixed-scene"),
+        &["--min-length", "20", "--fps", "12.5"],
+    );
+    assert_eq!(mixed["fps"].as_f64(), Some(12.5));
+    for p in 0..syn.views.len() {
+        let (a, b) = (&png["views"][p], &mixed["views"][p]);
+        assert_eq!(a["loop"], b["loop"], "view {p}");
+        assert_eq!(a["transitions"], b["transitions"], "view {p}");
+        assert_eq!(
+            a["to_next"]["homography"], b["to_next"]["homography"],
+            "view {p}"
+        );
+    }
+}
+
+#[test]
 fn same_seed_same_bytes() {
     let tmp = tempfile::tempdir().unwrap();
     let args = [

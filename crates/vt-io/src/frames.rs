@@ -18,7 +18,7 @@ use crate::{Error, Result};
 /// Video file extensions vt decodes through ffmpeg.
 pub const VIDEO_EXTENSIONS: [&str; 6] = ["mp4", "avi", "mov", "mkv", "webm", "m4v"];
 /// Frame image extensions in folders.
-pub const FRAME_EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
+pub const FRAME_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
 
 fn has_ext(path: &Path, exts: &[&str]) -> bool {
     path.extension()
@@ -422,7 +422,8 @@ pub fn check_image_size(path: &Path, (w, h): (u32, u32)) -> Result<()> {
     Ok(())
 }
 
-/// The image front door: decodes PNG or JPEG bytes as RGB with the size limits of
+/// The image front door: decodes PNG, JPEG, BMP or TIFF bytes as RGB (8 bits per channel;
+/// deeper TIFFs are scaled down) with the size limits of
 /// [`crate::limits`] checked from the header, before the pixels are allocated. `path` names the
 /// file in errors.
 pub fn decode_rgb(bytes: &[u8], path: &Path) -> Result<RgbImage> {
@@ -436,7 +437,7 @@ pub fn decode_rgb(bytes: &[u8], path: &Path) -> Result<RgbImage> {
     if reader.format().is_none() {
         return Err(Error::Image {
             path: path.to_path_buf(),
-            message: "not a PNG or JPEG image".into(),
+            message: "not a PNG, JPEG, BMP or TIFF image".into(),
         });
     }
     let mut limits = image::Limits::default();

@@ -17,6 +17,10 @@ use crate::report::Ctx;
 /// The real-footage knobs, in page order.
 pub fn knobs() -> Vec<Knob> {
     vec![
+        Knob::new(
+            "Registration: automatic vs marked points vs OpenCV",
+            registration,
+        ),
         Knob::new("Homography from points vs refined", homography_refine),
         Knob::new("Appearance weight in eq. (1) and (2)", appearance),
         Knob::new("Noise-model masks", noise_masks),
@@ -68,6 +72,100 @@ fn corner_error(r: &Real, a: &SceneAnalysis) -> f64 {
         .map(|(p, l)| r.scene.corner_error(p, p + 1, &l.homography.matrix()))
         .sum::<f64>()
         / a.links.len().max(1) as f64
+}
+
+/// Points as marked with `noise` px per coordinate: the scene's 2 px marks scaled about the truth.
+fn points_with_noise(r: &Real, noise: f64) -> Vec<Vec<vt_core::Point>> {
+    let scale = noise / r.scene.params().marking_noise;
+    (0..r.points.len())
+        .map(|p| {
+            r.scene
+                .true_points(p)
+                .into_iter()
+                .zip(&r.points[p])
+                .map(|((x, y), m)| {
+                    vt_core::Point::new(x + (m.x - x) * scale, y + (m.y - y) * scale)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn registration(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    let r = real(ctx)?;
+    let base = AnalyzeParams::default();
+    let mut params = base;
+    params.loops.min_length = r.frames[0].len() / 3;
+    let mut pts = Vec::new();
+    // Without a points file: the default when none is given.
+    let dir = ctx.work.path().join("real-auto");
+    let (auto, _, _) = build_scene(&r.frames, &[], &params, &dir)?;
+    std::fs::remove_dir_all(&dir).ok();
+    let (err, within) = transition_errors(&r, &auto);
+    pts.push(
+        Setting::new(
+            "automatic (no points file)",
+            auto.timings.homographies.as_secs_f64() * 1e3,
+            corner_error(&r, &auto),
+            true,
+        )
+        .with("transition error (frames)", err)
+        .with("transitions within +-1 (%)", 100.0 * within),
+    );
+    for noise in [0.0, 1.0, 2.0, 4.0] {
+        let points = points_with_noise(&r, noise);
+        let dir = ctx.work.path().join(format!("real-marked-{noise}"));
+        let (a, _, _) = build_scene(&r.frames, &points, &params, &dir)?;
+        std::fs::remove_dir_all(&dir).ok();
+        let (err, within) = transition_errors(&r, &a);
+        pts.push(
+            Setting::new(
+                format!("marked, {noise} px noise"),
+                a.timings.homographies.as_secs_f64() * 1e3,
+                corner_error(&r, &a),
+                false,
+            )
+            .with("transition error (frames)", err)
+            .with("transitions within +-1 (%)", 100.0 * within),
+        );
+    }
+    // OpenCV's ORB + RANSAC on the same median backgrounds (its first guess, unrefined).
+    let t = std::time::Instant::now();
+    let mut sum = 0.0;
+    for p in 0..auto.views.len() - 1 {
+        let cv = vt_cv::register::register_pair(
+            &auto.views[p].background,
+            &auto.views[p + 1].background,
+            &base.register,
+            (p, p + 1),
+        )?;
+        sum += r.scene.corner_error(p, p + 1, &cv.homography.matrix());
+    }
+    let cv_ms = t.elapsed().as_secs_f64() * 1e3;
+    pts.push(Setting::new(
+        "OpenCV ORB + RANSAC (backgrounds)",
+        cv_ms,
+        sum / (auto.views.len() - 1) as f64,
+        false,
+    ));
+    Ok(vec![Curve::new(
+        "a-registration",
+        "Registration: automatic vs marked points vs OpenCV",
+        format!(
+            "How H(p,p+1) is found on {SCENE}: without a points file (features on the median \
+             backgrounds, RANSAC, sub-pixel patches, GRIC on the inliers, photometric \
+             refinement, and the moving object's own plane checked against its silhouettes), \
+             from points marked with 0, 1, 2 and 4 px of noise per coordinate (then refined as \
+             usual), and OpenCV's ORB + brute-force Hamming + findHomography (RANSAC) on the \
+             same backgrounds, unrefined. x: time of the registration, model and homography \
+             stage (for OpenCV: its registration of every pair); y: the largest distance \
+             between where the estimate and the true homography put the image corners, pixels, \
+             mean over neighbour pairs."
+        ),
+        Axis::new("registration and homography stage (ms)", Better::Lower),
+        Axis::log("corner error vs truth (px)", Better::Lower),
+        pts,
+    )])
 }
 
 fn homography_refine(ctx: &mut Ctx) -> Result<Vec<Curve>> {
