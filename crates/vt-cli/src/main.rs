@@ -3,6 +3,7 @@
 
 mod analyze;
 mod fv;
+mod mark;
 mod progress;
 mod render;
 mod synth;
@@ -35,6 +36,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Live viewer in the browser: move the viewpoint while the video texture plays.
     View(view::ViewArgs),
+    /// Mark or fix the points that register the views, in the browser; saves a points file.
+    Mark(mark::MarkArgs),
     /// Free-viewpoint images from calibrated photos (System B).
     Fv {
         #[command(subcommand)]
@@ -97,6 +100,7 @@ fn main() {
         Command::Analyze(args) => analyze::run(args).map(|_| ()),
         Command::Render(args) => render::run(args),
         Command::View(args) => view::run(args),
+        Command::Mark(args) => mark::run(args),
         Command::Fv { what } => fv::run(what),
         Command::Demo { out, frames } => demo(out, frames),
     };

@@ -963,7 +963,7 @@ fn choose_object_planes(
     if quick
         .iter()
         .flatten()
-        .all(|o| !(o.error_after < 0.9 * o.error_before))
+        .all(|o| o.error_after.is_nan() || o.error_after >= 0.9 * o.error_before)
     {
         return Ok(quick);
     }

@@ -24,6 +24,7 @@ pub mod median;
 pub mod metrics;
 pub mod model;
 pub mod noise;
+pub mod parallax;
 pub mod register;
 pub mod render;
 pub mod rng;

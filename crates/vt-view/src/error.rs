@@ -3,7 +3,7 @@
 /// Result alias for vt-view.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// What can stop the viewer from starting.
+/// What can stop the viewer or the marking page from starting.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// A viewer parameter out of its range: [`ViewerParams`](crate::ViewerParams)'s field
@@ -25,7 +25,18 @@ pub enum Error {
         /// The OS error.
         cause: std::io::Error,
     },
-    /// The renderer refused the scene or its parameters.
+    /// The renderer refused the scene or its parameters, or a view's frames could not be read.
     #[error(transparent)]
     Core(#[from] vt_core::Error),
+    /// A file that could not be read or written (vt-io names it).
+    #[error(transparent)]
+    Io(#[from] vt_io::Error),
+    /// An input the marking page cannot use: the path and why.
+    #[error("{}: {message}", path.display())]
+    Input {
+        /// The input path.
+        path: std::path::PathBuf,
+        /// What is wrong.
+        message: String,
+    },
 }

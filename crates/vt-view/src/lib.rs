@@ -1,28 +1,36 @@
-//! vt-view: System A's live viewer in the browser (`vt view` is a thin front end over it).
+//! vt-view: System A in the browser, on 127.0.0.1. `vt view` and `vt mark` are thin front ends
+//! over it.
 //!
-//! The Rust side renders (eq. 3-6, as `vt render`) and streams JPEG frames as MJPEG
-//! (`multipart/x-mixed-replace`), which every browser shows in a plain `<img>` with no script;
-//! the page sends the viewpoint and speed to `/control` and polls `/state` for the status line.
-//! The server binds 127.0.0.1 only and answers exactly five routes: `/`, `/stream.mjpg`,
-//! `/frame.jpg`, `/state`, `/control`; everything else is 404. No files are served.
+//! - The live viewer ([`Viewer`]): the Rust side renders (eq. 3-6, as `vt render`) and streams
+//!   JPEG frames as MJPEG (`multipart/x-mixed-replace`), which every browser shows in a plain
+//!   `<img>` with no script; the page sends the viewpoint and speed to `/control` and polls
+//!   `/state` for the status line. Exactly five routes: `/`, `/stream.mjpg`, `/frame.jpg`,
+//!   `/state`, `/control`; everything else is 404.
+//! - The marking page ([`mark`]): the points that register the views, shown on the views'
+//!   backgrounds, moved, added and removed in the browser, with the fit of every neighbour pair
+//!   recomputed after each change, and saved as a points file.
 //!
-//! The HTTP layer is std's `TcpListener` with `httparse` for the request line and headers, so
-//! nothing is ever allocated on a client's word: a request head is at most [`MAX_HEAD`] bytes,
-//! request bodies are refused unread (413), each connection has its own thread (at most
-//! [`MAX_CONNECTIONS`]; beyond that new ones get 503), and idle or slow clients are dropped after
-//! [`IDLE_TIMEOUT`] (reads) or [`WRITE_TIMEOUT`] (a stream nobody reads).
+//! Both bind 127.0.0.1 only and serve no files. The HTTP layer is std's `TcpListener` with
+//! `httparse` for the request line and headers, so nothing is ever allocated on a client's word:
+//! a request head is at most [`MAX_HEAD`] bytes, the viewer refuses request bodies unread (413;
+//! the marking page takes bodies up to [`mark::MAX_BODY`]), each connection has its own thread
+//! (at most [`MAX_CONNECTIONS`]; beyond that new ones get 503), and idle or slow clients are
+//! dropped after [`IDLE_TIMEOUT`] (reads) or [`WRITE_TIMEOUT`] (a stream nobody reads).
 #![deny(missing_docs)]
 
 mod error;
+mod http;
+pub mod mark;
 
 pub use error::{Error, Result};
+pub use http::{IDLE_TIMEOUT, MAX_CONNECTIONS, MAX_HEAD, WRITE_TIMEOUT};
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::net::{TcpListener, TcpStream};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+use http::{Body, Reply};
 use image::codecs::jpeg::JpegEncoder;
 use image::RgbImage;
 use serde::Serialize;
@@ -31,14 +39,6 @@ use vt_io::scene::LoadedScene;
 
 const PAGE: &str = include_str!("view.html");
 
-/// Largest request head (request line and headers), bytes.
-pub const MAX_HEAD: usize = 8192;
-/// Most connections served at once; more get 503.
-pub const MAX_CONNECTIONS: usize = 512;
-/// A connection that sends nothing for this long is closed.
-pub const IDLE_TIMEOUT: Duration = Duration::from_secs(15);
-/// A client that takes no data for this long is dropped.
-pub const WRITE_TIMEOUT: Duration = Duration::from_secs(15);
 /// Slowest playback speed other than 0 (paused), and the fastest.
 pub const SPEED_RANGE: (f64, f64) = (0.01, 8.0);
 
@@ -131,18 +131,7 @@ impl Viewer {
         }
         let q_max = scene.render.q_max();
         let renderer = Renderer::new(scene.render.clone(), params.render)?;
-        let listener =
-            TcpListener::bind(("127.0.0.1", params.port)).map_err(|e| Error::Listen {
-                port: params.port,
-                cause: e,
-            })?;
-        let port = listener
-            .local_addr()
-            .map_err(|e| Error::Listen {
-                port: params.port,
-                cause: e,
-            })?
-            .port();
+        let (listener, port) = http::bind(params.port)?;
         let shared = Arc::new(Shared {
             control: Mutex::new(Control {
                 q: params.q,
@@ -200,172 +189,40 @@ impl Viewer {
             q_max,
             ..
         } = self;
-        let active = Arc::new(AtomicUsize::new(0));
-        for conn in listener.incoming() {
-            let Ok(mut conn) = conn else {
-                // Out of file descriptors or similar: let some connections finish.
-                std::thread::sleep(Duration::from_millis(20));
-                continue;
-            };
-            if active.load(Ordering::SeqCst) >= MAX_CONNECTIONS {
-                let _ = conn.set_write_timeout(Some(Duration::from_millis(200)));
-                let _ = respond(
-                    &mut conn,
-                    503,
-                    "text/plain",
-                    b"busy: too many connections",
-                    true,
-                );
-                continue;
-            }
-            active.fetch_add(1, Ordering::SeqCst);
-            let guard = ActiveGuard(active.clone());
-            let (shared, page) = (shared.clone(), page.clone());
-            let spawned = std::thread::Builder::new()
-                .name("vt-view-conn".into())
-                .stack_size(256 << 10)
-                .spawn(move || {
-                    let _guard = guard;
-                    serve_connection(conn, &shared, &page, q_max);
-                });
-            // When no thread can be made, the connection (moved into the failed closure) is closed.
-            drop(spawned);
-        }
-    }
-}
-
-/// Decrements the connection count when a connection's thread ends (also by panic).
-struct ActiveGuard(Arc<AtomicUsize>);
-impl Drop for ActiveGuard {
-    fn drop(&mut self) {
-        self.0.fetch_sub(1, Ordering::SeqCst);
-    }
-}
-
-/// Writes a whole response with `Content-Length`.
-fn respond(
-    conn: &mut TcpStream,
-    status: u16,
-    content_type: &str,
-    body: &[u8],
-    close: bool,
-) -> std::io::Result<()> {
-    let reason = match status {
-        200 => "OK",
-        400 => "Bad Request",
-        404 => "Not Found",
-        405 => "Method Not Allowed",
-        413 => "Content Too Large",
-        431 => "Request Header Fields Too Large",
-        503 => "Service Unavailable",
-        _ => "Error",
-    };
-    let head = format!(
-        "HTTP/1.1 {status} {reason}\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nCache-Control: no-cache, no-store\r\nConnection: {}\r\n\r\n",
-        body.len(),
-        if close { "close" } else { "keep-alive" }
-    );
-    conn.write_all(head.as_bytes())?;
-    conn.write_all(body)?;
-    conn.flush()
-}
-
-/// What one request asked for.
-struct Request {
-    path: String,
-    query: String,
-    keep_alive: bool,
-}
-
-/// Reads one request head (at most [`MAX_HEAD`] bytes) from `conn`, keeping any bytes after it
-/// in `buf` for the next request. `Ok(None)`: the client closed or went idle. `Err(status)`: a
-/// request to refuse with that status, then close.
-fn read_request(
-    conn: &mut TcpStream,
-    buf: &mut Vec<u8>,
-) -> Result<Option<Request>, (u16, &'static str)> {
-    let mut chunk = [0u8; 2048];
-    loop {
-        let mut headers = [httparse::EMPTY_HEADER; 32];
-        let mut req = httparse::Request::new(&mut headers);
-        match req.parse(buf) {
-            Ok(httparse::Status::Complete(len)) => {
-                let method = req.method.unwrap_or("");
-                let target = req.path.unwrap_or("/").to_string();
-                let version = req.version.unwrap_or(1);
-                let mut has_body = false;
-                let mut close = version == 0;
-                for h in req.headers.iter() {
-                    let v = String::from_utf8_lossy(h.value).trim().to_ascii_lowercase();
-                    if h.name.eq_ignore_ascii_case("content-length") {
-                        has_body |= v != "0";
-                    } else if h.name.eq_ignore_ascii_case("transfer-encoding") {
-                        has_body = true;
-                    } else if h.name.eq_ignore_ascii_case("connection") {
-                        close |= v.contains("close");
-                    }
-                }
-                if has_body {
-                    // Never read (or allocate for) a body: this server takes none.
-                    return Err((413, "request bodies are not accepted"));
-                }
-                if method != "GET" {
-                    return Err((405, "only GET is served"));
-                }
-                buf.drain(..len);
-                let (path, query) = target.split_once('?').unwrap_or((&target, ""));
-                return Ok(Some(Request {
-                    path: path.to_string(),
-                    query: query.to_string(),
-                    keep_alive: !close,
-                }));
-            }
-            Ok(httparse::Status::Partial) => {
-                if buf.len() >= MAX_HEAD {
-                    return Err((431, "request head too large"));
-                }
-            }
-            Err(httparse::Error::TooManyHeaders) => return Err((431, "too many headers")),
-            Err(_) => return Err((400, "malformed request")),
-        }
-        let want = (MAX_HEAD - buf.len()).min(chunk.len());
-        match conn.read(&mut chunk[..want]) {
-            Ok(0) | Err(_) => return Ok(None),
-            Ok(n) => buf.extend_from_slice(&chunk[..n]),
-        }
-    }
-}
-
-/// Serves one connection: requests one after another (keep-alive) until it closes, goes idle,
-/// or turns into an MJPEG stream.
-fn serve_connection(mut conn: TcpStream, shared: &Arc<Shared>, page: &str, q_max: f64) {
-    let _ = conn.set_read_timeout(Some(IDLE_TIMEOUT));
-    let _ = conn.set_write_timeout(Some(WRITE_TIMEOUT));
-    let _ = conn.set_nodelay(true);
-    let mut buf = Vec::with_capacity(1024);
-    loop {
-        let req = match read_request(&mut conn, &mut buf) {
-            Ok(Some(r)) => r,
-            Ok(None) => return,
-            Err((status, why)) => {
-                let _ = respond(&mut conn, status, "text/plain", why.as_bytes(), true);
-                return;
-            }
+        let limits = http::Limits {
+            max_body: 0,
+            stack: 256 << 10,
         };
-        let close = !req.keep_alive;
-        let sent = match req.path.as_str() {
-            "/" => respond(
-                &mut conn,
+        http::serve(
+            listener,
+            limits,
+            Arc::new(ViewHandler {
+                shared,
+                page,
+                q_max,
+            }),
+        );
+    }
+}
+
+/// The viewer's five routes.
+struct ViewHandler {
+    shared: Arc<Shared>,
+    page: Arc<String>,
+    q_max: f64,
+}
+
+impl http::Handler for ViewHandler {
+    fn handle(&self, req: &http::Request, conn: &mut TcpStream) -> Reply {
+        let shared = &self.shared;
+        match req.path.as_str() {
+            "/" => Reply::new(
                 200,
                 "text/html; charset=utf-8",
-                page.as_bytes(),
-                close,
+                Body::Text(self.page.clone()),
             ),
-            "/state" => {
-                let s = lock(&shared.latest).status;
-                respond(&mut conn, 200, "application/json", &json(&s), close)
-            }
-            "/control" => match parse_control(&req.query, q_max) {
+            "/state" => Reply::json(200, &lock(&shared.latest).status),
+            "/control" => match parse_control(&req.query, self.q_max) {
                 Ok((q, speed)) => {
                     let mut c = lock(&shared.control);
                     if let Some(q) = q {
@@ -375,31 +232,24 @@ fn serve_connection(mut conn: TcpStream, shared: &Arc<Shared>, page: &str, q_max
                         c.speed = sp;
                     }
                     drop(c);
-                    let s = lock(&shared.latest).status;
-                    respond(&mut conn, 200, "application/json", &json(&s), close)
+                    Reply::json(200, &lock(&shared.latest).status)
                 }
-                Err(e) => respond(&mut conn, 400, "text/plain", e.as_bytes(), close),
+                Err(e) => Reply::text(400, e),
             },
-            "/frame.jpg" => {
-                let jpeg = lock(&shared.latest).jpeg.clone();
-                respond(&mut conn, 200, "image/jpeg", &jpeg, close)
-            }
+            "/frame.jpg" => Reply::new(
+                200,
+                "image/jpeg",
+                Body::Shared(lock(&shared.latest).jpeg.clone()),
+            ),
             "/stream.mjpg" => {
                 // Written straight to the socket and flushed per frame: a buffered body would
                 // hold back the last frame while playback is paused.
-                stream_mjpeg(shared, &mut conn);
-                return;
+                stream_mjpeg(shared, conn);
+                Reply::Taken
             }
-            _ => respond(&mut conn, 404, "text/plain", b"not found", close),
-        };
-        if sent.is_err() || close {
-            return;
+            _ => Reply::not_found(),
         }
     }
-}
-
-fn json<T: Serialize>(v: &T) -> Vec<u8> {
-    serde_json::to_vec(v).unwrap_or_default()
 }
 
 /// `q=1.5&speed=0.5`; each optional; values checked.

@@ -165,3 +165,6 @@ pub fn count_pngs(dir: &Path) -> usize {
         })
         .count()
 }
+
+/// Headless Chromium over the DevTools protocol (the browser tests).
+pub mod cdp;

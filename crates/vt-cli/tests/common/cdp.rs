@@ -1,0 +1,237 @@
+//! Headless Chromium (Debian's `chromium`) driven over the Chrome DevTools Protocol, and `vt`
+//! servers that print their URL: what the browser tests (`viewer.rs`, `mark.rs`) share.
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpStream;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+use tungstenite::{stream::MaybeTlsStream, Message, WebSocket};
+
+/// A child process killed (and reaped) when dropped.
+pub struct Kill(pub Child);
+impl Drop for Kill {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts `vt ARGS` as a server and returns it with the `http://127.0.0.1:PORT/` URL from the
+/// first line it prints.
+pub fn vt_server(args: &[&str]) -> (Kill, String) {
+    let mut server = Kill(
+        Command::new(env!("CARGO_BIN_EXE_vt"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let mut line = String::new();
+    BufReader::new(server.0.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://127.0.0.1:"))
+        .unwrap_or_else(|| panic!("vt {}: no URL in {line:?}", args.join(" ")))
+        .to_string();
+    (server, url)
+}
+
+/// A running headless Chromium and its DevTools WebSocket URL.
+pub struct Chromium {
+    _child: Kill,
+    pub ws: String,
+}
+
+/// Starts headless Chromium with its profile in `profile`; None when `chromium` is not
+/// installed.
+pub fn chromium(profile: &Path) -> Option<Chromium> {
+    let spawned = Command::new("chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--remote-debugging-port=0",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg("about:blank")
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn();
+    let mut child = match spawned {
+        Ok(c) => Kill(c),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
+        Err(e) => panic!("cannot start chromium: {e}"),
+    };
+    let stderr = BufReader::new(child.0.stderr.take().unwrap());
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for l in stderr.lines().map_while(Result::ok) {
+            if let Some(i) = l.find("ws://") {
+                let _ = tx.send(l[i..].trim().to_string());
+            }
+        }
+    });
+    let ws = rx
+        .recv_timeout(Duration::from_secs(30))
+        .expect("chromium printed its DevTools URL");
+    Some(Chromium { _child: child, ws })
+}
+
+/// A CDP connection to one page (flat session mode).
+pub struct Page {
+    ws: WebSocket<MaybeTlsStream<TcpStream>>,
+    session: String,
+    id: u64,
+}
+
+fn call(
+    ws: &mut WebSocket<MaybeTlsStream<TcpStream>>,
+    id: u64,
+    session: Option<&str>,
+    method: &str,
+    params: Value,
+) -> Value {
+    let mut msg = json!({"id": id, "method": method, "params": params});
+    if let Some(s) = session {
+        msg["sessionId"] = json!(s);
+    }
+    ws.send(Message::text(msg.to_string()))
+        .expect("send to chromium");
+    loop {
+        let m = ws.read().expect("read from chromium");
+        if let Message::Text(t) = m {
+            let v: Value = serde_json::from_str(&t).unwrap();
+            if v["id"] == json!(id) {
+                assert!(v.get("error").is_none(), "{method}: {v}");
+                return v["result"].clone();
+            }
+        }
+    }
+}
+
+impl Page {
+    /// Opens `url` in a new page.
+    pub fn open(browser_ws: &str, url: &str) -> Page {
+        Self::open_sized(browser_ws, url, None)
+    }
+
+    /// Opens `url` in a new page whose viewport is `size` CSS pixels (device scale 1).
+    pub fn open_sized(browser_ws: &str, url: &str, size: Option<(u32, u32)>) -> Page {
+        let (mut ws, _) = tungstenite::connect(browser_ws).expect("connect to chromium");
+        let first = if size.is_some() { "about:blank" } else { url };
+        let target = call(
+            &mut ws,
+            1,
+            None,
+            "Target.createTarget",
+            json!({"url": first}),
+        );
+        let attached = call(
+            &mut ws,
+            2,
+            None,
+            "Target.attachToTarget",
+            json!({"targetId": target["targetId"], "flatten": true}),
+        );
+        let mut page = Page {
+            ws,
+            session: attached["sessionId"].as_str().unwrap().to_string(),
+            id: 10,
+        };
+        if let Some((w, h)) = size {
+            page.call(
+                "Emulation.setDeviceMetricsOverride",
+                json!({"width": w, "height": h, "deviceScaleFactor": 1, "mobile": false}),
+            );
+            page.call("Page.navigate", json!({"url": url}));
+        }
+        page
+    }
+
+    /// Calls a CDP method on this page.
+    pub fn call(&mut self, method: &str, params: Value) -> Value {
+        self.id += 1;
+        let session = self.session.clone();
+        call(&mut self.ws, self.id, Some(&session), method, params)
+    }
+
+    /// Evaluates a JavaScript expression (promises awaited) and returns its value (null when it
+    /// throws, e.g. while the page is still loading).
+    pub fn eval(&mut self, expr: &str) -> Value {
+        let params = json!({"expression": expr, "returnByValue": true, "awaitPromise": true});
+        let r = self.call("Runtime.evaluate", params);
+        r["result"]["value"].clone()
+    }
+
+    /// Waits until `expr` is true; fails naming `what` (and `detail`'s value) after 30 s.
+    pub fn wait_until(&mut self, expr: &str, what: &str, detail: &str) {
+        let start = Instant::now();
+        loop {
+            if self.eval(expr).as_bool() == Some(true) {
+                return;
+            }
+            if start.elapsed() > Duration::from_secs(30) {
+                let d = self.eval(detail);
+                panic!("timed out waiting for {what}; {detail}: {d}");
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// A real mouse event at CSS pixel (x, y) of the viewport: `kind` is mousePressed,
+    /// mouseMoved or mouseReleased; `held`: the left button is down during (or after) it.
+    pub fn mouse(&mut self, kind: &str, x: f64, y: f64, held: bool) {
+        let button = if kind == "mouseMoved" && !held {
+            "none"
+        } else {
+            "left"
+        };
+        self.call(
+            "Input.dispatchMouseEvent",
+            json!({
+                "type": kind, "x": x, "y": y, "button": button,
+                "buttons": if held { 1 } else { 0 }, "clickCount": 1,
+            }),
+        );
+    }
+
+    /// A click (press and release) at (x, y).
+    pub fn click(&mut self, x: f64, y: f64) {
+        self.mouse("mouseMoved", x, y, false);
+        self.mouse("mousePressed", x, y, true);
+        self.mouse("mouseReleased", x, y, false);
+    }
+
+    /// A drag from `from` to `to` in `steps` moves with the button held.
+    pub fn drag(&mut self, from: (f64, f64), to: (f64, f64), steps: usize) {
+        self.mouse("mouseMoved", from.0, from.1, false);
+        self.mouse("mousePressed", from.0, from.1, true);
+        for i in 1..=steps {
+            let t = i as f64 / steps as f64;
+            let x = from.0 + (to.0 - from.0) * t;
+            let y = from.1 + (to.1 - from.1) * t;
+            self.mouse("mouseMoved", x, y, true);
+        }
+        self.mouse("mouseReleased", to.0, to.1, false);
+    }
+
+    /// A key press (down and up): `key` as in `KeyboardEvent.key`, with its Windows key code.
+    pub fn key(&mut self, key: &str, code: &str, key_code: u32) {
+        for kind in ["rawKeyDown", "keyUp"] {
+            self.call(
+                "Input.dispatchKeyEvent",
+                json!({"type": kind, "key": key, "code": code, "windowsVirtualKeyCode": key_code}),
+            );
+        }
+    }
+}
