@@ -77,6 +77,10 @@ pub struct AnalyzeArgs {
     /// frame step (0 = masks only, the thesis).
     #[arg(long, default_value_t = 1.0)]
     appearance: f32,
+    /// The background between views: plane (the thesis's warp, eq. 3), morph (along the dense
+    /// parallax of each neighbour pair) or auto (morph where parallax off the plane is measured).
+    #[arg(long, default_value = "auto", value_parser = ["plane", "morph", "auto"])]
+    background: String,
     /// Frame rate of the source, frames per second (default: the videos' median real frame
     /// rate; frame folders have none, so their scenes play at 30 unless this is given).
     #[arg(long)]
@@ -149,6 +153,12 @@ impl AnalyzeArgs {
                 ..Default::default()
             },
             register: Default::default(),
+            background: self.background.parse().map_err(|_| {
+                anyhow::anyhow!(
+                    "--background '{}' is not plane, morph or auto",
+                    self.background
+                )
+            })?,
         };
         params.check().map_err(|e| match e {
             vt_core::Error::InvalidParameter { name, value, why } => match flag_of(name) {

@@ -189,7 +189,14 @@ fn scene(
                 .collect(),
         );
     }
-    (RenderScene { views: vs, model }, Objects(objects))
+    (
+        RenderScene {
+            views: vs,
+            model,
+            parallax: Vec::new(),
+        },
+        Objects(objects),
+    )
 }
 
 fn main() {

@@ -20,6 +20,7 @@ use crate::model::{select_model, ModelParams, MotionModel, Selection};
 use crate::noise::{
     noise_mask, noise_model, pair_change, FrameSample, MotionKept, NoiseModel, NoiseParams,
 };
+use crate::parallax::{BackgroundMode, PairParallax, ParallaxFigures};
 use crate::register::RegisterParams;
 use crate::transition::{
     seam_score, transition_range, transitions_from_pair_costs, warp_masks, xor_pair_costs,
@@ -247,6 +248,11 @@ pub struct AnalyzeParams {
     /// figures go into the scene per link).
     #[serde(skip, default)]
     pub register: RegisterParams,
+    /// The background between views: the plane warp, the morph along the dense parallax, or
+    /// per pair as measured ([`crate::parallax`]); scenes written before it existed read as
+    /// the plane.
+    #[serde(default)]
+    pub background: BackgroundMode,
 }
 
 fn default_cache() -> usize {
@@ -349,6 +355,7 @@ impl Default for AnalyzeParams {
             median_frames: DEFAULT_MEDIAN_FRAMES,
             cache_bytes: default_cache(),
             register: RegisterParams::default(),
+            background: BackgroundMode::Auto,
         }
     }
 }
@@ -424,6 +431,8 @@ pub struct Timings {
     pub homographies: Duration,
     /// Mask warping and eq. (2).
     pub transitions: Duration,
+    /// The dense parallax between neighbouring backgrounds.
+    pub parallax: Duration,
 }
 
 /// One view's results.
@@ -487,6 +496,10 @@ pub struct Link {
     pub to_next_seam: Vec<f32>,
     /// Seam score of every switch to the previous view.
     pub to_prev_seam: Vec<f32>,
+    /// The pair's parallax beyond the plane, as measured (None: the plane was asked for).
+    pub parallax_figures: Option<ParallaxFigures>,
+    /// The dense parallax fields when the pair is morphed.
+    pub parallax: Option<std::sync::Arc<PairParallax>>,
 }
 
 /// How a link's homography was refined from the backgrounds.
@@ -835,7 +848,22 @@ pub fn analyze(
             let (to_next_seam, to_prev_seam) = (seams_of(&fwd, b), seams_of(&back, a));
             let strip =
                 |t: Vec<Option<(usize, u64)>>| t.into_iter().map(|e| e.map(|(t, _)| t)).collect();
+            let t1 = Instant::now();
+            let par = crate::parallax::analyse_pair(
+                &a.background,
+                &b.background,
+                &h,
+                params.background,
+                &crate::parallax::ParallaxParams::default(),
+            );
+            timings.parallax += t1.elapsed();
+            let (parallax_figures, parallax) = match par {
+                Some((f, p)) => (Some(f), p.map(std::sync::Arc::new)),
+                None => (None, None),
+            };
             links.push(Link {
+                parallax_figures,
+                parallax,
                 homography: h,
                 points_homography: sel.fits[p].homography,
                 refinement: refinements[p],
@@ -848,7 +876,7 @@ pub fn analyze(
             });
         }
         observer.finish();
-        timings.transitions += t0.elapsed();
+        timings.transitions += t0.elapsed().saturating_sub(timings.parallax);
     }
     Ok(SceneAnalysis {
         width,

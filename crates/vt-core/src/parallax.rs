@@ -593,3 +593,114 @@ mod tests {
         assert!(direction_and_range(&flat, &h).is_none());
     }
 }
+
+/// How the background between two views is made (eq. (3) and beyond).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BackgroundMode {
+    /// The thesis's plane warp for every pair (and what scenes written before the morph used).
+    #[default]
+    Plane,
+    /// The morph along the dense parallax for every pair with parallax.
+    Morph,
+    /// Per pair, the morph where the residual parallax after the plane is measurable (at
+    /// least [`AUTO_PARALLAX_PX`]), else the plane.
+    Auto,
+}
+
+impl std::str::FromStr for BackgroundMode {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Self> {
+        match s {
+            "plane" => Ok(Self::Plane),
+            "morph" => Ok(Self::Morph),
+            "auto" => Ok(Self::Auto),
+            _ => Err(crate::Error::InvalidParameter {
+                name: "background",
+                value: s.into(),
+                why: "expected plane, morph or auto".into(),
+            }),
+        }
+    }
+}
+
+/// [`BackgroundMode::Auto`] morphs a pair when the 90th percentile of its matches' parallax
+/// after the plane reaches this many pixels.
+pub const AUTO_PARALLAX_PX: f64 = 1.0;
+
+/// What the analysis found about a pair's parallax.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ParallaxFigures {
+    /// 90th percentile of the matches' distance from the plane's prediction along the parallax
+    /// direction, pixels (0 when no match is off the plane).
+    pub residual_px: f64,
+    /// Share of view a's pixels whose disparity both views confirm (0 when not estimated).
+    pub confirmed: f64,
+    /// Whether the pair is morphed.
+    pub morph: bool,
+}
+
+/// The parallax of a neighbour pair as the analysis decides it under `mode`: features of both
+/// backgrounds matched (mutual best, ratio test), their residuals after the plane `h` measured,
+/// and, where `mode` asks for it, the dense fields estimated. None for [`BackgroundMode::Plane`].
+pub fn analyse_pair(
+    a: &RgbImage,
+    b: &RgbImage,
+    h: &Homography,
+    mode: BackgroundMode,
+    params: &ParallaxParams,
+) -> Option<(ParallaxFigures, Option<PairParallax>)> {
+    if mode == BackgroundMode::Plane {
+        return None;
+    }
+    let rp = crate::register::RegisterParams::default();
+    let (ga, gb) = (crate::register::grey(a), crate::register::grey(b));
+    let (fa, fb) = rayon::join(
+        || crate::register::detect(&ga, &rp),
+        || crate::register::detect(&gb, &rp),
+    );
+    let matches: Vec<(Point, Point)> =
+        crate::register::match_features(&fa, &fb, rp.ratio, rp.max_distance)
+            .into_iter()
+            .map(|(i, j)| (fa[i].pos, fb[j].pos))
+            .collect();
+    let Some((v, lo, hi)) = direction_and_range(&matches, h) else {
+        let none = ParallaxFigures {
+            residual_px: 0.0,
+            confirmed: 0.0,
+            morph: false,
+        };
+        return Some((none, None));
+    };
+    let mut along: Vec<f64> = matches
+        .iter()
+        .filter_map(|(pa, pb)| h.apply_inverse(*pb).map(|q| (q.x - pa.x, q.y - pa.y)))
+        .filter(|r| (r.0 * -(v[1] as f64) + r.1 * v[0] as f64).abs() <= 2.0)
+        .map(|r| (r.0 * v[0] as f64 + r.1 * v[1] as f64).abs())
+        .collect();
+    along.sort_by(f64::total_cmp);
+    let residual_px = along
+        .get(((along.len().max(1) - 1) as f64 * 0.9).round() as usize)
+        .copied()
+        .unwrap_or(0.0);
+    let morph = mode == BackgroundMode::Morph || residual_px >= AUTO_PARALLAX_PX;
+    if !morph {
+        let f = ParallaxFigures {
+            residual_px,
+            confirmed: 0.0,
+            morph: false,
+        };
+        return Some((f, None));
+    }
+    let pair = estimate(a, b, h, (v, lo, hi), params);
+    let confirmed =
+        pair.a.valid.iter().filter(|&&x| x).count() as f64 / pair.a.valid.len().max(1) as f64;
+    Some((
+        ParallaxFigures {
+            residual_px,
+            confirmed,
+            morph: true,
+        },
+        Some(pair),
+    ))
+}

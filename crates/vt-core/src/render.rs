@@ -75,6 +75,9 @@ pub struct RenderScene {
     pub views: Vec<RenderView>,
     /// The model used for `H_(p,q)` (the scene's chosen model).
     pub model: MotionModel,
+    /// The dense parallax of each neighbour pair `(p, p + 1)` that is morphed
+    /// ([`crate::parallax`]); empty or None: the plane warp of eq. (3).
+    pub parallax: Vec<Option<std::sync::Arc<crate::parallax::PairParallax>>>,
 }
 
 impl RenderScene {
@@ -755,12 +758,26 @@ impl Renderer {
                 weight: wc,
             },
         ];
-        blend_warps(
-            &sources[..if f == c { 1 } else { 2 }],
-            self.params.interpolation,
-            out,
-            keep.then_some(self.background_q.as_mut()),
-        );
+        match self.scene.parallax.get(f).and_then(Option::as_ref) {
+            Some(par) if f != c => morph_blend(
+                [
+                    &self.scene.views[f].background,
+                    &self.scene.views[c].background,
+                ],
+                par,
+                [&hf, &hc],
+                [sources[0].gain_inv, sources[1].gain_inv],
+                q - f as f64,
+                out,
+                keep.then_some(self.background_q.as_mut()),
+            ),
+            _ => blend_warps(
+                &sources[..if f == c { 1 } else { 2 }],
+                self.params.interpolation,
+                out,
+                keep.then_some(self.background_q.as_mut()),
+            ),
+        }
         self.blends += 1;
         self.kept = keep.then_some(Kept {
             q,
@@ -906,6 +923,127 @@ impl Renderer {
                 }
             });
         Ok(())
+    }
+}
+
+/// Bilinear sample of an RGB image at (x, y) inside `[0, w-1] x [0, h-1]` (None outside).
+#[inline]
+fn sample_rgb(raw: &[u8], w: usize, h: usize, x: f64, y: f64) -> Option<[f32; 3]> {
+    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
+        return None;
+    }
+    let (x0, y0) = (x as usize, y as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+    let (i00, i01, i10, i11) = (
+        3 * (y0 * w + x0),
+        3 * (y0 * w + x1),
+        3 * (y1 * w + x0),
+        3 * (y1 * w + x1),
+    );
+    let mut o = [0f32; 3];
+    for k in 0..3 {
+        let top = raw[i00 + k] as f32 + (raw[i01 + k] as f32 - raw[i00 + k] as f32) * fx;
+        let bot = raw[i10 + k] as f32 + (raw[i11 + k] as f32 - raw[i10 + k] as f32) * fx;
+        o[k] = top + (bot - top) * fy;
+    }
+    Some(o)
+}
+
+/// Iterations of the backward fixed point `x = x0 - f d(x) v` in the morph.
+const MORPH_STEPS: usize = 3;
+
+/// The background beyond the plane (the morph of [`crate::parallax`]) at fraction `frac` of
+/// the pair: each output pixel `z` is traced into both views (`x0 = H_(p,q)^-1 z`, then the
+/// fixed point `x = x0 - frac d(x) v` along that view's parallax field; `1 - frac` from the
+/// other), sampled bilinearly, divided by the view's gain and blended with weights
+/// `(1 - frac, frac)`, the view whose field confirms the pixel taking it alone when the other
+/// does not. Rows in parallel; written to `out` and `copy` when given.
+fn morph_blend(
+    images: [&RgbImage; 2],
+    par: &crate::parallax::PairParallax,
+    h: [&Homography; 2],
+    gain_inv: [[f32; 3]; 2],
+    frac: f64,
+    out: &mut RgbImage,
+    copy: Option<&mut [u8]>,
+) {
+    let w = out.width() as usize;
+    let fields = [&par.a, &par.b];
+    let fracs = [frac, 1.0 - frac];
+    let inv: [nalgebra::Matrix3<f64>; 2] = [*h[0].raw().1, *h[1].raw().1];
+    let row_job = |y: usize, row: &mut [u8]| {
+        for x in 0..w {
+            let mut cols = [[0f32; 3]; 2];
+            let mut seen = [false; 2];
+            let mut inside = [false; 2];
+            for s in 0..2 {
+                let m = &inv[s];
+                let (zx, zy) = (x as f64, y as f64);
+                let d = m[(2, 0)] * zx + m[(2, 1)] * zy + m[(2, 2)];
+                if d.abs() < 1e-12 {
+                    continue;
+                }
+                let x0 = (m[(0, 0)] * zx + m[(0, 1)] * zy + m[(0, 2)]) / d;
+                let y0 = (m[(1, 0)] * zx + m[(1, 1)] * zy + m[(1, 2)]) / d;
+                let fld = fields[s];
+                let (vx, vy) = (fld.direction[0] as f64, fld.direction[1] as f64);
+                let (mut sx, mut sy) = (x0, y0);
+                for _ in 0..MORPH_STEPS {
+                    let disp = fld.at(sx, sy) as f64 * fracs[s];
+                    sx = x0 - disp * vx;
+                    sy = y0 - disp * vy;
+                }
+                let img = images[s];
+                let (iw, ih) = (img.width() as usize, img.height() as usize);
+                // Outside the image: its replicated edge (used only where neither view sees).
+                inside[s] =
+                    sx >= -0.5 && sy >= -0.5 && sx < iw as f64 - 0.5 && sy < ih as f64 - 0.5;
+                let (cx, cy) = (
+                    sx.clamp(0.0, (iw - 1) as f64),
+                    sy.clamp(0.0, (ih - 1) as f64),
+                );
+                if let Some(c) = sample_rgb(img.as_raw(), iw, ih, cx, cy) {
+                    cols[s] = [
+                        c[0] * gain_inv[s][0],
+                        c[1] * gain_inv[s][1],
+                        c[2] * gain_inv[s][2],
+                    ];
+                    seen[s] = inside[s] && fld.valid_at(sx, sy);
+                }
+            }
+            let (mut wa, mut wb) = ((1.0 - frac) as f32, frac as f32);
+            if inside[0] != inside[1] {
+                (wa, wb) = (inside[0] as u8 as f32, inside[1] as u8 as f32);
+            } else if seen[0] != seen[1] {
+                (wa, wb) = if seen[0] { (1.0, 0.0) } else { (0.0, 1.0) };
+            }
+            let sum = wa + wb;
+            for k in 0..3 {
+                let v = if sum > 0.0 {
+                    (cols[0][k] * wa + cols[1][k] * wb) / sum
+                } else {
+                    0.0
+                };
+                row[3 * x + k] = round_u8(v);
+            }
+        }
+    };
+    match copy {
+        Some(copy) => out
+            .as_mut()
+            .par_chunks_mut(3 * w)
+            .zip(copy.par_chunks_mut(3 * w))
+            .enumerate()
+            .for_each(|(y, (row, c))| {
+                row_job(y, row);
+                c.copy_from_slice(row);
+            }),
+        None => out
+            .as_mut()
+            .par_chunks_mut(3 * w)
+            .enumerate()
+            .for_each(|(y, row)| row_job(y, row)),
     }
 }
 
@@ -1494,6 +1632,7 @@ mod tests {
         };
         let none = vec![None; 8];
         RenderScene {
+            parallax: Vec::new(),
             views: vec![
                 view(
                     1,

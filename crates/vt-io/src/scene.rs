@@ -160,6 +160,91 @@ pub struct LinkEntry {
     /// How the link was registered without marked points (absent: from the points file).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub registration: Option<RegistrationEntry>,
+    /// The pair's parallax beyond the plane (absent: the plane warp was asked for).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parallax: Option<ParallaxEntry>,
+}
+
+/// A pair's parallax in scene.json: the figures and, when morphed, the two fields' files and
+/// directions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ParallaxEntry {
+    /// What the analysis measured.
+    pub figures: vt_core::parallax::ParallaxFigures,
+    /// The fields in this view's and the next view's frame (16-bit PNG, [`parallax_name`]), and
+    /// their unit directions; absent when the pair uses the plane.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fields: Option<[ParallaxFieldEntry; 2]>,
+}
+
+/// One parallax field: the file and its direction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ParallaxFieldEntry {
+    /// File, relative to the scene.
+    pub file: String,
+    /// Unit direction of the disparity in that view's frame.
+    pub direction: [f32; 2],
+}
+
+/// File name of link p's parallax field in view p's (`side` 0) or view p + 1's (1) frame.
+pub fn parallax_name(p: usize, side: usize) -> String {
+    format!("parallax_{p:03}_{}.png", ["a", "b"][side])
+}
+
+/// Disparities are stored in 1/8 px around this offset, with one bit for "confirmed by both
+/// views".
+const PARALLAX_OFFSET: i32 = 16384;
+
+fn write_field(path: &Path, f: &vt_core::parallax::Field) -> Result<()> {
+    let img =
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(f.width, f.height, |x, y| {
+            let i = (y * f.width + x) as usize;
+            let q = ((f.disparity[i] * 8.0).round() as i32 + PARALLAX_OFFSET).clamp(0, 32767);
+            image::Luma([((q as u16) << 1) | f.valid[i] as u16])
+        });
+    img.save(path).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+fn read_field(
+    path: &Path,
+    direction: [f32; 2],
+    size: (u32, u32),
+) -> Result<vt_core::parallax::Field> {
+    let bytes =
+        crate::limits::read_bytes(path, crate::limits::MAX_IMAGE_FILE_BYTES, "parallax field")?;
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+        .map_err(|e| Error::Image {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?
+        .to_luma16();
+    let n = (direction[0] as f64).hypot(direction[1] as f64);
+    if img.dimensions() != size || !(0.99..=1.01).contains(&n) {
+        return Err(Error::Scene {
+            path: path.to_path_buf(),
+            message: format!(
+                "corrupted parallax field: {}x{} with direction {direction:?}, the scene is {}x{}",
+                img.width(),
+                img.height(),
+                size.0,
+                size.1
+            ),
+        });
+    }
+    let raw = img.into_raw();
+    Ok(vt_core::parallax::Field {
+        width: size.0,
+        height: size.1,
+        direction,
+        disparity: raw
+            .iter()
+            .map(|&v| ((v >> 1) as i32 - PARALLAX_OFFSET) as f32 / 8.0)
+            .collect(),
+        valid: raw.iter().map(|&v| v & 1 == 1).collect(),
+    })
 }
 
 /// The figures of an automatic registration ([`vt_core::register`]), in scene.json.
@@ -235,6 +320,7 @@ impl LinkEntry {
             points_homography: None,
             refinement: None,
             registration: None,
+            parallax: None,
         }
     }
 
@@ -312,6 +398,10 @@ pub fn write_analysis(
         let cell = (a.width.max(a.height) / 12).max(8);
         let pic = vt_core::register::fit_picture(bg, next, &l.homography, &pts, cell);
         crate::frames::write_png(&dir.join(fit_name(p)), &pic)?;
+        if let Some(par) = &l.parallax {
+            write_field(&dir.join(parallax_name(p, 0)), &par.a)?;
+            write_field(&dir.join(parallax_name(p, 1)), &par.b)?;
+        }
     }
     let mut scene = SceneFile::from_analysis(a, params);
     scene.fps = fps;
@@ -374,6 +464,15 @@ impl SceneFile {
                     loop_: v.best_loop.into(),
                     alternatives: v.alternatives.iter().map(|&l| l.into()).collect(),
                     to_next: next.map(|l| LinkEntry {
+                        parallax: l.parallax_figures.map(|figures| ParallaxEntry {
+                            figures,
+                            fields: l.parallax.as_ref().map(|par| {
+                                [0, 1].map(|side| ParallaxFieldEntry {
+                                    file: parallax_name(p, side),
+                                    direction: [&par.a, &par.b][side].direction,
+                                })
+                            }),
+                        }),
                         registration: a.registration.get(p).map(|r| {
                             RegistrationEntry::new(r, a.object_planes.get(p).copied().flatten(), p)
                         }),
@@ -817,9 +916,33 @@ impl LoadedScene {
             (view.to_next, view.to_prev) = (t.next, t.prev);
             (view.to_next_seam, view.to_prev_seam) = (t.next_seam, t.prev_seam);
         }
+        let mut parallax = Vec::new();
+        for v in file.views.iter().take(file.views.len().saturating_sub(1)) {
+            let fields = v
+                .to_next
+                .as_ref()
+                .and_then(|l| l.parallax.as_ref())
+                .and_then(|e| e.fields.as_ref());
+            parallax.push(match fields {
+                Some([fa, fb]) => {
+                    let size = (file.width, file.height);
+                    let a = read_field(&dir.join(&fa.file), fa.direction, size)?;
+                    let b = read_field(&dir.join(&fb.file), fb.direction, size)?;
+                    Some(std::sync::Arc::new(vt_core::parallax::PairParallax {
+                        a,
+                        b,
+                    }))
+                }
+                None => None,
+            });
+        }
         Ok(Self {
             file,
-            render: std::sync::Arc::new(vt_core::render::RenderScene { views, model }),
+            render: std::sync::Arc::new(vt_core::render::RenderScene {
+                views,
+                model,
+                parallax,
+            }),
             objects: crate::objects::SceneObjects { stores },
         })
     }
@@ -963,6 +1086,25 @@ impl std::fmt::Display for AnalysisSummary<'_> {
                 fit_name(p)
             )?;
         }
+        for (p, l) in a.links.iter().enumerate() {
+            if let Some(fig) = &l.parallax_figures {
+                let how = if fig.morph {
+                    format!(
+                        "morph along the dense parallax ({:.0}% of the pixels confirmed by both views; {})",
+                        100.0 * fig.confirmed,
+                        parallax_name(p, 0)
+                    )
+                } else {
+                    "the plane (the rest lies on it)".into()
+                };
+                writeln!(
+                    f,
+                    "background {p}->{}: parallax off the plane {:.1} px (90th percentile of the matches); {how}",
+                    p + 1,
+                    fig.residual_px
+                )?;
+            }
+        }
         let vt_core::analysis::Timings {
             decode,
             median,
@@ -970,15 +1112,17 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             loops,
             homographies,
             transitions,
+            parallax,
         } = a.timings;
         writeln!(f,
-        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2})",
+        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2}, parallax {:.2})",
         decode.as_secs_f64(),
         median.as_secs_f64(),
         masks.as_secs_f64(),
         loops.as_secs_f64(),
         homographies.as_secs_f64(),
-        transitions.as_secs_f64()
+        transitions.as_secs_f64(),
+        parallax.as_secs_f64()
     )?;
         Ok(())
     }
