@@ -114,6 +114,28 @@ impl ObjectFrames for Objects {
     }
 }
 
+/// A parallax field pair for the morph rows: smooth disparities of up to 8 px (scaled with the
+/// width) along x, a tenth of the pixels unconfirmed.
+fn parallax(w: u32, h: u32) -> vt_core::parallax::PairParallax {
+    let s = w as f32 / 640.0;
+    let field = |dir: [f32; 2]| vt_core::parallax::Field {
+        width: w,
+        height: h,
+        direction: dir,
+        disparity: (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                8.0 * s * (x / (60.0 * s)).sin() * (y / (90.0 * s)).cos()
+            })
+            .collect(),
+        valid: (0..w * h).map(|i| (i % w) % 10 != 3).collect(),
+    };
+    vt_core::parallax::PairParallax {
+        a: field([1.0, 0.0]),
+        b: field([-1.0, 0.0]),
+    }
+}
+
 fn scene(
     w: u32,
     h: u32,
@@ -407,8 +429,17 @@ fn run() {
     // (size, scene) -> (moving cpu ms, still cpu ms, moving fps) of the goal rows.
     let mut goals: Vec<(String, f64, f64, f64)> = Vec::new();
     for (w, h) in [(640, 360), (1280, 720), (1920, 1080)] {
-        for model in [MotionModel::Translation, MotionModel::Homography] {
-            let (scene, objects) = scene(w, h, 3, frames, model);
+        for (model, morph) in [
+            (MotionModel::Translation, false),
+            (MotionModel::Homography, false),
+            (MotionModel::Homography, true),
+        ] {
+            let (mut scene, objects) = scene(w, h, 3, frames, model);
+            if morph {
+                scene.parallax = (0..2)
+                    .map(|_| Some(std::sync::Arc::new(parallax(w, h))))
+                    .collect();
+            }
             for interp in [
                 Interpolation::Bilinear,
                 Interpolation::BilinearFixed,
@@ -428,7 +459,11 @@ fn run() {
                             Interpolation::BilinearFixed => "bilinear-fixed",
                             Interpolation::Nearest => "nearest",
                         };
-                        let scene_name = format!("{model:?}").to_lowercase();
+                        let scene_name = if morph {
+                            "homography+morph".to_string()
+                        } else {
+                            format!("{model:?}").to_lowercase()
+                        };
                         let cf = if crossfade > 0 { "on" } else { "off" };
                         let q = if moving { "moving" } else { "still" };
                         // VT_RENDER_ROWS=a,b keeps the rows whose label ("1280x720 homography
@@ -472,7 +507,11 @@ fn run() {
                         }
                     }
                     if interp == Interpolation::Bilinear && crossfade == 0 && w >= 1280 {
-                        let scene_name = format!("{model:?}").to_lowercase();
+                        let scene_name = if morph {
+                            "homography+morph".to_string()
+                        } else {
+                            format!("{model:?}").to_lowercase()
+                        };
                         goals.push((format!("{w}x{h} {scene_name}"), goal.0, goal.1, goal.2));
                     }
                 }
