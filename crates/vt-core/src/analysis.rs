@@ -1082,7 +1082,7 @@ const OBJECT_ALIGN: crate::align::AlignParams = crate::align::AlignParams {
 };
 
 /// Silhouette pairs per link for the object's plane.
-const SILHOUETTE_PAIRS: usize = 16;
+const SILHOUETTE_PAIRS: usize = 32;
 /// Rounds of phase matching and silhouette alignment.
 const SILHOUETTE_ROUNDS: usize = 2;
 
@@ -1102,11 +1102,7 @@ fn silhouette_stack(
     height: u32,
     window: usize,
 ) -> Result<Option<SilhouetteStack>> {
-    let table = transitions(a, b, h, width, height, window)?;
-    let candidates: Vec<(usize, usize)> = (a.best_loop.start..=a.best_loop.end)
-        .filter_map(|s| table.get(s).copied().flatten().map(|(t, _)| (s, t)))
-        .filter(|&(s, t)| a.masks[s].count_ones() > 0 && b.masks[t].count_ones() > 0)
-        .collect();
+    let candidates = matching_frames(a, b, h, width, height, window);
     if candidates.len() < 4 {
         return Ok(None);
     }
@@ -1136,6 +1132,55 @@ fn silhouette_stack(
         pairs,
         region: region.dilate(4),
     }))
+}
+
+/// Frames of a's loop (at most [`SILHOUETTE_PAIRS`], evenly spaced, with something moving)
+/// and the frame of b that matches each by eq. (2)'s windowed mask XOR under `h`: the same rule
+/// as the transition tables, computed for these frames only (the whole table costs as much as
+/// the analysis's own transitions).
+fn matching_frames(
+    a: &ViewResult,
+    b: &ViewResult,
+    h: &Homography,
+    width: u32,
+    height: u32,
+    window: usize,
+) -> Vec<(usize, usize)> {
+    let (na, nb) = (a.masks.len(), b.masks.len());
+    let half = window / 2;
+    if nb <= 2 * half || na <= 2 * half {
+        return Vec::new();
+    }
+    let lo = a.best_loop.start.max(half);
+    let hi = a.best_loop.end.min(na - 1 - half);
+    if hi < lo {
+        return Vec::new();
+    }
+    let span = hi - lo + 1;
+    let k = SILHOUETTE_PAIRS.min(span);
+    let samples: Vec<usize> = (0..k)
+        .map(|i| lo + ((2 * i + 1) * span) / (2 * k))
+        .filter(|&s| a.masks[s].count_ones() > 0)
+        .collect();
+    samples
+        .par_iter()
+        .filter_map(|&s| {
+            let warped: Vec<Mask> = (s - half..=s + half)
+                .map(|i| crate::warp::warp_mask(&a.masks[i], h, width, height))
+                .collect();
+            let best = (half..nb - half)
+                .map(|t| {
+                    let cost: u64 = warped
+                        .iter()
+                        .enumerate()
+                        .map(|(k, m)| crate::mask::xor_count(m, &b.masks[t - half + k]))
+                        .sum();
+                    (cost, t)
+                })
+                .min()?;
+            (b.masks[best.1].count_ones() > 0).then_some((s, best.1))
+        })
+        .collect()
 }
 
 /// The virtual points of automatic registration: the corners of the box around view 0's inliers

@@ -604,7 +604,8 @@ pub enum BackgroundMode {
     /// The morph along the dense parallax for every pair with parallax.
     Morph,
     /// Per pair, the morph where the residual parallax after the plane is measurable (at
-    /// least [`AUTO_PARALLAX_PX`]), else the plane.
+    /// least [`AUTO_PARALLAX_PX`]: a plane seen through features placed to a pixel shows
+    /// about 1 px), else the plane.
     Auto,
 }
 
@@ -626,7 +627,7 @@ impl std::str::FromStr for BackgroundMode {
 
 /// [`BackgroundMode::Auto`] morphs a pair when the 90th percentile of its matches' parallax
 /// after the plane reaches this many pixels.
-pub const AUTO_PARALLAX_PX: f64 = 1.0;
+pub const AUTO_PARALLAX_PX: f64 = 2.0;
 
 /// What the analysis found about a pair's parallax.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
