@@ -34,17 +34,21 @@ fn h1to3p() -> Matrix3<f64> {
     Matrix3::from_row_slice(&v)
 }
 
-/// Largest distance between the images of a's corners under the two maps.
-fn corner_error(h: &Homography, truth: &Matrix3<f64>, w: u32, hgt: u32) -> f64 {
+/// Distances between the images of a's corners under the two maps: (largest, mean).
+fn corner_errors(h: &Homography, truth: &Matrix3<f64>, w: u32, hgt: u32) -> (f64, f64) {
     let t = Homography::from_matrix(*truth).unwrap();
     let (w, hgt) = (w as f64 - 1.0, hgt as f64 - 1.0);
-    [(0.0, 0.0), (w, 0.0), (0.0, hgt), (w, hgt)]
+    let e: Vec<f64> = [(0.0, 0.0), (w, 0.0), (0.0, hgt), (w, hgt)]
         .iter()
         .map(|&(x, y)| {
             let p = vt_core::Point::new(x, y);
             (h.apply(p).unwrap() - t.apply(p).unwrap()).norm()
         })
-        .fold(0.0, f64::max)
+        .collect();
+    (
+        e.iter().cloned().fold(0.0, f64::max),
+        e.iter().sum::<f64>() / 4.0,
+    )
 }
 
 /// Mean distance between where the two maps send a's pixels that `truth` keeps inside b (8 px
@@ -70,16 +74,18 @@ fn overlap_error(h: &Homography, truth: &Matrix3<f64>, w: u32, hgt: u32) -> f64 
 fn graf1_to_graf3_within_a_pixel_of_h1to3p() {
     let (a, b) = (load("graf1.png"), load("graf3.png"));
     let r = register_pair(&a, &b, None, &RegisterParams::default(), (0, 1)).unwrap();
-    let e = corner_error(&r.homography, &h1to3p(), a.width(), a.height());
+    let (e, e_mean) = corner_errors(&r.homography, &h1to3p(), a.width(), a.height());
     let o = overlap_error(&r.homography, &h1to3p(), a.width(), a.height());
     eprintln!(
-        "graf1->graf3: {} sub-pixel inliers of {} matches; mean misalignment over the overlap {o:.3} px, largest at graf1's corners {e:.3} px",
+        "graf1->graf3: {} sub-pixel inliers of {} matches; mean misalignment over the overlap {o:.3} px; at graf1's corners {e_mean:.3} px mean, {e:.3} px largest",
         r.inliers.len(),
         r.matches,
     );
     // Where the two photos overlap the fit is within a third of a pixel of the published
-    // homography; graf1's corners fall outside graf3 (one maps 20 px below it), where both the
-    // estimate and H1to3p (itself fitted to the overlap) extrapolate.
+    // homography (OpenCV's ORB + RANSAC: 1.08 px, cross-check); graf1's corners fall outside
+    // graf3 (one maps 20 px below it), where both the estimate and H1to3p (itself fitted to
+    // the overlap) extrapolate: 0.82 px mean, 1.48 px at the worst corner.
     assert!(o <= 0.5, "mean misalignment over the overlap {o} px");
-    assert!(e <= 2.0, "corner error {e} px");
+    assert!(e_mean <= 1.0, "mean corner error {e_mean} px");
+    assert!(e <= 2.0, "largest corner error {e} px");
 }
