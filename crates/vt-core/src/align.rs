@@ -59,13 +59,22 @@ pub struct Alignment {
 
 /// A grey image in f32.
 #[derive(Debug, Clone)]
-struct Grey {
-    w: usize,
-    h: usize,
-    v: Vec<f32>,
+pub(crate) struct Grey {
+    pub(crate) w: usize,
+    pub(crate) h: usize,
+    pub(crate) v: Vec<f32>,
 }
 
 impl Grey {
+    /// A grey image's values as they are.
+    pub(crate) fn from_luma(img: &image::GrayImage) -> Self {
+        Self {
+            w: img.width() as usize,
+            h: img.height() as usize,
+            v: img.as_raw().iter().map(|&p| p as f32).collect(),
+        }
+    }
+
     fn from_rgb(img: &RgbImage) -> Self {
         Self {
             w: img.width() as usize,
@@ -96,7 +105,7 @@ impl Grey {
     }
 
     /// Bilinear sample and gradient at (x, y); None outside `[0, w-1] x [0, h-1]`.
-    fn sample_grad(&self, x: f64, y: f64) -> Option<(f32, f32, f32)> {
+    pub(crate) fn sample_grad(&self, x: f64, y: f64) -> Option<(f32, f32, f32)> {
         if !(x >= 0.0 && y >= 0.0 && x <= (self.w - 1) as f64 && y <= (self.h - 1) as f64) {
             return None;
         }

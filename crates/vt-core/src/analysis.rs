@@ -1093,7 +1093,8 @@ struct SilhouetteStack {
     region: Mask,
 }
 
-/// Up to 16 frame pairs (s in a, its eq. (2) match t in b under `h`) evenly over a's loop.
+/// Up to [`SILHOUETTE_PAIRS`] frame pairs (s in a, its eq. (2) match t in b under `h`) evenly
+/// over a's loop.
 fn silhouette_stack(
     a: &ViewResult,
     b: &ViewResult,

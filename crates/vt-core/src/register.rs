@@ -31,6 +31,7 @@ use image::{GrayImage, RgbImage};
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
 
+use crate::align::Grey;
 use crate::{Error, Homography, Mask, Point, Result};
 
 /// Registration settings.
@@ -820,50 +821,6 @@ pub fn footprint(masks: &[Mask]) -> Option<RgbImage> {
     Some(out)
 }
 
-/// A grey image in `f32` with bilinear samples and gradients.
-struct GreyF {
-    w: usize,
-    h: usize,
-    v: Vec<f32>,
-}
-
-impl GreyF {
-    fn new(img: &GrayImage) -> Self {
-        Self {
-            w: img.width() as usize,
-            h: img.height() as usize,
-            v: img.as_raw().iter().map(|&p| p as f32).collect(),
-        }
-    }
-
-    fn at(&self, x: i64, y: i64) -> Option<f32> {
-        (x >= 0 && y >= 0 && (x as usize) < self.w && (y as usize) < self.h)
-            .then(|| self.v[y as usize * self.w + x as usize])
-    }
-
-    fn sample_grad(&self, x: f64, y: f64) -> Option<(f32, f32, f32)> {
-        if !(x >= 0.0 && y >= 0.0 && x < (self.w - 1) as f64 && y < (self.h - 1) as f64) {
-            return None;
-        }
-        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
-        let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
-        let i = y0 * self.w + x0;
-        let (a, b, c, d) = (
-            self.v[i],
-            self.v[i + 1],
-            self.v[i + self.w],
-            self.v[i + self.w + 1],
-        );
-        let top = a + (b - a) * fx;
-        let bottom = c + (d - c) * fx;
-        Some((
-            top + (bottom - top) * fy,
-            (b - a) * (1.0 - fy) + (d - c) * fy,
-            (c - a) * (1.0 - fx) + (d - b) * fx,
-        ))
-    }
-}
-
 /// Half size of the patches of [`refine_inliers`].
 const PATCH: i64 = 7;
 
@@ -871,11 +828,15 @@ const PATCH: i64 = 7;
 /// (so perspective and scale are accounted for), shifted by the translation (with gain and
 /// offset) that minimises the squared difference (Gauss-Newton). None when the patch leaves
 /// either image, is flat, moves more than 3 px, or correlates below 0.8.
-fn refine_point(a: &GreyF, b: &GreyF, h: &Homography, xa: (i64, i64)) -> Option<Point> {
+fn refine_point(a: &Grey, b: &Grey, h: &Homography, xa: (i64, i64)) -> Option<Point> {
     let mut samples = Vec::with_capacity(((2 * PATCH + 1) * (2 * PATCH + 1)) as usize);
     for dy in -PATCH..=PATCH {
         for dx in -PATCH..=PATCH {
-            let va = a.at(xa.0 + dx, xa.1 + dy)?;
+            let (x, y) = (xa.0 + dx, xa.1 + dy);
+            if x < 0 || y < 0 || x as usize >= a.w || y as usize >= a.h {
+                return None;
+            }
+            let va = a.v[y as usize * a.w + x as usize];
             let q = h.apply(Point::new((xa.0 + dx) as f64, (xa.1 + dy) as f64))?;
             samples.push((va as f64, q));
         }
@@ -940,7 +901,7 @@ pub fn refine_inliers(
     reg: &mut PairRegistration,
     params: &RegisterParams,
 ) {
-    let (ga, gb) = (GreyF::new(a), GreyF::new(b));
+    let (ga, gb) = (Grey::from_luma(a), Grey::from_luma(b));
     let h = reg.homography;
     // Each of a's pixels once (features of two levels may round to the same pixel).
     let mut anchors: Vec<(i64, i64)> = reg
