@@ -37,8 +37,8 @@ pub struct ParallaxParams {
 impl Default for ParallaxParams {
     fn default() -> Self {
         Self {
-            p1: 6,
-            p2: 48,
+            p1: 8,
+            p2: 96,
             lr_threshold: 1.0,
         }
     }
@@ -158,6 +158,11 @@ pub fn direction_and_range(
     Some(([vx as f32, vy as f32], lo, hi))
 }
 
+/// Matching cost where the other view shows nothing (outside its frame): a middling census
+/// distance, so the smoothness terms decide there instead of a wall of maximal costs that
+/// pushes near objects at the image's edge to the wrong disparity.
+const OUTSIDE_COST: u8 = 64;
+
 /// Largest disparity range (values of d) the estimation searches.
 pub const MAX_RANGE: i32 = 256;
 
@@ -191,6 +196,7 @@ fn census(img: &GrayImage) -> Vec<u64> {
 fn sgm(
     a: &GrayImage,
     b: &GrayImage,
+    b_seen: &[bool],
     v: [f32; 2],
     lo: i32,
     hi: i32,
@@ -210,12 +216,12 @@ fn sgm(
                     let d = (lo + k as i32) as f32;
                     let bx = (x as f32 + d * v[0]).round() as i64;
                     let by = (y as f32 + d * v[1]).round() as i64;
-                    row[x * nd + k] =
-                        if bx >= 0 && by >= 0 && (bx as usize) < w && (by as usize) < h {
-                            (c0 ^ cb[by as usize * w + bx as usize]).count_ones() as u8
-                        } else {
-                            64
-                        };
+                    let inside = bx >= 0 && by >= 0 && (bx as usize) < w && (by as usize) < h;
+                    row[x * nd + k] = if inside && b_seen[by as usize * w + bx as usize] {
+                        (c0 ^ cb[by as usize * w + bx as usize]).count_ones() as u8
+                    } else {
+                        OUTSIDE_COST
+                    };
                 }
             }
         });
@@ -376,7 +382,18 @@ pub fn estimate(
     };
     let b_in_a = warp_grey(b, &h.inverse());
     let a_in_b = warp_grey(a, h);
-    let da = sgm(&ga, &b_in_a, v, lo, hi, params);
+    // Which pixels of each warped image the other view really shows (inside its frame).
+    let seen = |map: &Homography| -> Vec<bool> {
+        (0..(w * hgt) as usize)
+            .map(|i| {
+                let p = Point::new((i % w as usize) as f64, (i / w as usize) as f64);
+                map.apply(p).is_some_and(|q| {
+                    q.x >= 0.0 && q.y >= 0.0 && q.x <= (w - 1) as f64 && q.y <= (hgt - 1) as f64
+                })
+            })
+            .collect()
+    };
+    let da = sgm(&ga, &b_in_a, &seen(h), v, lo, hi, params);
     // In b's frame the direction maps through H (locally); at b's centre.
     let c = Point::new(w as f64 / 2.0, hgt as f64 / 2.0);
     let vb = match (
@@ -392,7 +409,15 @@ pub fn estimate(
     };
     // From b's side the same points move the other way: b's pixel y is a's (plane-warped)
     // pixel y - d vb.
-    let db = sgm(&gb, &a_in_b, [-vb[0], -vb[1]], lo, hi, params);
+    let db = sgm(
+        &gb,
+        &a_in_b,
+        &seen(&h.inverse()),
+        [-vb[0], -vb[1]],
+        lo,
+        hi,
+        params,
+    );
     let (wu, hu) = (w as usize, hgt as usize);
     // Left-right check: a's x is b_in_a's x + d v, which is b's pixel H(x + d v); b's field
     // there must hold (about) the same disparity, and the other way round through H^-1.
@@ -466,8 +491,7 @@ const FIXED_POINT_STEPS: usize = 4;
 /// The background at fraction `f` between views a (0) and b (1): each output pixel `z` is traced
 /// back into both views (`x0 = H_(a,q)^-1 z`, then `x = x0 - f d_a(x) v_a` by a few fixed-point
 /// steps; the same from b with `1 - f`) and the two samples blended with weights `(1 - f, f)`
-/// times each side's validity (a view that does not see the point gives way to the one that
-/// does). `h_aq`, `h_bq`: the plane homographies of eq. (3) to the output.
+/// (one alone where the other falls outside its image). `h_aq`, `h_bq`: the plane homographies of eq. (3) to the output.
 pub fn morph(
     a: &RgbImage,
     b: &RgbImage,
@@ -479,7 +503,7 @@ pub fn morph(
     height: u32,
 ) -> RgbImage {
     let mut out = RgbImage::new(width, height);
-    let trace = |field: &Field, h: &Homography, frac: f64, z: Point| -> Option<(f64, f64, bool)> {
+    let trace = |field: &Field, h: &Homography, frac: f64, z: Point| -> Option<(f64, f64)> {
         let x0 = h.apply_inverse(z)?;
         let (mut x, mut y) = (x0.x, x0.y);
         for _ in 0..FIXED_POINT_STEPS {
@@ -487,7 +511,7 @@ pub fn morph(
             x = x0.x - d * field.direction[0] as f64;
             y = x0.y - d * field.direction[1] as f64;
         }
-        Some((x, y, field.valid_at(x, y)))
+        Some((x, y))
     };
     out.as_mut()
         .par_chunks_mut(3 * width as usize)
@@ -495,16 +519,13 @@ pub fn morph(
         .for_each(|(yy, row)| {
             for xx in 0..width as usize {
                 let z = Point::new(xx as f64, yy as f64);
-                let sa = trace(&pair.a, h_aq, f, z)
-                    .and_then(|(x, y, ok)| bilinear(a, x, y).map(|c| (c, ok)));
-                let sb = trace(&pair.b, h_bq, 1.0 - f, z)
-                    .and_then(|(x, y, ok)| bilinear(b, x, y).map(|c| (c, ok)));
-                let (mut wa, mut wb) = (1.0 - f as f32, f as f32);
-                let (ca, cb) = (sa.map(|s| s.0), sb.map(|s| s.0));
-                let (va, vb) = (sa.is_some_and(|s| s.1), sb.is_some_and(|s| s.1));
-                if va != vb {
-                    (wa, wb) = if va { (1.0, 0.0) } else { (0.0, 1.0) };
-                }
+                let sa = trace(&pair.a, h_aq, f, z).and_then(|(x, y)| bilinear(a, x, y));
+                let sb = trace(&pair.b, h_bq, 1.0 - f, z).and_then(|(x, y)| bilinear(b, x, y));
+                // Weights (1 - f, f) whether or not the left-right check confirmed the pixel:
+                // letting a confirmed view take it alone measured worse on every Middlebury
+                // pair (Dolls q=0.5 36.3 -> 34.1 dB).
+                let (wa, wb) = (1.0 - f as f32, f as f32);
+                let (ca, cb) = (sa, sb);
                 let px = match (ca, cb) {
                     (Some(ca), Some(cb)) => {
                         let s = wa + wb;

@@ -933,8 +933,9 @@ const MORPH_STEPS: usize = 3;
 /// the pair: each output pixel `z` is traced into both views (`x0 = H_(p,q)^-1 z`, then the
 /// fixed point `x = x0 - frac d(x) v` along that view's parallax field; `1 - frac` from the
 /// other), sampled bilinearly, divided by the view's gain and blended with weights
-/// `(1 - frac, frac)`, the view whose field confirms the pixel taking it alone when the other
-/// does not. Rows in parallel; written to `out` and `copy` when given.
+/// `(1 - frac, frac)` (one view alone where the other's sample falls outside its image; both
+/// from their replicated edges where neither sees). Rows in parallel; written to `out` and
+/// `copy` when given.
 fn morph_blend(
     images: [&RgbImage; 2],
     par: &crate::parallax::PairParallax,
@@ -952,7 +953,6 @@ fn morph_blend(
         iw: usize,
         ih: usize,
         disparity: &'a [f32],
-        valid: &'a [bool],
         dir: (f64, f64),
         frac: f64,
         gain_inv: [f32; 3],
@@ -965,7 +965,6 @@ fn morph_blend(
             iw: images[s].width() as usize,
             ih: images[s].height() as usize,
             disparity: &fld.disparity,
-            valid: &fld.valid,
             dir: (fld.direction[0] as f64, fld.direction[1] as f64),
             frac: if s == 0 { frac } else { 1.0 - frac },
             gain_inv: gain_inv[s],
@@ -988,7 +987,6 @@ fn morph_blend(
         while x_start < w {
             let n = RUN.min(w - x_start);
             let mut cols = [[[0f32; 3]; RUN]; 2];
-            let mut seen = [[false; RUN]; 2];
             let mut inside = [[false; RUN]; 2];
             for (s, sd) in sides.iter().enumerate() {
                 let m = &sd.inv;
@@ -1021,7 +1019,6 @@ fn morph_blend(
                         && py >= -0.5
                         && px < iw as f64 - 0.5
                         && py < ih as f64 - 0.5;
-                    seen[s][i] = inside[s][i] && sd.valid[cell(px, py, iw, ih)];
                     let cx = px.max(0.0).min((iw - 1) as f64);
                     let cy = py.max(0.0).min((ih - 1) as f64);
                     let (x0i, y0i) = (cx as usize, cy as usize);
@@ -1040,8 +1037,6 @@ fn morph_blend(
                 let (mut wa, mut wb) = ((1.0 - frac) as f32, frac as f32);
                 if inside[0][i] != inside[1][i] {
                     (wa, wb) = (inside[0][i] as u8 as f32, inside[1][i] as u8 as f32);
-                } else if seen[0][i] != seen[1][i] {
-                    (wa, wb) = if seen[0][i] { (1.0, 0.0) } else { (0.0, 1.0) };
                 }
                 let norm = 1.0 / (wa + wb);
                 let x = x_start + i;

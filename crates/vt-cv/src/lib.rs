@@ -19,6 +19,7 @@
 //! | [`warp::warp_rgb`], [`warp::warp_mask`] | `warpPerspective` | `vt_core::warp::{warp_rgb, warp_mask}` |
 //! | [`align::align_backgrounds`] | `pyrDown`, `findTransformECC` per level | `vt_core::align::align_backgrounds` |
 //! | [`loops::find_loop`], [`loops::find_loops`] | XOR costs above, `add` + `minMaxLoc` ([`search`]) | `vt_core::loops::{find_loop, find_loops}` (eq. 1) |
+//! | [`parallax::estimate`], [`parallax::morph`] | `warpPerspective`, `DISOpticalFlow`, `remap`, `addWeighted` | `vt_core::parallax::{estimate, morph}` |
 //! | [`register::register_pair`] | `ORB`, `BFMatcher::knnMatch` (NORM_HAMMING), `findHomography` (RANSAC) | `vt_core::register::register_pair` |
 //! | [`yuv::yuv420_to_rgb`] | `cvtColor(COLOR_YUV2RGB_I420)` | `vt_core::yuv::Yuv420Image::to_rgb` |
 //! | [`transition::warp_masks`], [`transition::transition_table`] | warps and XOR costs above, `add` + `minMaxLoc` ([`search`]) | `vt_core::transition` (eq. 2) |
@@ -33,6 +34,7 @@ pub mod homography;
 pub mod loops;
 pub mod mask;
 pub mod median;
+pub mod parallax;
 pub mod register;
 pub mod search;
 pub mod transition;
