@@ -150,6 +150,9 @@ pub fn direction_and_range(
         .map(|r| r.0 * vx + r.1 * vy)
         .collect();
     along.sort_by(f64::total_cmp);
+    if along.len() < 10 {
+        return None;
+    }
     let pick = |q: f64| along[((along.len() - 1) as f64 * q).round() as usize];
     let (lo, hi) = (pick(0.01), pick(0.99));
     let margin = 4.0 + 0.25 * (hi - lo);
@@ -162,6 +165,9 @@ pub fn direction_and_range(
 /// distance, so the smoothness terms decide there instead of a wall of maximal costs that
 /// pushes near objects at the image's edge to the wrong disparity.
 const OUTSIDE_COST: u8 = 64;
+
+/// Most cells (pixels x disparities) of the matching volume, 120 M: 600 MB with the aggregate.
+pub const MAX_VOLUME: usize = 120_000_000;
 
 /// Largest disparity range (values of d) the estimation searches.
 pub const MAX_RANGE: i32 = 256;
@@ -373,6 +379,16 @@ pub fn estimate(
     let (w, hgt) = a.dimensions();
     let lo = lo.max(-MAX_RANGE / 2);
     let hi = hi.min(MAX_RANGE / 2).max(lo);
+    // Memory: a byte of cost and four of aggregate per pixel and disparity. At most
+    // MAX_VOLUME cells: a wider range at a large size is narrowed about its middle.
+    let pixels = (w as usize * hgt as usize).max(1);
+    let most = ((MAX_VOLUME / pixels) as i32).max(8);
+    let (lo, hi) = if hi - lo + 1 > most {
+        let mid = (lo + hi) / 2;
+        (mid - most / 2, mid - most / 2 + most - 1)
+    } else {
+        (lo, hi)
+    };
     let ga = crate::register::grey(a);
     let gb = crate::register::grey(b);
     // b in a's frame and a in b's frame (the plane taken out).
