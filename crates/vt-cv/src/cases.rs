@@ -147,3 +147,92 @@ pub fn extreme_point_sets() -> Vec<PointSet> {
         })
         .collect()
 }
+
+/// PSNR (dB) of four intermediate views at q = 0.5 between backgrounds `a` and `b` against the
+/// real view `truth` between them, all after the same plane (vt-core's automatic registration,
+/// B-1's virtual points): the plane warp of eq. (3), a plain 50/50 blend without warping,
+/// vt-core's morph ([`vt_core::parallax`]) and OpenCV's DIS morph ([`crate::parallax`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MorphScores {
+    /// The plane warp.
+    pub plane: f64,
+    /// The unwarped 50/50 blend.
+    pub blend: f64,
+    /// vt-core's morph.
+    pub vt: f64,
+    /// OpenCV's DIS morph.
+    pub cv: f64,
+}
+
+/// [`MorphScores`] of one pair (the cross-check's morph rows and the report's depth table).
+pub fn morph_scores(
+    a: &image::RgbImage,
+    b: &image::RgbImage,
+    truth: &image::RgbImage,
+) -> crate::Result<MorphScores> {
+    use vt_core::register::{register_pair, RegisterParams};
+    use vt_core::Homography;
+    let (w, h) = a.dimensions();
+    let params = RegisterParams::default();
+    let reg = register_pair(a, b, None, &params, (0, 1))?;
+    let hab = reg.homography;
+    let none = |what: &str| vt_core::Error::DegeneratePoints(what.into());
+    let xa: Vec<Point> = [(0.2, 0.2), (0.8, 0.2), (0.8, 0.8), (0.2, 0.8)]
+        .iter()
+        .map(|&(u, v)| Point::new(u * f64::from(w), v * f64::from(h)))
+        .collect();
+    let xb: Vec<Point> = xa
+        .iter()
+        .map(|p| {
+            hab.apply(*p)
+                .ok_or_else(|| none("the plane sends a point to infinity"))
+        })
+        .collect::<Result<_, _>>()?;
+    let xq: Vec<Point> = xa
+        .iter()
+        .zip(&xb)
+        .map(|(p, q)| Point::new((p.x + q.x) / 2.0, (p.y + q.y) / 2.0))
+        .collect();
+    let haq = Homography::from_correspondences(&xa, &xq)?.homography;
+    let hbq = Homography::from_correspondences(&xb, &xq)?.homography;
+    let bilinear = vt_core::warp::Interpolation::Bilinear;
+    let wa = vt_core::warp::warp_rgb(a, &haq, w, h, bilinear);
+    let wb = vt_core::warp::warp_rgb(b, &hbq, w, h, bilinear);
+    let mean = |x: &image::RgbImage, y: &image::RgbImage| {
+        image::RgbImage::from_fn(w, h, |i, j| {
+            let (p, q) = (x.get_pixel(i, j).0, y.get_pixel(i, j).0);
+            image::Rgb([0, 1, 2].map(|k| (u16::from(p[k]) + u16::from(q[k])).div_ceil(2) as u8))
+        })
+    };
+    let (plane, blend) = (mean(&wa, &wb), mean(a, b));
+    // vt-core: the matches of both backgrounds give the direction and range.
+    let (ga, gb) = (vt_core::register::grey(a), vt_core::register::grey(b));
+    let (fa, fb) = (
+        vt_core::register::detect(&ga, &params),
+        vt_core::register::detect(&gb, &params),
+    );
+    let matches: Vec<(Point, Point)> =
+        vt_core::register::match_features(&fa, &fb, params.ratio, params.max_distance)
+            .into_iter()
+            .map(|(i, j)| (fa[i].pos, fb[j].pos))
+            .collect();
+    let dr = vt_core::parallax::direction_and_range(&matches, &hab)
+        .ok_or_else(|| none("no parallax off the plane"))?;
+    let par = vt_core::parallax::estimate(
+        a,
+        b,
+        &hab,
+        dr,
+        &vt_core::parallax::ParallaxParams::default(),
+    );
+    let vt = vt_core::parallax::morph(a, b, &par, &haq, &hbq, 0.5, w, h);
+    let flows = crate::parallax::estimate(a, b, &hab)?;
+    let cv = crate::parallax::morph(a, b, &flows, &haq, &hbq, 0.5, w, h)?;
+    let psnr = |img: &image::RgbImage| vt_core::metrics::psnr(img, truth, None);
+    Ok(MorphScores {
+        plane: psnr(&plane)?,
+        blend: psnr(&blend)?,
+        vt: psnr(&vt)?,
+        cv: psnr(&cv)?,
+    })
+}
