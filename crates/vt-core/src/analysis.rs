@@ -613,6 +613,22 @@ pub fn analyze(
     }
     let (width, height) = size.expect("every view has at least one frame");
 
+    // Features of every background, detected once, when registration or the parallax needs
+    // them (timed with the homographies).
+    let t_features = Instant::now();
+    let grey: Vec<image::GrayImage> = if auto || params.background != BackgroundMode::Plane {
+        views
+            .par_iter()
+            .map(|v| crate::register::grey(&v.background))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let features: Vec<Vec<crate::register::Feature>> = grey
+        .par_iter()
+        .map(|g| crate::register::detect(g, &params.register))
+        .collect();
+    timings.homographies += t_features.elapsed();
     // Correspondences per link: the marked points of both views, or the automatic inliers.
     let mut registration = Vec::new();
     let pair_points: Vec<(Vec<Point>, Vec<Point>)> = if auto {
@@ -626,14 +642,6 @@ pub fn analyze(
                     Mask::from_fn(width, height, |x, y| raw[(y * width + x) as usize] > 0)
                 })
             })
-            .collect();
-        let grey: Vec<image::GrayImage> = views
-            .par_iter()
-            .map(|v| crate::register::grey(&v.background))
-            .collect();
-        let features: Vec<Vec<crate::register::Feature>> = grey
-            .par_iter()
-            .map(|g| crate::register::detect(g, &params.register))
             .collect();
         for p in 0..m - 1 {
             let mut r = crate::register::register_features(
@@ -849,10 +857,23 @@ pub fn analyze(
             let strip =
                 |t: Vec<Option<(usize, u64)>>| t.into_iter().map(|e| e.map(|(t, _)| t)).collect();
             let t1 = Instant::now();
+            let matches: Vec<(Point, Point)> = match features.get(p..p + 2) {
+                Some([fa, fb]) => crate::register::match_features(
+                    fa,
+                    fb,
+                    params.register.ratio,
+                    params.register.max_distance,
+                )
+                .into_iter()
+                .map(|(i, j)| (fa[i].pos, fb[j].pos))
+                .collect(),
+                _ => Vec::new(),
+            };
             let par = crate::parallax::analyse_pair(
                 &a.background,
                 &b.background,
                 &h,
+                &matches,
                 params.background,
                 &crate::parallax::ParallaxParams::default(),
             );
@@ -1093,8 +1114,7 @@ struct SilhouetteStack {
     region: Mask,
 }
 
-/// Up to [`SILHOUETTE_PAIRS`] frame pairs (s in a, its eq. (2) match t in b under `h`) evenly
-/// over a's loop.
+/// The frame pairs of [`matching_frames`], blurred, and the region they cover.
 fn silhouette_stack(
     a: &ViewResult,
     b: &ViewResult,
@@ -1107,7 +1127,6 @@ fn silhouette_stack(
     if candidates.len() < 4 {
         return Ok(None);
     }
-    let step = candidates.len().div_ceil(SILHOUETTE_PAIRS);
     let blur = GaussianParams {
         ksize: 7,
         sigma: 1.5,
@@ -1125,7 +1144,7 @@ fn silhouette_stack(
     };
     let mut pairs = Vec::new();
     let mut region = Mask::new(width, height);
-    for &(s, t) in candidates.iter().step_by(step) {
+    for &(s, t) in &candidates {
         region = region.union(&a.masks[s]);
         pairs.push((image(&a.masks[s])?, image(&b.masks[t])?));
     }

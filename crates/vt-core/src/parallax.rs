@@ -678,31 +678,22 @@ pub struct ParallaxFigures {
     pub morph: bool,
 }
 
-/// The parallax of a neighbour pair as the analysis decides it under `mode`: features of both
-/// backgrounds matched (mutual best, ratio test), their residuals after the plane `h` measured,
-/// and, where `mode` asks for it, the dense fields estimated. None for [`BackgroundMode::Plane`].
+/// The parallax of a neighbour pair as the analysis decides it under `mode`: the residuals of
+/// the backgrounds' feature `matches` (every mutual-best match, not only the plane's inliers)
+/// after the plane `h` measured and, where `mode` asks for it, the dense fields estimated.
+/// None for [`BackgroundMode::Plane`].
 pub fn analyse_pair(
     a: &RgbImage,
     b: &RgbImage,
     h: &Homography,
+    matches: &[(Point, Point)],
     mode: BackgroundMode,
     params: &ParallaxParams,
 ) -> Option<(ParallaxFigures, Option<PairParallax>)> {
     if mode == BackgroundMode::Plane {
         return None;
     }
-    let rp = crate::register::RegisterParams::default();
-    let (ga, gb) = (crate::register::grey(a), crate::register::grey(b));
-    let (fa, fb) = rayon::join(
-        || crate::register::detect(&ga, &rp),
-        || crate::register::detect(&gb, &rp),
-    );
-    let matches: Vec<(Point, Point)> =
-        crate::register::match_features(&fa, &fb, rp.ratio, rp.max_distance)
-            .into_iter()
-            .map(|(i, j)| (fa[i].pos, fb[j].pos))
-            .collect();
-    let Some((v, lo, hi)) = direction_and_range(&matches, h) else {
+    let Some((v, lo, hi)) = direction_and_range(matches, h) else {
         let none = ParallaxFigures {
             residual_px: 0.0,
             confirmed: 0.0,
