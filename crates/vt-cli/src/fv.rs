@@ -1,7 +1,9 @@
 //! `vt fv ...`: free-viewpoint images from calibrated photos (SPEC System B): build the voxel
 //! model, render new views (rough or guided), encode orbits, and score withheld views.
 //!
-//! Input is a folder holding one Middlebury `*_par.txt` camera file and the images it names.
+//! Input is a folder holding the photos and their cameras: a Middlebury `*_par.txt`, a COLMAP
+//! sparse model (text or binary, in the folder, `sparse/` or `sparse/0/`; photos in `images/`)
+//! or a `cameras/` folder of 3x4 projection matrices (`vt_fv::dataset::find_cameras`).
 //! Silhouettes come from `--masks DIR` (same-named images, non-zero = object), else from a
 //! `masks/` folder inside the data folder when there is one (as `vt synth object` writes it),
 //! else from thresholding the photos (the Middlebury recipe).
@@ -40,7 +42,10 @@ pub enum FvCommand {
 /// Where the photos, cameras and silhouettes come from.
 #[derive(Args, Clone)]
 pub struct DataArgs {
-    /// Folder holding one *_par.txt (Middlebury format) and the images it names.
+    /// Folder holding the photos and their cameras: one *_par.txt (Middlebury), a COLMAP model
+    /// (cameras.txt + images.txt or cameras.bin + images.bin, here or in sparse/ or sparse/0/,
+    /// photos in images/), or a cameras/ folder with a 3x4 projection matrix per photo
+    /// (<photo stem>.txt, photos in images/ or beside cameras/).
     data: PathBuf,
     /// Folder of silhouette images named like the photos (non-zero = object). Default: DATA/masks
     /// when it exists, else threshold the photos.
@@ -61,6 +66,11 @@ pub struct DataArgs {
     /// Scale the photos (and cameras) by this factor first, e.g. 0.5 for half size.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
+    /// COLMAP photos whose size differs from their camera's recorded size: `scale` (resized
+    /// after calibration: intrinsics scaled; the two axes must agree within 0.5%) or `crop`
+    /// (centred crops of the recorded frame: principal point moved).
+    #[arg(long, value_enum, default_value_t = PhotoFitArg::Scale)]
+    photo_fit: PhotoFitArg,
     /// Thresholded silhouettes scores are measured inside (eval): threshold as a fraction of
     /// full scale (0.25 leaves out the temple's lit background cloth, which 0.19 takes in; the
     /// Middlebury recipe is 0.19 with dilate 10, erode 7).
@@ -119,6 +129,15 @@ pub struct ViewArgs {
     references: usize,
 }
 
+/// `--photo-fit`.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum PhotoFitArg {
+    /// Resized photos: intrinsics scaled.
+    Scale,
+    /// Centred crops: principal point moved.
+    Crop,
+}
+
 /// `--method`.
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum MethodArg {
@@ -151,7 +170,7 @@ pub struct RenderArgs {
     view: ViewArgs,
     /// The new camera: a par line `name k11..k33 r11..r33 t1 t2 t3`, `angle:DEG` (on the
     /// cameras' ring, 0 = first camera, growing towards the second) or `between:I,J,T` (between
-    /// views I and J, 0-based in the par file, at T in [0, 1]).
+    /// views I and J, 0-based in camera order (the par file's lines, COLMAP's image ids, the matrix files' names), at T in [0, 1]).
     #[arg(long, allow_hyphen_values = true)]
     camera: String,
     /// Re-texture the rough render by guided synthesis from the nearest photo.
@@ -194,7 +213,8 @@ pub struct EvalArgs {
     model: ModelArgs,
     #[command(flatten)]
     view: ViewArgs,
-    /// The views to withhold one at a time, 0-based in the par file: `2` or `1,2,5`.
+    /// The views to withhold one at a time, 0-based in camera order (the par file's lines,
+    /// COLMAP's image ids, the matrix files' names): `2` or `1,2,5`.
     #[arg(long, value_delimiter = ',', required = true, num_args = 1..)]
     leave_out: Vec<usize>,
     /// Print exactly one JSON object on stdout: `rough`, `rough_blur2`, `nearest_photo`,
@@ -250,6 +270,10 @@ impl DataArgs {
             carve_dilate: self.carve_dilate,
             carve_erode: self.carve_erode,
             scale: self.scale,
+            fit: match self.photo_fit {
+                PhotoFitArg::Scale => vt_fv::dataset::PhotoFit::Scale,
+                PhotoFitArg::Crop => vt_fv::dataset::PhotoFit::Crop,
+            },
             score: vt_fv::silhouette::SilhouetteParams {
                 threshold: self.score_threshold,
                 dilate: self.score_dilate,
@@ -260,7 +284,12 @@ impl DataArgs {
         if let Some(d) = self.masks.as_ref().filter(|d| !d.is_dir()) {
             bail!("--masks {}: not a folder", d.display());
         }
-        Ok(Dataset::load(&self.data, &opt)?)
+        let d = Dataset::load(&self.data, &opt)?;
+        // On stderr, so that `eval --json` prints exactly one JSON object on stdout.
+        for n in &d.notes {
+            eprintln!("{n}");
+        }
+        Ok(d)
     }
 }
 
@@ -305,7 +334,12 @@ fn build(d: &Dataset, bounds: Aabb, m: &ModelParams) -> Result<(VoxelModel, Buil
         bars.update(s, i, n)
     });
     bars.finish();
-    r.with_context(|| format!("{}", d.par.parent().unwrap_or(&d.par).display()))
+    r.with_context(|| {
+        format!(
+            "{}",
+            d.cameras_file.parent().unwrap_or(&d.cameras_file).display()
+        )
+    })
 }
 
 fn hull(a: HullArgs) -> Result<()> {

@@ -166,6 +166,170 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Checks what every loaded camera must be, whatever file it came from: `K` upper
+    /// triangular with positive focal lengths and `k33 > 0`, `R` a rotation (orthonormal,
+    /// determinant +1, within [`ROTATION_TOLERANCE`]); entries are finite by construction.
+    pub fn check(&self) -> Result<()> {
+        let k = &self.k;
+        let bad = |what: String| Error::BadCamera {
+            name: self.name.clone(),
+            what,
+        };
+        if k[(1, 0)] != 0.0 || k[(2, 0)] != 0.0 || k[(2, 1)] != 0.0 {
+            return Err(bad(format!(
+                "K is not upper triangular (k21 {}, k31 {}, k32 {})",
+                k[(1, 0)],
+                k[(2, 0)],
+                k[(2, 1)]
+            )));
+        }
+        if !(k[(0, 0)] > 0.0 && k[(1, 1)] > 0.0 && k[(2, 2)] > 0.0) {
+            return Err(bad(format!(
+                "K's diagonal ({}, {}, {}) must be positive (focal lengths in pixels, k33 = 1; a y axis pointing up is not vt's convention)",
+                k[(0, 0)],
+                k[(1, 1)],
+                k[(2, 2)]
+            )));
+        }
+        let det = self.r.determinant();
+        let ortho = (self.r.transpose() * self.r - Matrix3::identity())
+            .abs()
+            .max();
+        if (det - 1.0).abs() > ROTATION_TOLERANCE || ortho > ROTATION_TOLERANCE {
+            return Err(bad(format!(
+                "R is not a rotation (det {det:.4}, max |R^T R - I| {ortho:.4}; tolerance {ROTATION_TOLERANCE})"
+            )));
+        }
+        Ok(())
+    }
+
+    /// The camera of a 3x4 projection matrix `P ~ K [R | t]` (any scale and sign), by RQ
+    /// decomposition of its left 3x3 block: `K` upper triangular with a positive diagonal and
+    /// `k33 = 1`, `R` a rotation (det +1), `t = K^-1 p4`. The result is checked to give `P`
+    /// back (relative difference under 1e-9 after scaling), so a matrix that is no projection
+    /// (a singular left block) is refused.
+    pub fn from_projection(name: impl Into<String>, p: &Matrix3x4<f64>) -> Result<Self> {
+        let name = name.into();
+        let bad = |what: String| Error::BadCamera {
+            name: name.clone(),
+            what,
+        };
+        if p.iter().any(|v| !v.is_finite()) {
+            return Err(bad("projection matrix has a non-finite entry".into()));
+        }
+        let scale = p.norm();
+        if scale == 0.0 {
+            return Err(bad("projection matrix is zero".into()));
+        }
+        // P is defined up to scale: make the left block's determinant positive, so that a
+        // positive-diagonal K leaves det R = +1.
+        let mut p = p / scale;
+        let m = p.fixed_view::<3, 3>(0, 0).into_owned();
+        let det = m.determinant();
+        if det.abs() < 1e-12 {
+            return Err(bad(format!(
+                "the left 3x3 block of P is singular (det {det:e} after scaling P to norm 1): not a perspective camera"
+            )));
+        }
+        if det < 0.0 {
+            p = -p;
+        }
+        let m = p.fixed_view::<3, 3>(0, 0).into_owned();
+        // RQ by QR of the row-reversed transpose: with J the exchange matrix,
+        // (J M)^T = Q U  =>  M = (J U^T J) (J Q^T), J U^T J upper triangular.
+        let j = Matrix3::new(0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
+        let qr = (j * m).transpose().qr();
+        let (q, u) = (qr.q(), qr.r());
+        let mut k = j * u.transpose() * j;
+        let mut r = j * q.transpose();
+        // Signs: K's diagonal positive (D K, D R with D = D^-1).
+        for i in 0..3 {
+            if k[(i, i)] < 0.0 {
+                for row in 0..3 {
+                    k[(row, i)] = -k[(row, i)];
+                }
+                for col in 0..3 {
+                    r[(i, col)] = -r[(i, col)];
+                }
+            }
+        }
+        let kinv = k
+            .try_inverse()
+            .ok_or_else(|| bad("K of the decomposition is singular".into()))?;
+        let t = kinv * p.column(3);
+        let k33 = k[(2, 2)];
+        let k = k / k33;
+        // Exact zeros below the diagonal (QR leaves rounding there).
+        let k = Matrix3::new(
+            k[(0, 0)],
+            k[(0, 1)],
+            k[(0, 2)],
+            0.0,
+            k[(1, 1)],
+            k[(1, 2)],
+            0.0,
+            0.0,
+            1.0,
+        );
+        let cam = Camera::new(name.clone(), k, r, t)?;
+        cam.check()?;
+        // Reprojection check: K [R | t] is P up to the positive factor k33.
+        let back = cam.projection() * k33;
+        let diff = (back - p).abs().max();
+        if diff > 1e-9 {
+            return Err(bad(format!(
+                "K [R | t] differs from P by {diff:e} (relative): the decomposition failed"
+            )));
+        }
+        Ok(cam)
+    }
+}
+
+/// Parses a projection-matrix file: 12 numbers, the rows of `P` (3 rows of 4, any layout), `#`
+/// comments; a first line `CONTOUR` (PMVS/VisualSFM's `txt/` files) is skipped. Errors name the
+/// 1-based line.
+pub fn parse_projection(text: &str) -> Result<Matrix3x4<f64>> {
+    let mut v = Vec::with_capacity(12);
+    let mut last = 1;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() || (v.is_empty() && line == "CONTOUR") {
+            continue;
+        }
+        last = i + 1;
+        for tok in line.split_whitespace() {
+            if v.len() == 12 {
+                return Err(Error::Line {
+                    line: i + 1,
+                    what: "more than 12 numbers (a projection matrix is 3 rows of 4)".into(),
+                });
+            }
+            let x: f64 = tok.parse().map_err(|_| Error::Line {
+                line: i + 1,
+                what: format!("{:?} is not a number", shorten(tok)),
+            })?;
+            if !x.is_finite() {
+                return Err(Error::Line {
+                    line: i + 1,
+                    what: format!("{:?} is not finite", shorten(tok)),
+                });
+            }
+            v.push(x);
+        }
+    }
+    if v.len() != 12 {
+        return Err(Error::Line {
+            line: last,
+            what: format!(
+                "{} numbers, a projection matrix has 12 (3 rows of 4)",
+                v.len()
+            ),
+        });
+    }
+    Ok(Matrix3x4::from_row_slice(&v))
+}
+
 /// Parses a Middlebury `*_par.txt` camera file: the first line is the camera count, then one
 /// line per camera, `name k11 k12 k13 k21 k22 k23 k31 k32 k33 r11 .. r33 t1 t2 t3`.
 /// Blank lines are skipped. Errors name the 1-based line number and what is wrong.
@@ -596,6 +760,52 @@ mod tests {
             let (su, sv, _) = cam.scaled(s).project(&x).unwrap();
             prop_assert!((su - (s * (u + 0.5) - 0.5)).abs() < 1e-6 && (sv - (s * (v + 0.5) - 0.5)).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn projection_matrix_decomposes_to_its_camera() {
+        for (i, (yaw, pitch, dist)) in [(0.3, 0.2, 4.0), (-2.5, -0.9, 1.5), (1.2, 1.1, 9.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut cam = test_camera(yaw, pitch, dist);
+            cam.k[(0, 1)] = 0.7 * i as f64; // skew survives
+            let p = cam.projection();
+            for s in [1.0, -3.5, 1e-4] {
+                let back = Camera::from_projection("p", &(p * s)).unwrap();
+                assert!(
+                    (back.k - cam.k).abs().max() < 1e-9,
+                    "{} vs {}",
+                    back.k,
+                    cam.k
+                );
+                assert!((back.r - cam.r).abs().max() < 1e-12);
+                assert!((back.t - cam.t).abs().max() < 1e-9);
+                assert!((back.r.determinant() - 1.0).abs() < 1e-12);
+            }
+        }
+        let text = "CONTOUR\n# P\n1 0 0 0\n0 1 0 0\n0 0 1 1 # row 3\n";
+        let p = parse_projection(text).unwrap();
+        let c = Camera::from_projection("id", &p).unwrap();
+        assert!((c.t - Vector3::new(0.0, 0.0, 1.0)).norm() < 1e-12);
+        for (text, line, says) in [
+            ("1 0 0 0\n0 1 0 0\n0 0 1\n", 3, "11 numbers"),
+            ("1 0 0 0\n0 1 0 0\n0 0 1 nan\n", 3, "not finite"),
+            ("1 0 0 0 0 1 0 0 0 0 1 0 5\n", 1, "more than 12"),
+        ] {
+            match parse_projection(text) {
+                Err(Error::Line { line: l, what }) => {
+                    assert_eq!(l, line);
+                    assert!(what.contains(says), "{what}");
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        let singular = Matrix3x4::new(1.0, 2.0, 3.0, 0.0, 2.0, 4.0, 6.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+        let e = Camera::from_projection("s", &singular)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("singular"), "{e}");
     }
 
     #[test]

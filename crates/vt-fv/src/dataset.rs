@@ -11,8 +11,10 @@ use image::RgbImage;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::camera::{parse_camera_spec, parse_par, Camera};
+use crate::camera::{parse_camera_spec, parse_par, parse_projection, Camera, MAX_CAMERAS};
+use crate::colmap;
 use crate::hull::{auto_bounds, dims_for, visual_hull, Aabb, HullParams};
+use crate::lens::{Lens, Resample};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
 use crate::pipeline::{
     error_map, leave_one_out_from, EvalImages, EvalReport, Others, Score, ViewParams,
@@ -68,6 +70,9 @@ pub struct DataOptions {
     pub carve_erode: u32,
     /// Scale factor applied to photos, silhouettes and cameras (1).
     pub scale: f64,
+    /// How photos whose size differs from their camera's recorded size (COLMAP models) relate
+    /// to it ([`PhotoFit::Scale`]).
+    pub fit: PhotoFit,
     /// Thresholded silhouettes scores are measured inside
     /// ([`SilhouetteParams::scoring`]: 0.25, dilate 5, erode 5; the Middlebury recipe is 0.19,
     /// 10, 7).
@@ -83,6 +88,7 @@ impl Default for DataOptions {
             carve_dilate: carving.dilate,
             carve_erode: carving.erode,
             scale: 1.0,
+            fit: PhotoFit::Scale,
             score: SilhouetteParams::scoring(),
         }
     }
@@ -121,53 +127,6 @@ impl DataOptions {
             }
         }
         Ok(())
-    }
-}
-
-/// Photos, cameras and silhouettes of a data folder.
-#[derive(Debug, Clone)]
-pub struct Dataset {
-    /// The camera file.
-    pub par: PathBuf,
-    /// The cameras, scaled.
-    pub cams: Vec<Camera>,
-    /// The photos, scaled; all the same size.
-    pub images: Vec<RgbImage>,
-    /// Silhouettes the model is carved from.
-    pub masks: Vec<Mask>,
-    /// Silhouettes scores are measured inside ([`DataOptions::score`] when thresholding; the
-    /// same as `masks` for supplied mask images).
-    pub score_masks: Vec<Mask>,
-    /// Where the silhouettes came from, in words.
-    pub silhouettes: String,
-}
-
-/// The one `*_par.txt` file in `dir`.
-pub fn find_par(dir: &Path) -> Result<PathBuf, DataError> {
-    let entries = std::fs::read_dir(dir).map_err(|e| path_err(dir, e.to_string()))?;
-    let mut pars: Vec<PathBuf> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.is_file()
-                && p.file_name()
-                    .and_then(|n| n.to_str())
-                    .is_some_and(|n| n.ends_with("_par.txt"))
-        })
-        .collect();
-    pars.sort();
-    match pars.len() {
-        0 => Err(path_err(dir, "no *_par.txt camera file in it")),
-        1 => Ok(pars.remove(0)),
-        _ => Err(path_err(
-            dir,
-            format!(
-                "more than one *_par.txt camera file ({}); keep one",
-                pars.iter()
-                    .map(|p| p.file_name().unwrap_or_default().to_string_lossy())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-        )),
     }
 }
 
@@ -212,28 +171,512 @@ fn read_mask(path: &Path, name: &str, size: (u32, u32), photo: &Path) -> Result<
     Ok(mask_from_image(&m))
 }
 
+/// Photos, cameras and silhouettes of a data folder.
+#[derive(Debug, Clone)]
+pub struct Dataset {
+    /// The camera file (`*_par.txt`, COLMAP's `images.txt` or `images.bin`) or folder
+    /// (`cameras/` of projection matrices).
+    pub cameras_file: PathBuf,
+    /// Which format the cameras came in.
+    pub format: CameraFormat,
+    /// The cameras (ideal pinholes: lens distortion is taken out of the photos), scaled.
+    pub cams: Vec<Camera>,
+    /// The photos, scaled (and resampled into their pinhole camera where a lens or a size
+    /// required it); all the same size.
+    pub images: Vec<RgbImage>,
+    /// Silhouettes the model is carved from.
+    pub masks: Vec<Mask>,
+    /// Silhouettes scores are measured inside ([`DataOptions::score`] when thresholding; the
+    /// same as `masks` for supplied mask images).
+    pub score_masks: Vec<Mask>,
+    /// Where the silhouettes came from, in words.
+    pub silhouettes: String,
+    /// What loading did beyond reading (intrinsics fitted to resized photos, distortion
+    /// removed, quaternions normalised), one line each, to be said once.
+    pub notes: Vec<String>,
+}
+
+/// The formats a data folder's cameras can come in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraFormat {
+    /// One Middlebury `*_par.txt` (`name K R t` per line).
+    Par,
+    /// A COLMAP sparse model in text: `cameras.txt` + `images.txt`.
+    ColmapText,
+    /// A COLMAP sparse model in binary: `cameras.bin` + `images.bin`.
+    ColmapBinary,
+    /// A `cameras/` folder with one 3x4 projection matrix per photo (`<photo stem>.txt`).
+    Matrices,
+}
+
+impl std::fmt::Display for CameraFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            CameraFormat::Par => "Middlebury par file",
+            CameraFormat::ColmapText => "COLMAP text model",
+            CameraFormat::ColmapBinary => "COLMAP binary model",
+            CameraFormat::Matrices => "projection matrices",
+        })
+    }
+}
+
+/// How a photo whose size differs from the size its camera was recorded at (COLMAP's
+/// `WIDTH HEIGHT`) relates to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PhotoFit {
+    /// The photo was resized after calibration: the intrinsics are scaled per axis (pixel
+    /// centres kept at integers). The two scales must agree within [`UNIFORM_TOLERANCE`].
+    #[default]
+    Scale,
+    /// The photo is a centred crop (or pad) of the recorded frame: the principal point moves by
+    /// half the size difference, the focal lengths stay.
+    Crop,
+}
+
+/// Largest relative difference between a resized photo's horizontal and vertical scale that
+/// [`PhotoFit::Scale`] accepts as a uniform rescale (0.5 %).
+pub const UNIFORM_TOLERANCE: f64 = 0.005;
+
+/// Largest COLMAP model file vt reads (`images.bin` carries every 2-D point).
+pub const MAX_MODEL_FILE_BYTES: u64 = 1 << 30;
+
+/// Photo file extensions looked for beside a projection matrix, in this order.
+pub const PHOTO_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
+
+/// Where a folder's cameras are: the format and the file (or folder) to read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraSource {
+    /// The format.
+    pub format: CameraFormat,
+    /// `*_par.txt`; COLMAP's folder holding the model; the `cameras/` folder.
+    pub path: PathBuf,
+    /// Said once: e.g. that both a text and a binary COLMAP model were there.
+    pub note: Option<String>,
+}
+
+fn files_ending(dir: &Path, suffix: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|rd| {
+            rd.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| {
+                    p.is_file()
+                        && p.file_name()
+                            .and_then(|n| n.to_str())
+                            .is_some_and(|n| n.ends_with(suffix))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+/// Finds a data folder's cameras: one `*_par.txt` in it; a COLMAP model (`cameras.txt` +
+/// `images.txt`, or `cameras.bin` + `images.bin`; binary wins when both are there) in it, in
+/// `sparse/` or in `sparse/0/`; or a `cameras/` folder of projection matrices. More than one of
+/// these is refused (keep one).
+pub fn find_cameras(dir: &Path) -> Result<CameraSource, DataError> {
+    std::fs::read_dir(dir).map_err(|e| path_err(dir, e.to_string()))?;
+    let mut found: Vec<CameraSource> = Vec::new();
+    let pars = files_ending(dir, "_par.txt");
+    if pars.len() > 1 {
+        return Err(path_err(
+            dir,
+            format!(
+                "more than one *_par.txt camera file ({}); keep one",
+                pars.iter()
+                    .map(|p| p.file_name().unwrap_or_default().to_string_lossy())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ));
+    }
+    found.extend(pars.into_iter().map(|path| CameraSource {
+        format: CameraFormat::Par,
+        path,
+        note: None,
+    }));
+    for sub in [
+        dir.to_path_buf(),
+        dir.join("sparse"),
+        dir.join("sparse").join("0"),
+    ] {
+        let has = |a: &str, b: &str| sub.join(a).is_file() && sub.join(b).is_file();
+        let (text, bin) = (
+            has("cameras.txt", "images.txt"),
+            has("cameras.bin", "images.bin"),
+        );
+        if bin || text {
+            found.push(CameraSource {
+                format: if bin {
+                    CameraFormat::ColmapBinary
+                } else {
+                    CameraFormat::ColmapText
+                },
+                path: sub.clone(),
+                note: (bin && text).then(|| {
+                    format!(
+                        "{} holds a text and a binary COLMAP model; the binary one is read",
+                        sub.display()
+                    )
+                }),
+            });
+        }
+    }
+    let mats = dir.join("cameras");
+    if mats.is_dir() {
+        found.push(CameraSource {
+            format: CameraFormat::Matrices,
+            path: mats,
+            note: None,
+        });
+    }
+    match found.len() {
+        0 => Err(path_err(
+            dir,
+            "no cameras in it: no *_par.txt camera file, no COLMAP model (cameras.txt + images.txt or cameras.bin + images.bin, here or in sparse/ or sparse/0/), no cameras/ folder of projection matrices",
+        )),
+        1 => Ok(found.remove(0)),
+        _ => Err(path_err(
+            dir,
+            format!(
+                "cameras in more than one place ({}); keep one",
+                found
+                    .iter()
+                    .map(|s| format!("{} {}", s.format, s.path.display()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
+    }
+}
+
+/// One view before its photo is read: its camera at the recorded size, lens, recorded size
+/// (`None`: the photo's own size is the camera's) and photo.
+struct Source {
+    cam: Camera,
+    lens: Lens,
+    recorded: Option<(u32, u32)>,
+    photo: PathBuf,
+}
+
+/// A photo name from a camera file: relative, inside the folder, no `..`.
+fn inside(name: &str) -> bool {
+    let p = Path::new(name);
+    !name.is_empty()
+        && !name.contains('\\')
+        && p.components().all(|c| {
+            matches!(
+                c,
+                std::path::Component::Normal(_) | std::path::Component::CurDir
+            )
+        })
+}
+
+/// The folder COLMAP's image names are relative to: `DATA/images` when it exists, else `DATA`.
+fn photo_folder(dir: &Path) -> PathBuf {
+    let d = dir.join("images");
+    if d.is_dir() {
+        d
+    } else {
+        dir.to_path_buf()
+    }
+}
+
+fn file_err(path: &Path) -> impl Fn(crate::Error) -> DataError + '_ {
+    move |cause| DataError::File {
+        path: path.to_path_buf(),
+        cause,
+    }
+}
+
+/// The views of a COLMAP model in `model_dir`, photos in [`photo_folder`].
+fn colmap_sources(
+    dir: &Path,
+    model_dir: &Path,
+    binary: bool,
+    notes: &mut Vec<String>,
+) -> Result<(PathBuf, Vec<Source>), DataError> {
+    let (cams_path, imgs_path) = if binary {
+        (model_dir.join("cameras.bin"), model_dir.join("images.bin"))
+    } else {
+        (model_dir.join("cameras.txt"), model_dir.join("images.txt"))
+    };
+    let read = |p: &Path| vt_io::limits::read_bytes(p, MAX_MODEL_FILE_BYTES, "COLMAP model file");
+    let text = |p: &Path| -> Result<String, DataError> {
+        String::from_utf8(read(p)?).map_err(|e| {
+            path_err(
+                p,
+                format!(
+                    "not UTF-8 text (invalid byte at offset {})",
+                    e.utf8_error().valid_up_to()
+                ),
+            )
+        })
+    };
+    let (cams, imgs) = if binary {
+        (
+            colmap::parse_cameras_bin(&read(&cams_path)?).map_err(file_err(&cams_path))?,
+            colmap::parse_images_bin(&read(&imgs_path)?).map_err(file_err(&imgs_path))?,
+        )
+    } else {
+        (
+            colmap::parse_cameras_text(&text(&cams_path)?).map_err(file_err(&cams_path))?,
+            colmap::parse_images_text(&text(&imgs_path)?).map_err(file_err(&imgs_path))?,
+        )
+    };
+    let views = colmap::views(&cams, &imgs).map_err(file_err(&imgs_path))?;
+    let folder = photo_folder(dir);
+    let off: Vec<String> = views
+        .iter()
+        .filter(|v| (v.q_norm - 1.0).abs() > colmap::QUATERNION_NOTE)
+        .map(|v| format!("{} ({:.4})", v.camera.name, v.q_norm))
+        .collect();
+    if !off.is_empty() {
+        notes.push(format!(
+            "{} quaternion(s) in {} were far from unit length and were normalised: {}",
+            off.len(),
+            imgs_path.display(),
+            off.join(", ")
+        ));
+    }
+    let mut models: Vec<&str> = views.iter().map(|v| v.model.as_str()).collect();
+    models.sort();
+    models.dedup();
+    notes.push(format!(
+        "cameras: {} in {} ({} images; {}), photos in {}",
+        if binary {
+            CameraFormat::ColmapBinary
+        } else {
+            CameraFormat::ColmapText
+        },
+        model_dir.display(),
+        views.len(),
+        models.join(", "),
+        folder.display()
+    ));
+    let mut out = Vec::with_capacity(views.len());
+    for v in views {
+        let name = v.camera.name.clone();
+        if !inside(&name) {
+            return Err(path_err(
+                &imgs_path,
+                format!(
+                    "image name {name:?} points outside the photo folder (use a name relative to it, without ..)"
+                ),
+            ));
+        }
+        let photo = folder.join(&name);
+        if !photo.is_file() {
+            // A name with a word dropped (a date stamp) is a common renaming: say so.
+            let last = name.rsplit(' ').next().unwrap_or(&name);
+            let hint = if last != name && folder.join(last).is_file() {
+                format!(
+                    " ({} exists: rename the photos to the names the model records)",
+                    folder.join(last).display()
+                )
+            } else {
+                String::new()
+            };
+            return Err(path_err(
+                &imgs_path,
+                format!(
+                    "image {name:?} names photo {}, which is missing{hint}",
+                    photo.display()
+                ),
+            ));
+        }
+        out.push(Source {
+            cam: v.camera,
+            lens: v.lens,
+            recorded: Some(v.size),
+            photo,
+        });
+    }
+    Ok((imgs_path, out))
+}
+
+/// The views of a `cameras/` folder of projection matrices: one `<photo stem>.txt` (or `.P`)
+/// per photo, the photo (`<stem>.png`, `.jpg`, ...) in `DATA/images/` or `DATA/`; sorted by
+/// file name.
+fn matrix_sources(dir: &Path, mats: &Path) -> Result<Vec<Source>, DataError> {
+    let mut files: Vec<PathBuf> = files_ending(mats, ".txt");
+    files.extend(files_ending(mats, ".P"));
+    files.sort();
+    if files.is_empty() {
+        return Err(path_err(
+            mats,
+            "no projection matrix files (<photo stem>.txt or .P) in it",
+        ));
+    }
+    if files.len() > MAX_CAMERAS {
+        return Err(path_err(
+            mats,
+            format!(
+                "{} matrix files, more than the {MAX_CAMERAS} vt reads",
+                files.len()
+            ),
+        ));
+    }
+    let folder = photo_folder(dir);
+    let mut out = Vec::with_capacity(files.len());
+    for f in files {
+        let stem = f
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or_default()
+            .to_string();
+        let text =
+            vt_io::limits::read_text(&f, vt_io::limits::MAX_TEXT_BYTES, "projection matrix file")?;
+        let p = parse_projection(&text).map_err(file_err(&f))?;
+        let photos: Vec<PathBuf> = PHOTO_EXTENSIONS
+            .iter()
+            .flat_map(|e| [e.to_string(), e.to_ascii_uppercase()])
+            .map(|e| folder.join(format!("{stem}.{e}")))
+            .filter(|p| p.is_file())
+            .collect();
+        let photo = match photos.len() {
+            1 => photos[0].clone(),
+            0 => {
+                return Err(path_err(
+                    &f,
+                    format!(
+                        "no photo {stem}.png/.jpg/... in {} for this matrix",
+                        folder.display()
+                    ),
+                ))
+            }
+            _ => {
+                return Err(path_err(
+                    &f,
+                    format!(
+                        "more than one photo named {stem}.* in {}; keep one",
+                        folder.display()
+                    ),
+                ))
+            }
+        };
+        let name = photo
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let cam = Camera::from_projection(name, &p).map_err(file_err(&f))?;
+        out.push(Source {
+            cam,
+            lens: Lens::None,
+            recorded: None,
+            photo,
+        });
+    }
+    Ok(out)
+}
+
+/// `k` of a camera recorded at `rec` fitted to a photo of `size` by `fit`; the message says
+/// why not.
+pub fn fit_intrinsics(
+    k: &nalgebra::Matrix3<f64>,
+    rec: (u32, u32),
+    size: (u32, u32),
+    fit: PhotoFit,
+) -> Result<nalgebra::Matrix3<f64>, String> {
+    if rec == size {
+        return Ok(*k);
+    }
+    let (sx, sy) = (size.0 as f64 / rec.0 as f64, size.1 as f64 / rec.1 as f64);
+    let mut k = *k;
+    match fit {
+        PhotoFit::Scale => {
+            if (sx / sy - 1.0).abs() > UNIFORM_TOLERANCE {
+                return Err(format!(
+                    "is {}x{} but its camera was recorded at {}x{}: scales {sx:.4} and {sy:.4} differ by more than {}% (not a uniform rescale; a centred crop is --photo-fit crop)",
+                    size.0,
+                    size.1,
+                    rec.0,
+                    rec.1,
+                    UNIFORM_TOLERANCE * 100.0
+                ));
+            }
+            // Pixel centres at integers: u' = s (u + 0.5) - 0.5, per axis.
+            for (row, s) in [(0, sx), (1, sy)] {
+                for c in 0..3 {
+                    k[(row, c)] *= s;
+                }
+                k[(row, 2)] += 0.5 * s - 0.5;
+            }
+        }
+        PhotoFit::Crop => {
+            k[(0, 2)] += (size.0 as f64 - rec.0 as f64) / 2.0;
+            k[(1, 2)] += (size.1 as f64 - rec.1 as f64) / 2.0;
+        }
+    }
+    Ok(k)
+}
+
+fn range(v: &[f64]) -> String {
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if (hi - lo).abs() < 5e-5 {
+        format!("{lo:.4}")
+    } else {
+        format!("{lo:.4}-{hi:.4}")
+    }
+}
+
 impl Dataset {
-    /// Reads a data folder: the camera file, every image it names (checked to exist and to share
-    /// one size), the silhouettes, all scaled by `opt.scale`.
+    /// Reads a data folder: the cameras ([`find_cameras`]), every photo they name (checked to
+    /// exist; photos of a COLMAP model fitted to their camera's recorded size by `opt.fit` and
+    /// resampled into ideal pinhole cameras of one size when a lens or the sizes require it;
+    /// others must share one size), the silhouettes, all scaled by `opt.scale`. Every camera is
+    /// checked ([`Camera::check`]); errors name the file and the photo.
     pub fn load(dir: &Path, opt: &DataOptions) -> Result<Self, DataError> {
         opt.check()?;
         if !dir.is_dir() {
             return Err(path_err(dir, "not a folder"));
         }
-        let par = find_par(dir)?;
-        let text = vt_io::limits::read_text(&par, vt_io::limits::MAX_TEXT_BYTES, "camera file")?;
-        let cams = parse_par(&text).map_err(|cause| DataError::File {
-            path: par.clone(),
-            cause,
-        })?;
-        for (i, c) in cams.iter().enumerate() {
-            let p = dir.join(&c.name);
-            if !p.is_file() {
-                return Err(path_err(
-                    &par,
-                    format!("camera {i} names image {}, which is missing", p.display()),
-                ));
+        let found = find_cameras(dir)?;
+        let mut notes: Vec<String> = found.note.iter().cloned().collect();
+        let (cameras_file, sources) = match found.format {
+            CameraFormat::Par => {
+                let par = found.path.clone();
+                let text =
+                    vt_io::limits::read_text(&par, vt_io::limits::MAX_TEXT_BYTES, "camera file")?;
+                let cams = parse_par(&text).map_err(file_err(&par))?;
+                let mut sources = Vec::with_capacity(cams.len());
+                for (i, c) in cams.into_iter().enumerate() {
+                    let p = dir.join(&c.name);
+                    if !p.is_file() {
+                        return Err(path_err(
+                            &par,
+                            format!("camera {i} names image {}, which is missing", p.display()),
+                        ));
+                    }
+                    sources.push(Source {
+                        cam: c,
+                        lens: Lens::None,
+                        recorded: None,
+                        photo: p,
+                    });
+                }
+                (par, sources)
             }
+            CameraFormat::ColmapText | CameraFormat::ColmapBinary => colmap_sources(
+                dir,
+                &found.path,
+                found.format == CameraFormat::ColmapBinary,
+                &mut notes,
+            )?,
+            CameraFormat::Matrices => {
+                let s = matrix_sources(dir, &found.path)?;
+                notes.push(format!(
+                    "cameras: {} projection matrices in {}, decomposed into K [R | t]",
+                    s.len(),
+                    found.path.display()
+                ));
+                (found.path.clone(), s)
+            }
+        };
+        for s in &sources {
+            s.cam.check().map_err(file_err(&cameras_file))?;
         }
         let mask_dir = match &opt.masks {
             Some(d) if !d.is_dir() => return Err(path_err(d, "mask folder: not a folder")),
@@ -258,23 +701,74 @@ impl Dataset {
             dilate: opt.carve_dilate,
             erode: opt.carve_erode,
         };
-        let loaded: Vec<(RgbImage, Mask, Mask)> = cams
+        // The photos' size after fitting: the first photo's (a uniform rescale) or the first
+        // camera's recorded size (a centred crop); read the first photo's header only once.
+        let first = vt_io::frames::read_rgb(
+            &sources
+                .first()
+                .ok_or_else(|| path_err(&cameras_file, "no cameras in it"))?
+                .photo,
+        )?;
+        let target = match (sources[0].recorded, opt.fit) {
+            (Some(rec), PhotoFit::Crop) => rec,
+            _ => first.dimensions(),
+        };
+        let mut first = Some(first);
+        // Each view: (photo, carving mask, scoring mask, camera, resampled?, scales).
+        type Loaded = (RgbImage, Mask, Mask, Camera, bool, Option<(f64, f64)>);
+        let firsts: Vec<Option<RgbImage>> = (0..sources.len())
+            .map(|i| if i == 0 { first.take() } else { None })
+            .collect();
+        let loaded: Vec<Loaded> = sources
             .par_iter()
-            .map(|c| {
-                let path = dir.join(&c.name);
-                let img = vt_io::frames::read_rgb(&path)?;
-                let (mask, score) = match &mask_dir {
-                    Some(d) => {
-                        let m = read_mask(&d.join(&c.name), &c.name, img.dimensions(), &path)?;
-                        (m.clone(), m)
+            .zip(firsts)
+            .map(|(s, pre)| -> Result<Loaded, DataError> {
+                let img = match pre {
+                    Some(i) => i,
+                    None => vt_io::frames::read_rgb(&s.photo)?,
+                };
+                let supplied = match &mask_dir {
+                    Some(d) => Some(read_mask(&d.join(&s.cam.name), &s.cam.name, img.dimensions(), &s.photo)?),
+                    None => None,
+                };
+                // Fit and undistort where the camera was recorded at another size or through a
+                // lens: the output is the ideal pinhole at `target`.
+                let (img, supplied, cam, resampled, scales) = match s.recorded {
+                    None => (img, supplied, s.cam.clone(), false, None),
+                    Some(rec) => {
+                        let size = img.dimensions();
+                        let name = |e: String| path_err(&s.photo, format!("photo {e}"));
+                        let k_src = fit_intrinsics(&s.cam.k, rec, size, opt.fit).map_err(name)?;
+                        let k_out = fit_intrinsics(&s.cam.k, rec, target, opt.fit).map_err(|e| {
+                            path_err(
+                                &s.photo,
+                                format!(
+                                    "its camera cannot be fitted to the first photo's size {}x{}: camera {e}",
+                                    target.0, target.1
+                                ),
+                            )
+                        })?;
+                        let cam = Camera::new(s.cam.name.clone(), k_out, s.cam.r, s.cam.t)?;
+                        let scales = Some((size.0 as f64 / rec.0 as f64, size.1 as f64 / rec.1 as f64));
+                        let map = Resample::new(&k_src, &s.lens, &k_out, target.0, target.1);
+                        if map.is_identity(size.0, size.1, 1e-4) {
+                            (img, supplied, cam, false, scales)
+                        } else {
+                            let m = supplied.map(|m| map.mask(&m));
+                            (map.rgb(&img), m, cam, true, scales)
+                        }
                     }
+                };
+                let (mask, score) = match supplied {
+                    Some(m) => (m.clone(), m),
                     None => (
                         threshold_silhouette(&img, &carve),
                         threshold_silhouette(&img, &scoring),
                     ),
                 };
+                let cam = if opt.scale == 1.0 { cam } else { cam.scaled(opt.scale) };
                 if opt.scale == 1.0 {
-                    return Ok((img, mask, score));
+                    return Ok((img, mask, score, cam, resampled, scales));
                 }
                 let (w, h) = (
                     ((img.width() as f64 * opt.scale).round() as u32).max(1),
@@ -282,15 +776,45 @@ impl Dataset {
                 );
                 let small =
                     image::imageops::resize(&img, w, h, image::imageops::FilterType::Triangle);
-                Ok((small, scale_mask(&mask, w, h), scale_mask(&score, w, h)))
+                Ok((small, scale_mask(&mask, w, h), scale_mask(&score, w, h), cam, resampled, scales))
             })
             .collect::<Result<_, DataError>>()?;
-        let mut images = Vec::with_capacity(loaded.len());
-        let (mut masks, mut score_masks) = (Vec::new(), Vec::new());
-        for (i, m, sm) in loaded {
+        let n = loaded.len();
+        let (mut images, mut cams) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        let (mut masks, mut score_masks) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        let (mut resampled, mut sx, mut sy) = (0, Vec::new(), Vec::new());
+        for (i, m, sm, c, r, s) in loaded {
             images.push(i);
             masks.push(m);
             score_masks.push(sm);
+            cams.push(c);
+            resampled += r as usize;
+            if let Some((x, y)) = s.filter(|&(x, y)| x != 1.0 || y != 1.0) {
+                sx.push(x);
+                sy.push(y);
+            }
+        }
+        if !sx.is_empty() {
+            notes.push(match opt.fit {
+                PhotoFit::Scale => format!(
+                    "{} of {n} photos differ in size from their camera's recorded size: intrinsics scaled by {} x {} (--photo-fit scale: resized photos)",
+                    sx.len(),
+                    range(&sx),
+                    range(&sy)
+                ),
+                PhotoFit::Crop => format!(
+                    "{} of {n} photos differ in size from their camera's recorded size ({} x {} of it): taken as centred crops (--photo-fit crop)",
+                    sx.len(),
+                    range(&sx),
+                    range(&sy)
+                ),
+            });
+        }
+        if resampled > 0 {
+            let (w, h) = target;
+            notes.push(format!(
+                "{resampled} of {n} photos resampled into ideal pinhole cameras at {w}x{h} (lens distortion removed, sizes fitted)"
+            ));
         }
         // A photo of another size in a calibrated dataset is a mistake, not a view: refuse it.
         if let Some(k) = images
@@ -298,7 +822,7 @@ impl Dataset {
             .position(|i| i.dimensions() != images[0].dimensions())
         {
             return Err(path_err(
-                &par,
+                &cameras_file,
                 format!(
                     "image {} is {}x{}, but {} is {}x{} (every photo of a dataset has the same size)",
                     cams[k].name,
@@ -310,18 +834,15 @@ impl Dataset {
                 ),
             ));
         }
-        let cams = if opt.scale == 1.0 {
-            cams
-        } else {
-            cams.iter().map(|c| c.scaled(opt.scale)).collect()
-        };
         Ok(Self {
-            par,
+            cameras_file,
+            format: found.format,
             cams,
             images,
             masks,
             score_masks,
             silhouettes,
+            notes,
         })
     }
 
@@ -358,7 +879,10 @@ impl Dataset {
     pub fn check_withheld(&self, views: &[usize]) -> crate::Result<()> {
         let n = self.cams.len();
         if n < 3 {
-            let why = format!("needs at least 3 views, {} has {n}", self.par.display());
+            let why = format!(
+                "needs at least 3 views, {} has {n}",
+                self.cameras_file.display()
+            );
             return Err(bad("leave_out", "", why));
         }
         match views.iter().find(|&&k| k >= n) {
@@ -409,11 +933,34 @@ impl Dataset {
 
 /// The volume a model is built in: `given`, else found from the silhouettes ([`auto_bounds`]
 /// with [`HullParams::default`]).
+/// Every camera is checked to have the volume's centre in front of it (a pose read the wrong
+/// way round, camera-to-world for world-to-camera, puts it behind).
 pub fn volume(given: Option<Aabb>, cams: &[Camera], masks: &[Mask]) -> crate::Result<Aabb> {
-    match given {
-        Some(b) => Ok(b),
-        None => auto_bounds(cams, masks, &HullParams::default()),
+    let b = match given {
+        Some(b) => b,
+        None => auto_bounds(cams, masks, &HullParams::default())?,
+    };
+    check_in_front(cams, &b)?;
+    Ok(b)
+}
+
+/// Checks that the centre of `bounds` lies in front of every camera; the error names the first
+/// camera that has it behind (or beside) it.
+pub fn check_in_front(cams: &[Camera], bounds: &Aabb) -> crate::Result<()> {
+    let centre = bounds.centre();
+    for c in cams {
+        let z = c.to_camera(&centre).z;
+        if z.is_nan() || z <= crate::camera::MIN_DEPTH {
+            return Err(crate::Error::BadCamera {
+                name: c.name.clone(),
+                what: format!(
+                    "the volume's centre {:?} is behind the camera (depth {z:.4}); is its pose world-to-camera (x_cam = R X + t)?",
+                    <[f64; 3]>::from(centre)
+                ),
+            });
+        }
     }
+    Ok(())
 }
 
 /// How to build the voxel model.
@@ -598,7 +1145,7 @@ pub fn write_hull(
     let summary = HullSummary {
         format: "vt-fv-hull",
         version: 1,
-        cameras: d.par.display().to_string(),
+        cameras: d.cameras_file.display().to_string(),
         views: d.cams.len(),
         image_size: [w, h],
         silhouettes: d.silhouettes.clone(),
@@ -858,6 +1405,22 @@ mod tests {
             let e = parse_bounds(text).unwrap_err();
             assert!(e.contains(says), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn intrinsics_fit_resized_and_cropped_photos() {
+        let k = nalgebra::Matrix3::new(1000.0, 0.0, 639.5, 0.0, 1000.0, 479.5, 0.0, 0.0, 1.0);
+        // Half size, pixel centres at integers: c' = s (c + 0.5) - 0.5 = 0.5 * 640 - 0.5.
+        let h = fit_intrinsics(&k, (1280, 960), (640, 480), PhotoFit::Scale).unwrap();
+        assert_eq!((h[(0, 0)], h[(0, 2)], h[(1, 2)]), (500.0, 319.5, 239.5));
+        let c = fit_intrinsics(&k, (1280, 960), (1250, 936), PhotoFit::Crop).unwrap();
+        assert_eq!((c[(0, 0)], c[(0, 2)], c[(1, 2)]), (1000.0, 624.5, 467.5));
+        let e = fit_intrinsics(&k, (1280, 960), (640, 400), PhotoFit::Scale).unwrap_err();
+        assert!(e.contains("not a uniform rescale"), "{e}");
+        assert_eq!(
+            fit_intrinsics(&k, (1280, 960), (1280, 960), PhotoFit::Scale).unwrap(),
+            k
+        );
     }
 
     #[test]

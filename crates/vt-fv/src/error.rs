@@ -24,6 +24,23 @@ pub enum Error {
         /// Camera lines present.
         found: usize,
     },
+    /// A line of a text camera file (COLMAP's `cameras.txt` or `images.txt`, a projection
+    /// matrix file); the file's path is added by [`crate::dataset`].
+    #[error("line {line}: {what}")]
+    Line {
+        /// 1-based line number in the file.
+        line: usize,
+        /// What is wrong with it.
+        what: String,
+    },
+    /// A binary camera file (COLMAP's `cameras.bin` or `images.bin`) cut short or inconsistent.
+    #[error("byte {offset}: {what}")]
+    Binary {
+        /// Offset of the record or value that is wrong.
+        offset: usize,
+        /// What is wrong.
+        what: String,
+    },
     /// A new-camera spec (par line, `angle:DEG` or `between:I,J,T`) that cannot be used.
     #[error("{spec:?}: {what}")]
     CameraSpec {

@@ -9,14 +9,17 @@
 //!
 //! Images are the `image` crate's [`image::RgbImage`]; pixel centres sit at integer coordinates
 //! `(x, y) = (column, row)`, origin top-left, as in the Middlebury camera files. No I/O except
-//! writing PLY to a caller's writer and [`dataset`] (a Middlebury-style data folder, read and
+//! writing PLY to a caller's writer and [`dataset`] (a data folder: Middlebury par file, COLMAP
+//! model ([`colmap`]) or projection matrices, photos undistorted by [`lens`]; read and
 //! written through vt-io).
 #![deny(missing_docs)]
 
 pub mod camera;
+pub mod colmap;
 pub mod dataset;
 mod error;
 pub mod hull;
+pub mod lens;
 pub mod silhouette;
 
 pub use camera::Camera;

@@ -146,7 +146,7 @@ struct Reference<'a> {
 }
 
 #[inline]
-fn bilinear(img: &RgbImage, u: f64, v: f64) -> [f64; 3] {
+pub(crate) fn bilinear(img: &RgbImage, u: f64, v: f64) -> [f64; 3] {
     let (w, h) = (img.width() as i64, img.height() as i64);
     let (x0, y0) = (u.floor(), v.floor());
     let (fx, fy) = (u - x0, v - y0);
