@@ -51,6 +51,12 @@ pub struct DataArgs {
     /// when it exists, else threshold the photos.
     #[arg(long)]
     masks: Option<PathBuf>,
+    /// Without mask images: `auto` (a photo's alpha channel when it has transparency; else the
+    /// dark-backdrop threshold when the photo's border is dark, else automatic segmentation
+    /// from a plain backdrop of any colour, estimated from the border), `threshold` (always the
+    /// dark-backdrop threshold) or `backdrop` (always the plain-backdrop segmentation).
+    #[arg(long, value_enum, default_value_t = SilhouettesArg::Auto)]
+    silhouettes: SilhouettesArg,
     /// Threshold the silhouettes the model is carved from at this fraction of full scale
     /// (Middlebury: 0.19).
     #[arg(long, default_value_t = 0.19)]
@@ -136,6 +142,17 @@ pub enum PhotoFitArg {
     Scale,
     /// Centred crops: principal point moved.
     Crop,
+}
+
+/// `--silhouettes`.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SilhouettesArg {
+    /// Alpha channel, else dark threshold or plain-backdrop segmentation by the border.
+    Auto,
+    /// The dark-backdrop threshold.
+    Threshold,
+    /// The plain-backdrop segmentation.
+    Backdrop,
 }
 
 /// `--method`.
@@ -279,6 +296,12 @@ impl DataArgs {
                 dilate: self.score_dilate,
                 erode: self.score_erode,
             },
+            silhouettes: match self.silhouettes {
+                SilhouettesArg::Auto => vt_fv::dataset::SilhouetteMode::Auto,
+                SilhouettesArg::Threshold => vt_fv::dataset::SilhouetteMode::Threshold,
+                SilhouettesArg::Backdrop => vt_fv::dataset::SilhouetteMode::Backdrop,
+            },
+            backdrop: Default::default(),
         };
         opt.check().map_err(flag)?;
         if let Some(d) = self.masks.as_ref().filter(|d| !d.is_dir()) {
@@ -351,7 +374,20 @@ fn hull(a: HullArgs) -> Result<()> {
         .volume(m.bounds)
         .context("volume bounds from the silhouettes")?;
     let (model, s) = build(&d, bounds, &m)?;
-    write_hull(dir.path(), &d, &model, m.photo_threshold, &s)?;
+    // Fewer than 3 views leave nothing to check against.
+    let check = if d.cams.len() >= 3 {
+        Some(d.check_silhouettes(bounds).context("silhouette check")?)
+    } else {
+        None
+    };
+    write_hull(
+        dir.path(),
+        &d,
+        &model,
+        m.photo_threshold,
+        &s,
+        check.as_ref(),
+    )?;
     dir.commit()?;
     let (w, h) = d.size();
     let [gx, gy, gz] = s.grid;
@@ -361,6 +397,9 @@ fn hull(a: HullArgs) -> Result<()> {
         d.silhouettes
     );
     println!("{s}");
+    if let Some(c) = &check {
+        println!("{c}");
+    }
     println!("wrote {}/hull.ply and summary.json", a.out.display());
     Ok(())
 }

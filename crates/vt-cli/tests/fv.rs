@@ -265,7 +265,7 @@ fn bad_input_gives_one_clear_line() {
         &["view 3", "view_03.png", "empty"],
     );
 
-    // Cameras that see none of the volume: a volume far away, and a new camera looking away.
+    // A volume far away (behind the first camera), and a new camera looking away.
     let obj = object();
     vt_err(
         &[
@@ -279,7 +279,9 @@ fn bad_input_gives_one_clear_line() {
             "--bounds",
             "100,100,100,101,101,101",
         ],
-        &["sees none of the volume"],
+        // Since every camera is checked to have the volume in front (ded3e03), a volume far
+        // away is refused first for lying behind a camera, naming it.
+        &["view_00.png", "behind the camera"],
     );
     let away = "away.png 124.8 0 47.5 0 124.8 47.5 0 0 1 1 0 0 0 1 0 0 0 1 0 0 -10";
     vt_err(

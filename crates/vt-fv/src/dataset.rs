@@ -19,7 +19,10 @@ use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
 use crate::pipeline::{
     error_map, leave_one_out_from, EvalImages, EvalReport, Others, Score, ViewParams,
 };
-use crate::silhouette::{mask_from_image, threshold_silhouette, Mask, SilhouetteParams};
+use crate::silhouette::{
+    backdrop_silhouette, border_level, mask_from_image, threshold_silhouette, BackdropParams, Mask,
+    SilhouetteParams,
+};
 
 /// Everything that can go wrong reading or writing a data folder. Each cause is printed once.
 #[derive(Debug, thiserror::Error)]
@@ -77,6 +80,24 @@ pub struct DataOptions {
     /// ([`SilhouetteParams::scoring`]: 0.25, dilate 5, erode 5; the Middlebury recipe is 0.19,
     /// 10, 7).
     pub score: SilhouetteParams,
+    /// How silhouettes are made when no mask images are given ([`SilhouetteMode::Auto`]).
+    pub silhouettes: SilhouetteMode,
+    /// Settings of the plain-backdrop segmentation ([`BackdropParams::default`]).
+    pub backdrop: BackdropParams,
+}
+
+/// How silhouettes are made when there is no masks folder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SilhouetteMode {
+    /// Per photo: its alpha channel when it has transparency; else the dark-backdrop threshold
+    /// when the border band's median brightest channel is below the threshold (a dark
+    /// backdrop, the Middlebury recipe), else [`backdrop_silhouette`].
+    #[default]
+    Auto,
+    /// Always the dark-backdrop threshold (the Middlebury recipe).
+    Threshold,
+    /// Always the plain-backdrop segmentation.
+    Backdrop,
 }
 
 impl Default for DataOptions {
@@ -90,6 +111,8 @@ impl Default for DataOptions {
             scale: 1.0,
             fit: PhotoFit::Scale,
             score: SilhouetteParams::scoring(),
+            silhouettes: SilhouetteMode::Auto,
+            backdrop: BackdropParams::default(),
         }
     }
 }
@@ -125,6 +148,41 @@ impl DataOptions {
             if !(0.0..1.0).contains(&t) {
                 return Err(bad(name, t, "must be in [0, 1)"));
             }
+        }
+        let b = &self.backdrop;
+        if !(b.darker > 0.0 && b.darker < 1.0) {
+            return Err(bad("backdrop_darker", b.darker, "must be in (0, 1)"));
+        }
+        if !(b.brighter > 1.0 && b.brighter.is_finite()) {
+            return Err(bad(
+                "backdrop_brighter",
+                b.brighter,
+                "must be a number above 1",
+            ));
+        }
+        for (name, f) in [
+            ("backdrop_border", b.border),
+            ("backdrop_cell", b.cell),
+            ("backdrop_open", b.open),
+            ("backdrop_close", b.close),
+        ] {
+            if !(0.0..=0.25).contains(&f) {
+                return Err(bad(
+                    name,
+                    f,
+                    "must be in [0, 0.25] (a fraction of the shorter side)",
+                ));
+            }
+        }
+        if !(b.chroma >= 0.0 && b.chroma_spread >= 0.0 && (0.0..=1.0).contains(&b.keep)) {
+            return Err(bad(
+                "backdrop",
+                format!(
+                    "chroma {}, spread {}, keep {}",
+                    b.chroma, b.chroma_spread, b.keep
+                ),
+                "chroma and spread must be >= 0, keep in [0, 1]",
+            ));
         }
         Ok(())
     }
@@ -612,6 +670,97 @@ pub fn fit_intrinsics(
     Ok(k)
 }
 
+/// Where one view's silhouette came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SilhouetteKind {
+    /// A mask image in the masks folder.
+    Masks,
+    /// The photo's alpha channel.
+    Alpha,
+    /// The dark-backdrop threshold.
+    Dark,
+    /// The plain-backdrop segmentation.
+    Backdrop,
+}
+
+/// A photo, and its alpha channel as a mask (alpha >= 128 = object) when it has one that is not
+/// fully opaque. Decoded through vt-io's limits.
+fn read_photo(path: &Path) -> Result<(RgbImage, Option<Mask>), DataError> {
+    let bytes = vt_io::limits::read_bytes(path, vt_io::limits::MAX_IMAGE_FILE_BYTES, "image file")?;
+    let rgb = vt_io::frames::decode_rgb(&bytes, path)?;
+    let has_alpha = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .ok()
+        .and_then(|r| r.into_decoder().ok())
+        .is_some_and(|d| image::ImageDecoder::color_type(&d).has_alpha());
+    if !has_alpha {
+        return Ok((rgb, None));
+    }
+    // The same bytes decode_rgb accepted (its size limits hold), now keeping the alpha.
+    let rgba = image::load_from_memory(&bytes)
+        .map_err(|e| path_err(path, e.to_string()))?
+        .to_rgba8();
+    let a = rgba.as_raw();
+    if a.chunks_exact(4).all(|p| p[3] == 255) {
+        return Ok((rgb, None));
+    }
+    let m = Mask::from_index_fn(rgba.width(), rgba.height(), |i| a[4 * i + 3] >= 128);
+    if m.count_ones() == 0 {
+        return Err(path_err(
+            path,
+            "its alpha channel is transparent everywhere (below 128): no object in the mask",
+        ));
+    }
+    Ok((rgb, Some(m)))
+}
+
+/// The silhouettes' origin in words; photos with an alpha mask beside photos without are
+/// refused (naming both).
+fn describe_silhouettes(
+    kinds: &[SilhouetteKind],
+    mask_dir: Option<&Path>,
+    opt: &DataOptions,
+    sources: &[Source],
+) -> Result<String, DataError> {
+    if let Some(d) = mask_dir {
+        return Ok(format!("mask images in {}", d.display()));
+    }
+    let count = |k| kinds.iter().filter(|&&x| x == k).count();
+    let n = kinds.len();
+    let alpha = count(SilhouetteKind::Alpha);
+    if alpha > 0 && alpha < n {
+        let with = kinds
+            .iter()
+            .position(|&k| k == SilhouetteKind::Alpha)
+            .unwrap_or(0);
+        let without = kinds
+            .iter()
+            .position(|&k| k != SilhouetteKind::Alpha)
+            .unwrap_or(0);
+        return Err(path_err(
+            &sources[without].photo,
+            format!(
+                "has no transparency, but {} carries its silhouette in its alpha channel: give every photo an alpha mask, or none",
+                sources[with].photo.display()
+            ),
+        ));
+    }
+    if alpha == n {
+        return Ok("the photos' alpha channels (alpha >= 128 = object)".into());
+    }
+    let dark = format!(
+        "photos thresholded (carving: at {}, dilate {}, erode {}; scoring: at {}, dilate {}, erode {})",
+        opt.threshold, opt.carve_dilate, opt.carve_erode, opt.score.threshold, opt.score.dilate, opt.score.erode
+    );
+    let plain =
+        "photos segmented from their plain backdrop (colour estimated from each photo's border)";
+    Ok(match count(SilhouetteKind::Dark) {
+        0 => plain.to_string(),
+        d if d == n => dark,
+        d => format!("{d} of {n} {dark}; {} of {n} {plain}", n - d),
+    })
+}
+
 fn range(v: &[f64]) -> String {
     let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -683,18 +832,6 @@ impl Dataset {
             Some(d) => Some(d.clone()),
             None => Some(dir.join("masks")).filter(|d| d.is_dir()),
         };
-        let silhouettes = match &mask_dir {
-            Some(d) => format!("mask images in {}", d.display()),
-            None => format!(
-                "photos thresholded (carving: at {}, dilate {}, erode {}; scoring: at {}, dilate {}, erode {})",
-                opt.threshold,
-                opt.carve_dilate,
-                opt.carve_erode,
-                opt.score.threshold,
-                opt.score.dilate,
-                opt.score.erode
-            ),
-        };
         let scoring = opt.score.clone();
         let carve = SilhouetteParams {
             threshold: opt.threshold,
@@ -703,7 +840,7 @@ impl Dataset {
         };
         // The photos' size after fitting: the first photo's (a uniform rescale) or the first
         // camera's recorded size (a centred crop); read the first photo's header only once.
-        let first = vt_io::frames::read_rgb(
+        let first = read_photo(
             &sources
                 .first()
                 .ok_or_else(|| path_err(&cameras_file, "no cameras in it"))?
@@ -711,25 +848,53 @@ impl Dataset {
         )?;
         let target = match (sources[0].recorded, opt.fit) {
             (Some(rec), PhotoFit::Crop) => rec,
-            _ => first.dimensions(),
+            _ => first.0.dimensions(),
         };
         let mut first = Some(first);
-        // Each view: (photo, carving mask, scoring mask, camera, resampled?, scales).
-        type Loaded = (RgbImage, Mask, Mask, Camera, bool, Option<(f64, f64)>);
-        let firsts: Vec<Option<RgbImage>> = (0..sources.len())
+        // Each view: (photo, carving mask, scoring mask, camera, resampled?, scales, where the
+        // silhouette came from).
+        type Loaded = (
+            RgbImage,
+            Mask,
+            Mask,
+            Camera,
+            bool,
+            Option<(f64, f64)>,
+            SilhouetteKind,
+        );
+        type Photo = (RgbImage, Option<Mask>);
+        let firsts: Vec<Option<Photo>> = (0..sources.len())
             .map(|i| if i == 0 { first.take() } else { None })
             .collect();
         let loaded: Vec<Loaded> = sources
             .par_iter()
             .zip(firsts)
             .map(|(s, pre)| -> Result<Loaded, DataError> {
-                let img = match pre {
+                let (img, alpha) = match pre {
                     Some(i) => i,
-                    None => vt_io::frames::read_rgb(&s.photo)?,
+                    None => read_photo(&s.photo)?,
                 };
-                let supplied = match &mask_dir {
-                    Some(d) => Some(read_mask(&d.join(&s.cam.name), &s.cam.name, img.dimensions(), &s.photo)?),
-                    None => None,
+                let (supplied, kind) = match (&mask_dir, alpha) {
+                    (Some(d), _) => (
+                        Some(read_mask(&d.join(&s.cam.name), &s.cam.name, img.dimensions(), &s.photo)?),
+                        SilhouetteKind::Masks,
+                    ),
+                    (None, Some(a)) => (Some(a), SilhouetteKind::Alpha),
+                    (None, None) => {
+                        let dark = match opt.silhouettes {
+                            SilhouetteMode::Threshold => true,
+                            SilhouetteMode::Backdrop => false,
+                            SilhouetteMode::Auto => {
+                                border_level(&img, &opt.backdrop) < opt.threshold * 255.0
+                            }
+                        };
+                        let kind = if dark {
+                            SilhouetteKind::Dark
+                        } else {
+                            SilhouetteKind::Backdrop
+                        };
+                        (None, kind)
+                    }
                 };
                 // Fit and undistort where the camera was recorded at another size or through a
                 // lens: the output is the ideal pinhole at `target`.
@@ -761,14 +926,18 @@ impl Dataset {
                 };
                 let (mask, score) = match supplied {
                     Some(m) => (m.clone(), m),
-                    None => (
+                    None if kind == SilhouetteKind::Dark => (
                         threshold_silhouette(&img, &carve),
                         threshold_silhouette(&img, &scoring),
                     ),
+                    None => {
+                        let m = backdrop_silhouette(&img, &opt.backdrop);
+                        (m.clone(), m)
+                    }
                 };
                 let cam = if opt.scale == 1.0 { cam } else { cam.scaled(opt.scale) };
                 if opt.scale == 1.0 {
-                    return Ok((img, mask, score, cam, resampled, scales));
+                    return Ok((img, mask, score, cam, resampled, scales, kind));
                 }
                 let (w, h) = (
                     ((img.width() as f64 * opt.scale).round() as u32).max(1),
@@ -776,14 +945,16 @@ impl Dataset {
                 );
                 let small =
                     image::imageops::resize(&img, w, h, image::imageops::FilterType::Triangle);
-                Ok((small, scale_mask(&mask, w, h), scale_mask(&score, w, h), cam, resampled, scales))
+                Ok((small, scale_mask(&mask, w, h), scale_mask(&score, w, h), cam, resampled, scales, kind))
             })
             .collect::<Result<_, DataError>>()?;
         let n = loaded.len();
         let (mut images, mut cams) = (Vec::with_capacity(n), Vec::with_capacity(n));
         let (mut masks, mut score_masks) = (Vec::with_capacity(n), Vec::with_capacity(n));
         let (mut resampled, mut sx, mut sy) = (0, Vec::new(), Vec::new());
-        for (i, m, sm, c, r, s) in loaded {
+        let mut kinds = Vec::with_capacity(n);
+        for (i, m, sm, c, r, s, k) in loaded {
+            kinds.push(k);
             images.push(i);
             masks.push(m);
             score_masks.push(sm);
@@ -814,6 +985,16 @@ impl Dataset {
             let (w, h) = target;
             notes.push(format!(
                 "{resampled} of {n} photos resampled into ideal pinhole cameras at {w}x{h} (lens distortion removed, sizes fitted)"
+            ));
+        }
+        let silhouettes = describe_silhouettes(&kinds, mask_dir.as_deref(), opt, &sources)?;
+        if kinds.contains(&SilhouetteKind::Backdrop) {
+            let k = kinds
+                .iter()
+                .filter(|&&k| k == SilhouetteKind::Backdrop)
+                .count();
+            notes.push(format!(
+                "silhouettes: {k} of {n} photos are on a light or coloured backdrop: segmented automatically (backdrop colour from each photo's border, object where the colour or the brightness ratio to the local backdrop differs; --masks DIR or an alpha channel gives them instead)"
             ));
         }
         // A photo of another size in a calibrated dataset is a mistake, not a view: refuse it.
@@ -893,6 +1074,29 @@ impl Dataset {
             )),
             None => Ok(()),
         }
+    }
+
+    /// Checks the carving silhouettes against each other: each view's IoU against the visual
+    /// hull of the others ([`crate::hull::silhouette_agreement`] at [`CHECK_GRID`]) in
+    /// `bounds`; views below [`crate::hull::AGREEMENT_IOU`] are named.
+    pub fn check_silhouettes(&self, bounds: Aabb) -> crate::Result<SilhouetteCheck> {
+        let iou = crate::hull::silhouette_agreement(&self.cams, &self.masks, bounds, CHECK_GRID)?;
+        let threshold = crate::hull::AGREEMENT_IOU;
+        Ok(SilhouetteCheck {
+            threshold,
+            views: self
+                .cams
+                .iter()
+                .map(|c| c.name.clone())
+                .zip(iou.iter().copied())
+                .collect(),
+            disagreeing: iou
+                .iter()
+                .enumerate()
+                .filter(|(_, &v)| v < threshold)
+                .map(|(i, &v)| (i, self.cams[i].name.clone(), v))
+                .collect(),
+        })
     }
 
     /// The volume to carve: `given`, else found from the carving silhouettes.
@@ -1125,6 +1329,51 @@ pub struct HullSummary {
     /// The build.
     #[serde(flatten)]
     pub build: BuildSummary,
+    /// The silhouettes' cross-view consistency, when it was checked.
+    pub silhouette_check: Option<SilhouetteCheck>,
+}
+
+/// Grid of the visual hulls [`Dataset::check_silhouettes`] carves (64 voxels along the longest
+/// side: a tenth of a second per view on the kettle).
+pub const CHECK_GRID: usize = 64;
+
+/// The silhouettes' cross-view consistency ([`crate::hull::silhouette_agreement`]).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct SilhouetteCheck {
+    /// IoU below which a view is named.
+    pub threshold: f64,
+    /// Each view's photo name and IoU against the hull of the others, in camera order.
+    pub views: Vec<(String, f64)>,
+    /// The views that disagree: (index, photo name, IoU).
+    pub disagreeing: Vec<(usize, String, f64)>,
+}
+
+/// One line: the IoU range, and the photos that disagree by name.
+impl std::fmt::Display for SilhouetteCheck {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let iou: Vec<f64> = self.views.iter().map(|v| v.1).collect();
+        let lo = iou.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = iou.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        write!(
+            f,
+            "silhouette check: IoU of each view's silhouette against the hull of the others {lo:.2}-{hi:.2}; "
+        )?;
+        if self.disagreeing.is_empty() {
+            return write!(f, "all {} agree (>= {})", self.views.len(), self.threshold);
+        }
+        let names: Vec<String> = self
+            .disagreeing
+            .iter()
+            .map(|(i, n, v)| format!("view {i} ({n}): {v:.2}"))
+            .collect();
+        write!(
+            f,
+            "{} below {} disagree with the others (a wrong silhouette or camera; give masks with --masks or drop the photo): {}",
+            names.len(),
+            self.threshold,
+            names.join(", ")
+        )
+    }
 }
 
 /// Writes `hull.ply` (the coloured surface voxels) and `summary.json` into `dir`.
@@ -1134,6 +1383,7 @@ pub fn write_hull(
     model: &VoxelModel,
     photo_threshold: f64,
     build: &BuildSummary,
+    check: Option<&SilhouetteCheck>,
 ) -> Result<(), DataError> {
     let ply = dir.join("hull.ply");
     let mut bytes = Vec::new();
@@ -1151,6 +1401,7 @@ pub fn write_hull(
         silhouettes: d.silhouettes.clone(),
         photo_threshold,
         build: build.clone(),
+        silhouette_check: check.cloned(),
     };
     write_json(&dir.join("summary.json"), &summary)
 }

@@ -95,6 +95,354 @@ pub fn mask_from_image(img: &GrayImage) -> Mask {
     Mask::from_index_fn(img.width(), img.height(), |i| px[i] != 0)
 }
 
+/// Automatic segmentation of an object on a plain backdrop of any colour (white, grey, green
+/// cloth...), estimated from the image border. Fractions are of the image's shorter side, so one
+/// setting serves every photo size.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BackdropParams {
+    /// Width of the border band the backdrop is estimated from (0.03 of the shorter side, at
+    /// least 2 pixels). The object may touch an edge: the statistics are medians.
+    pub border: f64,
+    /// A pixel is object when its chromaticity (`rgb / (r + g + b)`) lies farther than this
+    /// from the backdrop's (0.045), or farther than `chroma_spread` times the border pixels'
+    /// median distance, whichever is larger (sensor noise on a dark backdrop).
+    pub chroma: f64,
+    /// ... (4: for noise spread evenly about the backdrop's chromaticity, a Rayleigh
+    /// distribution, 4 medians are 4.7 standard deviations, 2 in 100,000 pixels).
+    pub chroma_spread: f64,
+    /// A pixel is object when its brightness is below this ratio of the local backdrop's
+    /// brightness (0.62): shading, folds and the object's shadow stay above it.
+    pub darker: f64,
+    /// ... or above this ratio (1.45).
+    pub brighter: f64,
+    /// Side of the cells the local backdrop brightness is measured in (0.0625 of the shorter
+    /// side): a smooth brightness field, so shading across the cloth is not object.
+    pub cell: f64,
+    /// Opening radius (0.008 of the shorter side, at least 1): removes creases and specks.
+    pub open: f64,
+    /// Closing radius (0.012, at least 1): joins the object across thin gaps.
+    pub close: f64,
+    /// Components smaller than this share of the largest are dropped (0.2); holes (backdrop
+    /// enclosed by object) are filled.
+    pub keep: f64,
+    /// Components lying along the image edge are clutter beyond the backdrop (the floor, a
+    /// cloth's end), not the object: a component whose pixels on the image's outermost rows
+    /// and columns exceed this share of its bounding box's perimeter is dropped (0.4; a corner
+    /// wedge or an edge strip has about 0.5, an object standing on the bottom edge less),
+    /// unless nothing else is left.
+    pub edge_contact: f64,
+}
+
+impl Default for BackdropParams {
+    fn default() -> Self {
+        Self {
+            border: 0.03,
+            chroma: 0.045,
+            chroma_spread: 4.0,
+            darker: 0.62,
+            brighter: 1.45,
+            cell: 0.0625,
+            open: 0.004,
+            close: 0.012,
+            keep: 0.2,
+            edge_contact: 0.4,
+        }
+    }
+}
+
+/// The backdrop as [`backdrop_silhouette`] estimated it (for the log and tests).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Backdrop {
+    /// Median colour of the border band.
+    pub colour: [u8; 3],
+    /// Its brightness ((r + g + b) / 3).
+    pub brightness: f64,
+    /// The chromaticity distance above which a pixel is object.
+    pub chroma_threshold: f64,
+}
+
+/// Median colour of the border band of `img` (band `band` pixels wide).
+fn border_pixels(img: &RgbImage, band: u32) -> Vec<[u8; 3]> {
+    let (w, h) = img.dimensions();
+    let b = band.min(w / 2).min(h / 2).max(1);
+    let mut v = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            if x < b || y < b || x + b >= w || y + b >= h {
+                v.push(img.get_pixel(x, y).0);
+            }
+        }
+    }
+    v
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let m = v.len() / 2;
+    *v.select_nth_unstable_by(m, f64::total_cmp).1
+}
+
+fn chroma(p: [u8; 3]) -> [f64; 3] {
+    let s = p[0] as f64 + p[1] as f64 + p[2] as f64 + 3.0;
+    [
+        (p[0] as f64 + 1.0) / s,
+        (p[1] as f64 + 1.0) / s,
+        (p[2] as f64 + 1.0) / s,
+    ]
+}
+
+fn brightness(p: [u8; 3]) -> f64 {
+    (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0
+}
+
+fn chroma_dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+fn radius(frac: f64, short: u32) -> u32 {
+    ((frac * short as f64).round() as u32).max(1)
+}
+
+/// Median brightness of the border band of a photo and the largest channel's median there:
+/// what decides between the dark-backdrop threshold and [`backdrop_silhouette`].
+pub fn border_level(img: &RgbImage, p: &BackdropParams) -> f64 {
+    let short = img.width().min(img.height());
+    let px = border_pixels(img, radius(p.border, short).max(2));
+    median(px.iter().map(|q| q[0].max(q[1]).max(q[2]) as f64).collect())
+}
+
+/// Estimates the backdrop of `img` from its border band.
+pub fn estimate_backdrop(img: &RgbImage, p: &BackdropParams) -> Backdrop {
+    let short = img.width().min(img.height());
+    let px = border_pixels(img, radius(p.border, short).max(2));
+    let colour = [0, 1, 2].map(|c| median(px.iter().map(|q| q[c] as f64).collect()) as u8);
+    let c0 = chroma(colour);
+    let spread = median(px.iter().map(|&q| chroma_dist(chroma(q), c0)).collect());
+    Backdrop {
+        colour,
+        brightness: median(px.iter().map(|&q| brightness(q)).collect()),
+        chroma_threshold: p.chroma.max(p.chroma_spread * spread),
+    }
+}
+
+/// Silhouette of an object on a plain backdrop of any colour ([`BackdropParams`]): the
+/// backdrop's colour from the border band (medians), its brightness as a smooth field measured
+/// in cells over the pixels that look like backdrop (cells the object covers filled from their
+/// neighbours), each pixel object when its chromaticity is far from the backdrop's or its
+/// brightness ratio to the local backdrop is outside `[darker, brighter]`; then an opening, a
+/// closing, small components dropped and holes filled.
+pub fn backdrop_silhouette(img: &RgbImage, p: &BackdropParams) -> Mask {
+    let (w, h) = img.dimensions();
+    let (wu, hu) = (w as usize, h as usize);
+    let short = w.min(h);
+    let bd = estimate_backdrop(img, p);
+    let c0 = chroma(bd.colour);
+    let l0 = bd.brightness.max(1.0);
+    let px = img.as_raw();
+    let pix = |i: usize| [px[3 * i], px[3 * i + 1], px[3 * i + 2]];
+    let off_chroma = |q: [u8; 3]| chroma_dist(chroma(q), c0) > bd.chroma_threshold;
+    // Provisional backdrop: the global brightness, generous bounds.
+    let looks_backdrop = |q: [u8; 3]| {
+        let r = brightness(q) / l0;
+        !off_chroma(q) && (0.75..=1.3).contains(&r)
+    };
+    // The local brightness field: median per cell of the provisional backdrop pixels.
+    let cs = radius(p.cell, short).max(4) as usize;
+    let (gw, gh) = (wu.div_ceil(cs), hu.div_ceil(cs));
+    let mut field: Vec<Option<f64>> = vec![None; gw * gh];
+    for gy in 0..gh {
+        for gx in 0..gw {
+            let mut v = Vec::with_capacity(cs * cs);
+            for y in gy * cs..((gy + 1) * cs).min(hu) {
+                for x in gx * cs..((gx + 1) * cs).min(wu) {
+                    let q = pix(y * wu + x);
+                    if looks_backdrop(q) {
+                        v.push(brightness(q));
+                    }
+                }
+            }
+            let area = (((gy + 1) * cs).min(hu) - gy * cs) * (((gx + 1) * cs).min(wu) - gx * cs);
+            if v.len() * 5 >= area * 2 {
+                field[gy * gw + gx] = Some(median(v));
+            }
+        }
+    }
+    // Cells without enough backdrop take the mean of their measured neighbours, ring by ring.
+    for _ in 0..gw.max(gh) {
+        if field.iter().all(Option::is_some) {
+            break;
+        }
+        let prev = field.clone();
+        for gy in 0..gh {
+            for gx in 0..gw {
+                if prev[gy * gw + gx].is_some() {
+                    continue;
+                }
+                let (mut s, mut n) = (0.0, 0);
+                for (dx, dy) in [
+                    (-1i64, 0i64),
+                    (1, 0),
+                    (0, -1),
+                    (0, 1),
+                    (-1, -1),
+                    (1, 1),
+                    (-1, 1),
+                    (1, -1),
+                ] {
+                    let (x, y) = (gx as i64 + dx, gy as i64 + dy);
+                    if x >= 0 && y >= 0 && (x as usize) < gw && (y as usize) < gh {
+                        if let Some(v) = prev[y as usize * gw + x as usize] {
+                            s += v;
+                            n += 1;
+                        }
+                    }
+                }
+                if n > 0 {
+                    field[gy * gw + gx] = Some(s / n as f64);
+                }
+            }
+        }
+    }
+    let field: Vec<f64> = field
+        .into_iter()
+        .map(|v| v.unwrap_or(l0).clamp(0.7 * l0, 1.4 * l0))
+        .collect();
+    // Bilinear between cell centres.
+    let local = |x: usize, y: usize| {
+        let fx = ((x as f64 + 0.5) / cs as f64 - 0.5).clamp(0.0, (gw - 1) as f64);
+        let fy = ((y as f64 + 0.5) / cs as f64 - 0.5).clamp(0.0, (gh - 1) as f64);
+        let (x0, y0) = (fx.floor() as usize, fy.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(gw - 1), (y0 + 1).min(gh - 1));
+        let (ax, ay) = (fx - x0 as f64, fy - y0 as f64);
+        let f = |x: usize, y: usize| field[y * gw + x];
+        (f(x0, y0) * (1.0 - ax) + f(x1, y0) * ax) * (1.0 - ay)
+            + (f(x0, y1) * (1.0 - ax) + f(x1, y1) * ax) * ay
+    };
+    let raw = Mask::from_index_fn(w, h, |i| {
+        let q = pix(i);
+        let r = brightness(q) / local(i % wu, i / wu);
+        off_chroma(q) || r < p.darker || r > p.brighter
+    });
+    let m = raw
+        .open(radius(p.open, short))
+        .close(radius(p.close, short));
+    fill_holes(&keep_large_components(&m, p.keep, p.edge_contact))
+}
+
+/// 4-connected components of the set (or, with `set = false`, the clear) pixels: a label per
+/// pixel (`u32::MAX` for the others) and each component's size.
+fn components(m: &Mask, set: bool) -> (Vec<u32>, Vec<usize>) {
+    let (w, h) = (m.width() as usize, m.height() as usize);
+    let bytes = mask_bytes(m);
+    let mut label = vec![u32::MAX; w * h];
+    let mut sizes = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..w * h {
+        if (bytes[start] == 1) != set || label[start] != u32::MAX {
+            continue;
+        }
+        let id = sizes.len() as u32;
+        label[start] = id;
+        stack.push(start);
+        let mut n = 0;
+        while let Some(i) = stack.pop() {
+            n += 1;
+            let (x, y) = (i % w, i / w);
+            let mut visit = |j: usize| {
+                if (bytes[j] == 1) == set && label[j] == u32::MAX {
+                    label[j] = id;
+                    stack.push(j);
+                }
+            };
+            if x > 0 {
+                visit(i - 1);
+            }
+            if x + 1 < w {
+                visit(i + 1);
+            }
+            if y > 0 {
+                visit(i - w);
+            }
+            if y + 1 < h {
+                visit(i + w);
+            }
+        }
+        sizes.push(n);
+    }
+    (label, sizes)
+}
+
+/// Keeps the 4-connected components of `m` that do not lie along the image edge (pixels on the
+/// outermost rows and columns above `edge_contact` of their bounding box's perimeter; all of
+/// them when every component does) and are at least `share` of the largest kept one's size.
+pub fn keep_large_components(m: &Mask, share: f64, edge_contact: f64) -> Mask {
+    let (w, h) = (m.width() as usize, m.height() as usize);
+    let (label, sizes) = components(m, true);
+    if sizes.is_empty() {
+        return m.clone();
+    }
+    let n = sizes.len();
+    let (mut contact, mut bbox) = (vec![0usize; n], vec![(usize::MAX, usize::MAX, 0, 0); n]);
+    for (i, &l) in label.iter().enumerate() {
+        if l == u32::MAX {
+            continue;
+        }
+        let (x, y) = (i % w, i / w);
+        let l = l as usize;
+        if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
+            contact[l] += 1;
+        }
+        let b = &mut bbox[l];
+        *b = (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y));
+    }
+    let inner: Vec<bool> = (0..n)
+        .map(|l| {
+            let (x0, y0, x1, y1) = bbox[l];
+            let perimeter = 2 * (x1 - x0 + 1 + y1 - y0 + 1);
+            contact[l] as f64 <= edge_contact * perimeter as f64
+        })
+        .collect();
+    let any_inner = inner.iter().any(|&b| b);
+    let candidate = |l: usize| inner[l] || !any_inner;
+    let largest = (0..n)
+        .filter(|&l| candidate(l))
+        .map(|l| sizes[l])
+        .max()
+        .unwrap_or(0);
+    let keep: Vec<bool> = (0..n)
+        .map(|l| candidate(l) && sizes[l] as f64 >= share * largest as f64)
+        .collect();
+    Mask::from_index_fn(m.width(), m.height(), |i| {
+        label[i] != u32::MAX && keep[label[i] as usize]
+    })
+}
+
+/// Fills the holes of `m`: clear regions that do not reach the image border become set.
+pub fn fill_holes(m: &Mask) -> Mask {
+    let (w, h) = (m.width() as usize, m.height() as usize);
+    let (label, sizes) = components(m, false);
+    let mut outside = vec![false; sizes.len()];
+    for x in 0..w {
+        for y in [0, h.saturating_sub(1)] {
+            if let Some(&l) = label.get(y * w + x).filter(|&&l| l != u32::MAX) {
+                outside[l as usize] = true;
+            }
+        }
+    }
+    for y in 0..h {
+        for x in [0, w.saturating_sub(1)] {
+            if let Some(&l) = label.get(y * w + x).filter(|&&l| l != u32::MAX) {
+                outside[l as usize] = true;
+            }
+        }
+    }
+    Mask::from_index_fn(m.width(), m.height(), |i| {
+        label[i] == u32::MAX || !outside[label[i] as usize]
+    })
+}
+
 /// Summed-area table of a mask, for counting set pixels in rectangles in O(1).
 #[derive(Debug, Clone)]
 pub struct Integral {
