@@ -118,17 +118,21 @@ impl ObjectFrames for Objects {
 /// width) along x, a tenth of the pixels unconfirmed.
 fn parallax(w: u32, h: u32) -> vt_core::parallax::PairParallax {
     let s = w as f32 / 640.0;
-    let field = |dir: [f32; 2]| vt_core::parallax::Field {
-        width: w,
-        height: h,
-        direction: dir,
-        disparity: (0..w * h)
-            .map(|i| {
-                let (x, y) = ((i % w) as f32, (i / w) as f32);
-                8.0 * s * (x / (60.0 * s)).sin() * (y / (90.0 * s)).cos()
-            })
-            .collect(),
-        valid: (0..w * h).map(|i| (i % w) % 10 != 3).collect(),
+    let field = |dir: [f32; 2]| {
+        vt_core::parallax::Field::new(
+            w,
+            h,
+            dir,
+            None,
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f32, (i / w) as f32);
+                    8.0 * s * (x / (60.0 * s)).sin() * (y / (90.0 * s)).cos()
+                })
+                .collect(),
+            (0..w * h).map(|i| (i % w) % 10 != 3).collect(),
+        )
+        .expect("a valid field")
     };
     vt_core::parallax::PairParallax {
         a: field([1.0, 0.0]),

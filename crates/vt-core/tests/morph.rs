@@ -2,7 +2,7 @@
 //! a line): the even views are the inputs, the odd views the truth at q = 0.5, 1.5, 2.5.
 
 use image::RgbImage;
-use vt_core::parallax::{direction_and_range, estimate, morph, ParallaxParams};
+use vt_core::parallax::{estimate, geometry, morph, ParallaxParams};
 use vt_core::register::{register_pair, RegisterParams};
 use vt_core::{Homography, Point};
 
@@ -23,13 +23,14 @@ fn fit4(src: &[Point], dst: &[Point]) -> Homography {
 /// Issue #19's first step: the dense parallax (census + SGM along the rig's direction, both
 /// ways, left-right check) and the reference morph of `vt_core::parallax`, against the plane
 /// warp of eq. (3) and a plain 50/50 blend, at q = 0.5 between each pair of even views.
-/// Measured (PSNR dB, plane -> morph): Dolls 25.1 -> 36.9, 25.1 -> 35.6, 24.9 -> 36.9;
-/// Moebius 24.1 -> 36.1, 24.7 -> 35.2, 24.5 -> 35.3; Reindeer 20.6 -> 24.8, 22.0 -> 27.4,
-/// 22.0 -> 27.8 (Reindeer: large untextured areas and the near paper at the image's right
-/// edge, seen by one view only; OpenCV's DIS morph does better there, see the cross-check).
+/// Measured (PSNR dB, plane -> morph): Dolls 25.1 -> 38.2, 25.1 -> 36.3, 24.9 -> 38.0;
+/// Moebius 24.1 -> 36.4, 24.7 -> 37.5, 24.5 -> 35.2; Reindeer 20.6 -> 29.3, 22.0 -> 30.3,
+/// 22.0 -> 30.5 (Reindeer's registration shears across the parallax, which the fitted search
+/// lines absorb; the near board at the image's right edge is seen by one view only, which the
+/// morph's convergence test handles).
 #[test]
 fn middlebury_morph_beats_the_plane_warp() {
-    for (scene, gain_db) in [("Dolls", 9.0), ("Moebius", 9.0), ("Reindeer", 3.5)] {
+    for (scene, gain_db) in [("Dolls", 9.0), ("Moebius", 9.0), ("Reindeer", 7.0)] {
         for k in [0usize, 2, 4] {
             let (a, b) = (
                 load(scene, &format!("view{k}.png")),
@@ -71,18 +72,18 @@ fn middlebury_morph_beats_the_plane_warp() {
             let pairs: Vec<(Point, Point)> =
                 m.iter().map(|&(i, j)| (fa[i].pos, fb[j].pos)).collect();
             let t0 = std::time::Instant::now();
-            let dr = direction_and_range(&pairs, &hab).unwrap();
-            let par = estimate(&a, &b, &hab, dr, &ParallaxParams::default());
+            let dr = geometry(&pairs, &hab, (w, h)).unwrap();
+            let par = estimate(&a, &b, &hab, &dr, &ParallaxParams::default());
             let est_s = t0.elapsed().as_secs_f64();
             let t0 = std::time::Instant::now();
             let mo = morph(&a, &b, &par, &haq, &hbq, 0.5, w, h);
             let mo_s = t0.elapsed().as_secs_f64();
             let ps = |img: &RgbImage| vt_core::metrics::psnr(img, &truth, None).unwrap();
             let valid =
-                par.a.valid.iter().filter(|&&v| v).count() as f64 / par.a.valid.len() as f64;
+                par.a.valid().iter().filter(|&&v| v).count() as f64 / par.a.valid().len() as f64;
             eprintln!(
                 "{scene} q={}: plane {:.2} blend {:.2} morph {:.2} dB (dir {:?} range {}..{}, valid {:.0}%, {:.2} s + {:.3} s)",
-                k / 2, ps(&plane), ps(&blend), ps(&mo), dr.0, dr.1, dr.2, 100.0 * valid, est_s, mo_s
+                k / 2, ps(&plane), ps(&blend), ps(&mo), dr.direction, dr.lo, dr.hi, 100.0 * valid, est_s, mo_s
             );
             assert!(
                 ps(&mo) >= ps(&plane) + gain_db,

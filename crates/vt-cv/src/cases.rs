@@ -216,13 +216,13 @@ pub fn morph_scores(
             .into_iter()
             .map(|(i, j)| (fa[i].pos, fb[j].pos))
             .collect();
-    let dr = vt_core::parallax::direction_and_range(&matches, &hab)
+    let geo = vt_core::parallax::geometry(&matches, &hab, (w, h))
         .ok_or_else(|| none("no parallax off the plane"))?;
     let par = vt_core::parallax::estimate(
         a,
         b,
         &hab,
-        dr,
+        &geo,
         &vt_core::parallax::ParallaxParams::default(),
     );
     let vt = vt_core::parallax::morph(a, b, &par, &haq, &hbq, 0.5, w, h);

@@ -5,8 +5,9 @@
 //! `frac` samples each background with `remap` at `x0 - frac * flow(x0)` (one backward lookup,
 //! `x0 = H_(p,q)^-1 z`) and blends with weights `(1 - frac, frac)`: a plain flow morph, no
 //! occlusion reasoning. vt-core differs in the correspondence (census + semi-global matching
-//! along one direction, left-right check) and in the morph (a fixed point per pixel, the view
-//! that sees a pixel taking it alone).
+//! along fitted search lines, sub-pixel refinement, left-right check, occlusions filled from
+//! the farther side) and in the morph (a fixed point per pixel, the view whose trace converges
+//! preferred).
 
 use image::RgbImage;
 use opencv::core::{self, Mat, Size, Vec2f};

@@ -184,6 +184,10 @@ pub struct ParallaxFieldEntry {
     pub file: String,
     /// Unit direction of the disparity in that view's frame.
     pub direction: [f32; 2],
+    /// The field's line map (row-major 3x3: pixel `x`'s search line is `m x`, its epipolar line
+    /// carried into that view's plane-aligned frame); absent: straight along `direction`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lines: Option<[f64; 9]>,
 }
 
 /// File name of link p's parallax field in view p's (`side` 0) or view p + 1's (1) frame.
@@ -197,10 +201,10 @@ const PARALLAX_OFFSET: i32 = 16384;
 
 fn write_field(path: &Path, f: &vt_core::parallax::Field) -> Result<()> {
     let img =
-        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(f.width, f.height, |x, y| {
-            let i = (y * f.width + x) as usize;
-            let q = ((f.disparity[i] * 8.0).round() as i32 + PARALLAX_OFFSET).clamp(0, 32767);
-            image::Luma([((q as u16) << 1) | f.valid[i] as u16])
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(f.width(), f.height(), |x, y| {
+            let i = (y * f.width() + x) as usize;
+            let q = ((f.disparity()[i] * 8.0).round() as i32 + PARALLAX_OFFSET).clamp(0, 32767);
+            image::Luma([((q as u16) << 1) | f.valid()[i] as u16])
         });
     img.save(path).map_err(|e| Error::Image {
         path: path.to_path_buf(),
@@ -210,7 +214,7 @@ fn write_field(path: &Path, f: &vt_core::parallax::Field) -> Result<()> {
 
 fn read_field(
     path: &Path,
-    direction: [f32; 2],
+    entry: &ParallaxFieldEntry,
     size: (u32, u32),
 ) -> Result<vt_core::parallax::Field> {
     let bytes =
@@ -221,30 +225,31 @@ fn read_field(
             message: e.to_string(),
         })?
         .to_luma16();
-    let n = (direction[0] as f64).hypot(direction[1] as f64);
-    if img.dimensions() != size || !(0.99..=1.01).contains(&n) {
-        return Err(Error::Scene {
-            path: path.to_path_buf(),
-            message: format!(
-                "corrupted parallax field: {}x{} with direction {direction:?}, the scene is {}x{}",
-                img.width(),
-                img.height(),
-                size.0,
-                size.1
-            ),
-        });
+    let corrupt = |why: String| Error::Scene {
+        path: path.to_path_buf(),
+        message: format!("corrupted parallax field: {why}"),
+    };
+    if img.dimensions() != size {
+        return Err(corrupt(format!(
+            "{}x{}, the scene is {}x{}",
+            img.width(),
+            img.height(),
+            size.0,
+            size.1
+        )));
     }
     let raw = img.into_raw();
-    Ok(vt_core::parallax::Field {
-        width: size.0,
-        height: size.1,
-        direction,
-        disparity: raw
-            .iter()
+    vt_core::parallax::Field::new(
+        size.0,
+        size.1,
+        entry.direction,
+        entry.lines,
+        raw.iter()
             .map(|&v| ((v >> 1) as i32 - PARALLAX_OFFSET) as f32 / 8.0)
             .collect(),
-        valid: raw.iter().map(|&v| v & 1 == 1).collect(),
-    })
+        raw.iter().map(|&v| v & 1 == 1).collect(),
+    )
+    .map_err(|e| corrupt(e.to_string()))
 }
 
 /// The figures of an automatic registration ([`vt_core::register`]), in scene.json.
@@ -469,7 +474,8 @@ impl SceneFile {
                             fields: l.parallax.as_ref().map(|par| {
                                 [0, 1].map(|side| ParallaxFieldEntry {
                                     file: parallax_name(p, side),
-                                    direction: [&par.a, &par.b][side].direction,
+                                    direction: [&par.a, &par.b][side].direction(),
+                                    lines: [&par.a, &par.b][side].lines(),
                                 })
                             }),
                         }),
@@ -926,8 +932,8 @@ impl LoadedScene {
             parallax.push(match fields {
                 Some([fa, fb]) => {
                     let size = (file.width, file.height);
-                    let a = read_field(&dir.join(&fa.file), fa.direction, size)?;
-                    let b = read_field(&dir.join(&fb.file), fb.direction, size)?;
+                    let a = read_field(&dir.join(&fa.file), fa, size)?;
+                    let b = read_field(&dir.join(&fb.file), fb, size)?;
                     Some(std::sync::Arc::new(vt_core::parallax::PairParallax {
                         a,
                         b,
