@@ -1,5 +1,6 @@
 //! `vt fv ...`: free-viewpoint images from calibrated photos (SPEC System B): build the voxel
-//! model, render new views (rough or guided), encode orbits, and score withheld views.
+//! model, render new views (textured by default, `--method rough` or `paper`), encode orbits, and
+//! score withheld views.
 //!
 //! Input is a folder holding the photos and their cameras: a Middlebury `*_par.txt`, a COLMAP
 //! sparse model (text or binary, in the folder, `sparse/` or `sparse/0/`; photos in `images/`)
@@ -19,9 +20,9 @@ use vt_fv::dataset::{
     DataOptions, Dataset, EvalSummary, ModelParams,
 };
 use vt_fv::hull::Aabb;
-use vt_fv::pipeline::{novel_view, Method, ViewOptions, ViewParams};
+use vt_fv::pipeline::{novel_view_in, Method, ViewOptions, ViewParams};
 use vt_fv::texture::model_centre;
-use vt_fv::{render_rough, Camera, VoxelModel};
+use vt_fv::{Camera, VoxelModel};
 use vt_io::output::{Output, OutputKind};
 
 use crate::progress::{bar, StageBars};
@@ -31,11 +32,11 @@ use crate::progress::{bar, StageBars};
 pub enum FvCommand {
     /// Build the visual hull and the photo hull; write DIR/hull.ply and DIR/summary.json.
     Hull(HullArgs),
-    /// Render one new view (rough, or guided by texture synthesis) into an image file.
+    /// Render one new view (textured by default; --method rough|paper) into an image file.
     Render(RenderArgs),
-    /// Render views around the cameras' ring and encode them as an mp4 or gif (needs ffmpeg).
+    /// Views around the cameras' ring (made by --method, textured by default), encoded as an mp4 or gif (needs ffmpeg).
     Orbit(OrbitArgs),
-    /// Leave one view out: rebuild without it, render it, and score rough and guided renders.
+    /// Leave one view out: rebuild without it, make it by --method, and score it and the baselines.
     Eval(EvalArgs),
 }
 
@@ -122,11 +123,16 @@ pub struct ViewArgs {
     /// (default: the speed options, see vt-fv's README).
     #[arg(long)]
     exact: bool,
-    /// How new views are made: `textured` (default: the nearest reference photos projected
-    /// onto the voxel surface, holes filled) or `paper` (guided synthesis of the rough render
-    /// from the nearest photo, as in the paper).
+    /// How new views are made, the same for render, orbit and eval: `textured` (default, the
+    /// best measured: the nearest reference photos projected onto the voxel surface, blended,
+    /// trimmed to the silhouettes), `rough` (the voxel model's own colours: blocky) or `paper`
+    /// (guided synthesis of the rough render from the nearest photo, as in the paper).
     #[arg(long, value_enum, default_value_t = MethodArg::Textured)]
     method: MethodArg,
+    /// Accepted for old scripts: the textured view it asked for is the default now (`--method
+    /// rough` gives the voxel render).
+    #[arg(long, hide = true)]
+    guided: bool,
     /// With `--method textured`: also run guided synthesis with the textured view as guide.
     #[arg(long)]
     refine: bool,
@@ -160,6 +166,8 @@ pub enum SilhouettesArg {
 pub enum MethodArg {
     /// View-dependent texturing (the default).
     Textured,
+    /// The rough render: the voxel model's colours.
+    Rough,
     /// The paper's guided synthesis of the rough render.
     Paper,
 }
@@ -190,9 +198,6 @@ pub struct RenderArgs {
     /// views I and J, 0-based in camera order (the par file's lines, COLMAP's image ids, the matrix files' names), at T in [0, 1]).
     #[arg(long, allow_hyphen_values = true)]
     camera: String,
-    /// Re-texture the rough render by guided synthesis from the nearest photo.
-    #[arg(long)]
-    guided: bool,
     /// Output image (.png or .jpg), written to a temporary file and renamed.
     #[arg(long)]
     out: PathBuf,
@@ -213,9 +218,6 @@ pub struct OrbitArgs {
     /// Frames per second of the output.
     #[arg(long, default_value_t = 24)]
     fps: u32,
-    /// Guided synthesis for every frame (slow) instead of rough renders.
-    #[arg(long)]
-    guided: bool,
     /// Output .mp4 (H.264) or .gif, written to a temporary file and renamed.
     #[arg(long)]
     out: PathBuf,
@@ -336,7 +338,14 @@ impl ViewArgs {
         let method = match self.method {
             MethodArg::Paper => Method::Paper,
             MethodArg::Textured => Method::Textured,
+            MethodArg::Rough => Method::Rough,
         };
+        if self.guided {
+            if method == Method::Rough {
+                bail!("--guided and --method rough: --guided asked for the textured view, which is the default now; drop --guided");
+            }
+            eprintln!("--guided: the textured view is the default now; the flag changes nothing (--method rough gives the voxel render)");
+        }
         let (patch, exact, refine, references) =
             (self.patch, self.exact, self.refine, self.references);
         let o = ViewOptions {
@@ -434,24 +443,30 @@ fn render(a: RenderArgs) -> Result<()> {
         cam
     };
     let t = Instant::now();
-    let (img, coverage, what) = if a.guided {
-        let pb = bar(1, "guided synthesis");
-        let v = novel_view(&model, &d.cams, &d.images, &cam, w, h, &view)
-            .context("guided synthesis")?;
-        pb.finish_and_clear();
-        let what = v.describe(&d.cams, &view);
-        (v.guided, v.rough.coverage.count_ones(), what)
-    } else {
-        let r = render_rough(&model, &cam, w, h);
-        (r.image, r.coverage.count_ones(), "rough".to_string())
-    };
+    let pb = bar(1, view.name());
+    // What eval scores: the model's render trimmed to the reference silhouettes, then the
+    // method's image.
+    let v = novel_view_in(
+        &model,
+        &d.cams,
+        &d.images,
+        Some(&d.masks),
+        &cam,
+        w,
+        h,
+        &view,
+    )
+    .with_context(|| format!("--method {}", view.name()))?;
+    pb.finish_and_clear();
+    let what = v.describe(&d.cams, &view);
+    let (img, coverage) = (v.guided, v.rough.coverage.count_ones());
     if coverage == 0 {
         bail!("--camera {}: camera sees none of the model", cam.name);
     }
     let render_secs = t.elapsed().as_secs_f64();
     vt_io::writer::write_image(&a.out, &a.data.inputs(), &img)?;
     println!(
-        "model: {} surface voxels ({} passes) in {:.2} s; {what} render in {render_secs:.2} s",
+        "model: {} surface voxels ({} passes) in {:.2} s; view in {render_secs:.2} s, {what}",
         s.surface_voxels,
         s.photo_hull_passes,
         s.visual_hull_secs + s.photo_hull_secs,
@@ -493,24 +508,28 @@ fn orbit(a: OrbitArgs) -> Result<()> {
     for i in 0..a.frames {
         let angle = 360.0 * i as f64 / a.frames as f64;
         let cam: Camera = ring.camera(angle, &target)?;
-        let img = if a.guided {
-            novel_view(&model, &d.cams, &d.images, &cam, w, h, &view)
-                .with_context(|| format!("frame {i} (angle {angle:.1})"))?
-                .guided
-        } else {
-            render_rough(&model, &cam, w, h).image
-        };
-        video.write(&img)?;
+        let v = novel_view_in(
+            &model,
+            &d.cams,
+            &d.images,
+            Some(&d.masks),
+            &cam,
+            w,
+            h,
+            &view,
+        )
+        .with_context(|| format!("frame {i} (angle {angle:.1})"))?;
+        video.write(&v.guided)?;
         pb.inc(1);
     }
     pb.finish_and_clear();
     video.finish()?;
-    let kind = if a.guided { "guided" } else { "rough" };
     println!(
-        "wrote {} ({} frames, {w}x{h}, {} fps, {kind})",
+        "wrote {} ({} frames, {w}x{h}, {} fps); each frame {}",
         a.out.display(),
         a.frames,
-        a.fps
+        a.fps,
+        view.describe()
     );
     Ok(())
 }
@@ -552,6 +571,7 @@ fn eval(a: EvalArgs) -> Result<()> {
         println!("{}", serde_json::to_string(&summary)?);
         return Ok(());
     }
+    println!("new views by {}", view.describe());
     for r in &reports {
         println!(
             "withheld view {} ({}); nearest photo view {} ({}); method {}",

@@ -102,38 +102,66 @@ fn synth_object_hull_render_eval() {
         .unwrap();
     assert_eq!(verts as u64, sum["surface_voxels"].as_u64().unwrap());
 
-    // Render the first truth viewpoint (10 degrees past camera 0), rough and guided.
+    // Render the first truth viewpoint (10 degrees past camera 0): with no method flag (the
+    // textured view, what eval scores), --method rough (the voxel render) and the old
+    // --guided (now the default: the same bytes).
     let cam = par_line(&truth.join("truth_par.txt"), 0);
-    let (rough, guided) = (root.join("rough.png"), root.join("guided.png"));
-    let grid = ["--grid", "96"];
-    vt_ok(
-        &[
-            &["fv", "render", s(obj), "--camera", &cam, "--out", s(&rough)],
-            &grid[..],
-        ]
-        .concat(),
-    );
-    vt_ok(
-        &[
+    let render = |out: &Path, extra: &[&str]| {
+        vt_ok(
             &[
-                "fv",
-                "render",
-                s(obj),
-                "--camera",
-                &cam,
-                "--out",
-                s(&guided),
-                "--guided",
-            ],
-            &grid[..],
-        ]
-        .concat(),
+                &[
+                    "fv",
+                    "render",
+                    s(obj),
+                    "--camera",
+                    &cam,
+                    "--out",
+                    s(out),
+                    "--grid",
+                    "96",
+                ],
+                extra,
+            ]
+            .concat(),
+        )
+    };
+    let (default, rough, guided) = (
+        root.join("default.png"),
+        root.join("rough.png"),
+        root.join("guided.png"),
     );
+    let said = render(&default, &[]);
+    assert!(said.contains("textured: the 2 photos nearest"), "{said}");
+    let said = render(&rough, &["--method", "rough"]);
+    assert!(
+        said.contains("rough: the voxel model's own colours"),
+        "{said}"
+    );
+    render(&guided, &["--guided"]);
+    let bytes = |p: &Path| image::open(p).unwrap().to_rgb8().into_raw();
+    assert_eq!(bytes(&default), bytes(&guided), "--guided is the default");
+    assert_ne!(bytes(&default), bytes(&rough));
     let (t, m) = (truth.join("truth_00.png"), truth.join("masks/truth_00.png"));
-    let (pr, pg) = (psnr_in_mask(&rough, &t, &m), psnr_in_mask(&guided, &t, &m));
-    eprintln!("truth view 0: rough PSNR {pr:.2} dB, guided {pg:.2} dB");
+    let (pr, pd) = (psnr_in_mask(&rough, &t, &m), psnr_in_mask(&default, &t, &m));
+    eprintln!("truth view 0: rough PSNR {pr:.2} dB, default (textured) {pd:.2} dB");
     assert!(pr > 12.0, "rough render PSNR {pr} dB: the model is wrong");
-    assert!(pg > pr, "guided PSNR {pg} dB <= rough {pr} dB");
+    assert!(pd > pr, "default PSNR {pd} dB <= rough {pr} dB");
+    // --guided with --method rough contradict: one line naming both.
+    vt_err(
+        &[
+            "fv",
+            "render",
+            s(obj),
+            "--camera",
+            &cam,
+            "--out",
+            s(&guided),
+            "--guided",
+            "--method",
+            "rough",
+        ],
+        &["--guided and --method rough"],
+    );
 
     // The other camera forms.
     for spec in ["angle:30", "between:1,2,0.5"] {
@@ -436,4 +464,67 @@ fn temple_leave_one_out_guided_beats_rough() {
         &["fv", "eval", s(&data), "--leave-out", "3,16"],
         &["--leave-out 16", "16 views"],
     );
+}
+
+/// The kettle (testdata/kettle: a COLMAP model, 28 real photos on white cloth, no masks): the
+/// hull is carved from automatic silhouettes, checked across views, and the default render is
+/// the textured view.
+#[test]
+fn kettle_hull_and_render_from_automatic_silhouettes() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/kettle");
+    let root = scratch("fv-kettle");
+    let hull = root.join("hull");
+    let out = vt_ok(&["fv", "hull", s(&data), "--out", s(&hull)]);
+    assert!(out.contains("segmented from their plain backdrop"), "{out}");
+    assert!(
+        out.contains("silhouette check")
+            && out.contains("all 28 agree")
+            && !out.contains("cover nearly"),
+        "{out}"
+    );
+    let sum = read_json(&hull.join("summary.json"));
+    let check = &sum["silhouette_check"];
+    assert_eq!(check["views"].as_array().unwrap().len(), 28, "{sum}");
+    assert!(check["disagreeing"].as_array().unwrap().is_empty(), "{sum}");
+    // Forcing the dark-backdrop threshold on white cloth takes the whole photo: such
+    // silhouettes agree with each other, and the check names them as covering everything.
+    let out = vt_ok(&[
+        "fv",
+        "hull",
+        s(&data),
+        "--out",
+        s(&hull),
+        "--silhouettes",
+        "threshold",
+        "--grid",
+        "48",
+    ]);
+    assert!(
+        out.contains("28 cover nearly the whole photo") && out.contains("--silhouettes backdrop"),
+        "{out}"
+    );
+    assert_eq!(
+        read_json(&hull.join("summary.json"))["silhouette_check"]["full"]
+            .as_array()
+            .unwrap()
+            .len(),
+        28
+    );
+    // A view between two photos, default method: textured, and the kettle covers a plausible
+    // share of it (the photos' silhouettes cover 6-14%).
+    let img = root.join("between.png");
+    let out = vt_ok(&[
+        "fv",
+        "render",
+        s(&data),
+        "--camera",
+        "between:3,4,0.5",
+        "--out",
+        s(&img),
+    ]);
+    assert!(out.contains("textured:"), "{out}");
+    let im = image::open(&img).unwrap().to_rgb8();
+    let covered =
+        im.pixels().filter(|p| p.0 != [0, 0, 0]).count() as f64 / (im.width() * im.height()) as f64;
+    assert!((0.04..=0.2).contains(&covered), "covered {covered:.3}");
 }

@@ -1096,6 +1096,14 @@ impl Dataset {
                 .filter(|(_, &v)| v < threshold)
                 .map(|(i, &v)| (i, self.cams[i].name.clone(), v))
                 .collect(),
+            full: self
+                .masks
+                .iter()
+                .enumerate()
+                .map(|(i, m)| (i, m.count_ones() as f64 / m.len().max(1) as f64))
+                .filter(|&(_, share)| share > FULL_SHARE)
+                .map(|(i, share)| (i, self.cams[i].name.clone(), share))
+                .collect(),
         })
     }
 
@@ -1346,7 +1354,15 @@ pub struct SilhouetteCheck {
     pub views: Vec<(String, f64)>,
     /// The views that disagree: (index, photo name, IoU).
     pub disagreeing: Vec<(usize, String, f64)>,
+    /// Views whose silhouette covers more than [`FULL_SHARE`] of the photo (index, photo name,
+    /// share): no segmentation at all, which agrees with anything (e.g. the dark-backdrop
+    /// threshold on a light backdrop).
+    pub full: Vec<(usize, String, f64)>,
 }
+
+/// Share of a photo above which [`SilhouetteCheck`] names a silhouette as covering all of it
+/// (0.9).
+pub const FULL_SHARE: f64 = 0.9;
 
 /// One line: the IoU range, and the photos that disagree by name.
 impl std::fmt::Display for SilhouetteCheck {
@@ -1358,6 +1374,19 @@ impl std::fmt::Display for SilhouetteCheck {
             f,
             "silhouette check: IoU of each view's silhouette against the hull of the others {lo:.2}-{hi:.2}; "
         )?;
+        if !self.full.is_empty() {
+            let names: Vec<String> = self
+                .full
+                .iter()
+                .map(|(i, n, v)| format!("view {i} ({n}): {:.0}%", v * 100.0))
+                .collect();
+            write!(
+                f,
+                "{} cover nearly the whole photo (not segmented: a light backdrop thresholded as dark? try --silhouettes backdrop): {}; ",
+                names.len(),
+                names.join(", ")
+            )?;
+        }
         if self.disagreeing.is_empty() {
             return write!(f, "all {} agree (>= {})", self.views.len(), self.threshold);
         }

@@ -31,6 +31,9 @@ pub fn nearest_reference(cams: &[Camera], cam: &Camera) -> Option<usize> {
 /// How a new view is made from the model and the photos.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
+    /// The rough render alone: the voxel model's own colours (each voxel the mean of the photos
+    /// that see it), trimmed to the silhouettes when they are given. Blocky; the baseline.
+    Rough,
     /// The paper (SPEC B.4-B.6): the rough render (flat voxel colours) is the guide; guided
     /// synthesis re-textures it from the one nearest reference photo.
     Paper,
@@ -82,12 +85,35 @@ impl Default for ViewParams {
 }
 
 impl ViewParams {
-    /// The method's name: `paper`, `textured` or `textured+synthesis`.
+    /// The method's name: `rough`, `paper`, `textured` or `textured+synthesis`.
     pub fn name(&self) -> &'static str {
         match (self.method, self.refine) {
+            (Method::Rough, _) => "rough",
             (Method::Paper, _) => "paper",
             (Method::Textured, false) => "textured",
             (Method::Textured, true) => "textured+synthesis",
+        }
+    }
+
+    /// What the method does, in plain words (no photo names: those are
+    /// [`NovelView::describe`]'s).
+    pub fn describe(&self) -> String {
+        match self.method {
+            Method::Rough => "rough: the voxel model's own colours (each voxel the mean of the photos that see it), no photo texture".to_string(),
+            Method::Paper => format!(
+                "paper: the rough render re-textured by guided synthesis (PatchMatch, patch {}) from the nearest photo",
+                self.guided.patch
+            ),
+            Method::Textured => format!(
+                "textured: the {} photo{} nearest in viewing direction projected onto the voxel model's surface, blended per pixel and softened where they disagree{}",
+                self.texture.references,
+                if self.texture.references == 1 { "" } else { "s" },
+                if self.refine {
+                    ", then refined by guided synthesis"
+                } else {
+                    ""
+                }
+            ),
         }
     }
 
@@ -143,7 +169,7 @@ impl ViewOptions {
             let why = "must be in 1..=64".to_string();
             return Err(bad("references", self.references.to_string(), why));
         }
-        if self.refine && self.method == Method::Paper {
+        if self.refine && self.method != Method::Textured {
             let why = "applies to the textured method only".to_string();
             return Err(bad("refine", String::new(), why));
         }
@@ -156,6 +182,11 @@ impl ViewOptions {
             GuidedParams::fast_for(patch)
         };
         Ok(match self.method {
+            Method::Rough => ViewParams {
+                method: Method::Rough,
+                guided,
+                ..ViewParams::default()
+            },
             Method::Paper => ViewParams::paper(guided),
             Method::Textured => {
                 let mut p = ViewParams {
@@ -181,23 +212,37 @@ pub struct NovelView {
     pub guided: RgbImage,
     /// The nearest reference photo (the synthesis input), index into the cameras.
     pub reference: usize,
+    /// The reference photos the view was made from, nearest first ([`Method::Textured`]: the
+    /// ones blended; otherwise the nearest alone, or none for [`Method::Rough`]).
+    pub references: Vec<usize>,
     /// Seconds per stage, in order: rough render, clip and grow (with silhouettes), texturing,
     /// synthesis.
     pub times: Vec<(&'static str, f64)>,
 }
 
 impl NovelView {
-    /// How the view was made, in words: `guided (paper) from NAME (patch 7)` or `textured from
-    /// NAME and its 1 nearest`.
+    /// How the view was made, in plain words, e.g. `textured: the 2 photos nearest in viewing
+    /// direction (a.png, b.png) projected onto the voxel model's surface and blended per pixel`.
     pub fn describe(&self, cams: &[Camera], p: &ViewParams) -> String {
-        let reference = &cams[self.reference].name;
+        let names: Vec<&str> = self
+            .references
+            .iter()
+            .map(|&i| cams[i].name.as_str())
+            .collect();
         match p.method {
-            Method::Paper => format!("guided (paper) from {reference} (patch {})", p.guided.patch),
+            Method::Rough => "rough: the voxel model's own colours (each voxel the mean of the photos that see it), no photo texture".to_string(),
+            Method::Paper => format!(
+                "paper: the rough render re-textured by guided synthesis (PatchMatch, patch {}) from the nearest photo ({})",
+                p.guided.patch,
+                cams[self.reference].name
+            ),
             Method::Textured => format!(
-                "textured from {reference} and its {} nearest{}",
-                p.texture.references.saturating_sub(1),
+                "textured: the {} photo{} nearest in viewing direction ({}) projected onto the voxel model's surface, blended per pixel and softened where they disagree{}",
+                names.len(),
+                if names.len() == 1 { "" } else { "s" },
+                names.join(", "),
                 if p.refine {
-                    ", refined by synthesis"
+                    ", then refined by guided synthesis"
                 } else {
                     ""
                 }
@@ -256,8 +301,9 @@ pub fn novel_view_in(
         clip_to_silhouettes(&mut rough, model, cam, cams, m, c);
         times.push(("clip", t.elapsed().as_secs_f64()));
     }
-    let (guide, reference, synthesise) = match p.method {
-        Method::Paper => (rough.image.clone(), reference, true),
+    let (guide, references, synthesise) = match p.method {
+        Method::Rough => (rough.image.clone(), Vec::new(), false),
+        Method::Paper => (rough.image.clone(), vec![reference], true),
         Method::Textured => {
             let grown = match (silhouettes, &p.clip) {
                 (Some(m), Some(c)) if p.grow > 0 => {
@@ -273,9 +319,10 @@ pub fn novel_view_in(
             let base = grown.as_ref().unwrap_or(&rough);
             let tex = texture_view(model, cams, images, cam, base, &p.texture)?;
             times.push(("texturing", t.elapsed().as_secs_f64()));
-            (tex.image, tex.references[0], p.refine)
+            (tex.image, tex.references, p.refine)
         }
     };
+    let reference = references.first().copied().unwrap_or(reference);
     let guided = if synthesise {
         let t = Instant::now();
         let g = match (&p.voting, p.method) {
@@ -292,6 +339,7 @@ pub fn novel_view_in(
         guide,
         guided,
         reference,
+        references,
         times,
     })
 }
