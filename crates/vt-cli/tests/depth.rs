@@ -47,10 +47,10 @@ fn analyse(views: &[PathBuf], out: &Path, extra: &[&str]) -> (LoadedScene, Strin
 fn middlebury_intermediate_views_follow_the_depth() {
     let tmp = tempfile::tempdir().unwrap();
     // Measured (PSNR dB at q = 0.5, 1.5, 2.5, plane -> default, whole image): Dolls 29.5 ->
-    // 35.6, 29.0 -> 34.8, 29.9 -> 35.9; Moebius 28.4 -> 36.8, 28.2 -> 34.7, 28.2 -> 34.7;
-    // Reindeer 22.3 -> 23.5, 22.4 -> 23.8, 23.2 -> 26.9 (large untextured areas, and near paper
-    // at the right edge that one view alone sees).
-    for (scene, gain_db) in [("Dolls", 5.5), ("Moebius", 6.0), ("Reindeer", 1.0)] {
+    // 36.3, 29.0 -> 35.0, 29.9 -> 36.1; Moebius 28.4 -> 37.6, 28.2 -> 35.2, 28.2 -> 34.9;
+    // Reindeer 22.3 -> 25.9, 22.4 -> 24.4, 23.2 -> 28.3 (the automatic plane shears the
+    // intermediate view: its top lies 1.5-2 px off the real view 1's).
+    for (scene, gain_db) in [("Dolls", 5.5), ("Moebius", 6.0), ("Reindeer", 1.5)] {
         // Each even view as a folder of 8 copies of its photo (a still "video").
         let views: Vec<PathBuf> = [0, 2, 4, 6]
             .iter()

@@ -1039,21 +1039,23 @@ impl crate::simd::Kernel for MorphRow<'_, '_> {
                 let (mut sx, mut sy) = (bx, by);
                 let (iw, ih) = (sd.iw, sd.ih);
                 let fr = sd.frac as f32 * crate::parallax::FLOW_UNIT;
+                let flow = sd.flow;
+                let last = flow.len() - 1;
+                let (mut px, mut py) = (sx, sy);
                 for _ in 0..MORPH_STEPS {
+                    (px, py) = (sx, sy);
                     for i in 0..CHUNK {
-                        // `get`: no bounds-check branch in the loop (the cell is in the field).
-                        let c = nearest_cell(sx[i], sy[i], iw, ih);
-                        let u = sd.flow.get(c).copied().unwrap_or_default();
+                        // `min(last)`: the index is provably in the slice, so the loop has no
+                        // bounds-check branch and vectorises with gathers.
+                        let u = flow[nearest_cell(sx[i], sy[i], iw, ih).min(last)];
                         sx[i] = bx[i] - f32::from(u[0]) * fr;
                         sy[i] = by[i] - f32::from(u[1]) * fr;
                     }
                 }
-                // One more step: how far it would still move (see `parallax::morph`).
+                // Converged: the last step moved it less than CONVERGED_PX (see
+                // `parallax::morph`).
                 for i in 0..CHUNK {
-                    let c = nearest_cell(sx[i], sy[i], iw, ih);
-                    let u = sd.flow.get(c).copied().unwrap_or_default();
-                    let ex = bx[i] - f32::from(u[0]) * fr - sx[i];
-                    let ey = by[i] - f32::from(u[1]) * fr - sy[i];
+                    let (ex, ey) = (sx[i] - px[i], sy[i] - py[i]);
                     converged[s][i] = ex * ex + ey * ey < c2;
                 }
                 run.sx = sx.map(f64::from);

@@ -162,14 +162,45 @@ pub struct MorphScores {
     pub vt: f64,
     /// OpenCV's DIS morph.
     pub cv: f64,
+    /// The same on and off the plane, where the truth's disparity is known.
+    pub split: Option<PlaneSplit>,
 }
 
-/// [`MorphScores`] of one pair (the cross-check's morph rows and the report's depth table).
+/// [`MorphScores`] split by the true depth: pixels on the registration's plane (true disparity
+/// within a pixel of the plane's) and off it; pixels of unknown disparity in neither.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaneSplit {
+    /// Share of the known pixels on the plane.
+    pub on_share: f64,
+    /// PSNR on the plane: plane warp, vt-core's morph, OpenCV's morph, 50/50 blend.
+    pub on: [f64; 4],
+    /// The same off the plane.
+    pub off: [f64; 4],
+}
+
+/// The four intermediate views [`morph_scores`] scores.
+#[derive(Debug, Clone)]
+pub struct MorphImages {
+    /// The plane warp.
+    pub plane: image::RgbImage,
+    /// vt-core's morph.
+    pub vt: image::RgbImage,
+    /// OpenCV's DIS morph.
+    pub cv: image::RgbImage,
+    /// The unwarped 50/50 blend.
+    pub blend: image::RgbImage,
+}
+
+/// [`MorphScores`] and [`MorphImages`] of one pair (the cross-check's morph rows and the
+/// report's depth table). `truth_disparity`: the truth view's disparity map for a rectified,
+/// horizontal rig (0 = unknown) and the factor from its values to pixels of disparity between
+/// `a` and `b`; it gives the on/off-plane split.
 pub fn morph_scores(
     a: &image::RgbImage,
     b: &image::RgbImage,
     truth: &image::RgbImage,
-) -> crate::Result<MorphScores> {
+    truth_disparity: Option<(&image::GrayImage, f64)>,
+) -> crate::Result<(MorphScores, MorphImages)> {
     use vt_core::register::{register_pair, RegisterParams};
     use vt_core::Homography;
     let (w, h) = a.dimensions();
@@ -205,7 +236,7 @@ pub fn morph_scores(
         })
     };
     let (plane, blend) = (mean(&wa, &wb), mean(a, b));
-    // vt-core: the matches of both backgrounds give the direction and range.
+    // vt-core: the matches of both backgrounds give the search geometry.
     let (ga, gb) = (vt_core::register::grey(a), vt_core::register::grey(b));
     let (fa, fb) = (
         vt_core::register::detect(&ga, &params),
@@ -228,11 +259,56 @@ pub fn morph_scores(
     let vt = vt_core::parallax::morph(a, b, &par, &haq, &hbq, 0.5, w, h);
     let flows = crate::parallax::estimate(a, b, &hab)?;
     let cv = crate::parallax::morph(a, b, &flows, &haq, &hbq, 0.5, w, h)?;
-    let psnr = |img: &image::RgbImage| vt_core::metrics::psnr(img, truth, None);
-    Ok(MorphScores {
-        plane: psnr(&plane)?,
-        blend: psnr(&blend)?,
-        vt: psnr(&vt)?,
-        cv: psnr(&cv)?,
-    })
+    let psnr = |img: &image::RgbImage, m: Option<&vt_core::mask::Mask>| {
+        vt_core::metrics::psnr(img, truth, m)
+    };
+    let split = match truth_disparity {
+        None => None,
+        Some((disp, scale)) => {
+            // The plane's disparity at the output pixel z: a's point H_aq^-1 z against its
+            // image H(.) in b, along x.
+            let on_off = |z: (u32, u32)| -> Option<bool> {
+                let v = f64::from(disp.get_pixel(z.0, z.1).0[0]);
+                if v == 0.0 {
+                    return None;
+                }
+                let pa = haq.apply_inverse(Point::new(f64::from(z.0), f64::from(z.1)))?;
+                let pb = hab.apply(pa)?;
+                Some((v * scale - (pa.x - pb.x)).abs() <= 1.0)
+            };
+            let labels: Vec<Option<bool>> = (0..w * h).map(|i| on_off((i % w, i / w))).collect();
+            let mask =
+                |want: bool| vt_core::mask::Mask::from_index_fn(w, h, |i| labels[i] == Some(want));
+            let (on, off) = (mask(true), mask(false));
+            let known = labels.iter().filter(|l| l.is_some()).count().max(1);
+            let four = |m: &vt_core::mask::Mask| -> crate::Result<[f64; 4]> {
+                Ok([
+                    psnr(&plane, Some(m))?,
+                    psnr(&vt, Some(m))?,
+                    psnr(&cv, Some(m))?,
+                    psnr(&blend, Some(m))?,
+                ])
+            };
+            Some(PlaneSplit {
+                on_share: labels.iter().filter(|l| **l == Some(true)).count() as f64 / known as f64,
+                on: four(&on)?,
+                off: four(&off)?,
+            })
+        }
+    };
+    Ok((
+        MorphScores {
+            plane: psnr(&plane, None)?,
+            blend: psnr(&blend, None)?,
+            vt: psnr(&vt, None)?,
+            cv: psnr(&cv, None)?,
+            split,
+        },
+        MorphImages {
+            plane,
+            vt,
+            cv,
+            blend,
+        },
+    ))
 }
