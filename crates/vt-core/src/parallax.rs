@@ -56,9 +56,9 @@ impl Default for ParallaxParams {
     }
 }
 
-/// A disparity field in one view's (plane-aligned) frame: each pixel's match lies on a line
-/// through it (its epipolar line carried into this frame, or one straight direction), at
-/// signed distance `disparity` from the line's point nearest the pixel.
+/// A disparity field in one view's (plane-aligned) frame: each pixel's match lies on its search
+/// line ([`line_frame`]: fitted to the pair's matches, or one straight direction), at signed
+/// distance `disparity` from the line's point nearest the pixel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Field {
     width: u32,
@@ -965,26 +965,31 @@ pub fn morph(
     out
 }
 
+/// A random texture (blocks of 2 px so census sees structure), seen by two cameras on a
+/// horizontal line: the left half is a plane at disparity 0 (the marked plane), the right half a
+/// nearer one shifted by 6 px. 160x96. (The parallax tests and the renderer's.)
+#[cfg(test)]
+pub(crate) fn test_pair() -> (RgbImage, RgbImage) {
+    let (w, h) = (160u32, 96u32);
+    let tex = |x: i64, y: i64| {
+        let v = crate::rng::mix_at(7, ((y.div_euclid(2)) * 1000 + x.div_euclid(2)) as u64);
+        let g = (v % 200) as u8 + 30;
+        image::Rgb([g, g / 2 + 40, 255 - g])
+    };
+    let a = RgbImage::from_fn(w, h, |x, y| tex(x as i64, y as i64));
+    let b = RgbImage::from_fn(w, h, |x, y| {
+        let shift = if x >= 80 { 6 } else { 0 };
+        tex(x as i64 - shift, y as i64)
+    });
+    (a, b)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// A random texture (blocks of 2 px so census sees structure), seen by two cameras on a
-    /// horizontal line: the left half is a plane at disparity 0 (the marked plane), the right
-    /// half a nearer one shifted by 6 px.
     fn pair() -> (RgbImage, RgbImage) {
-        let (w, h) = (160u32, 96u32);
-        let tex = |x: i64, y: i64| {
-            let v = crate::rng::mix_at(7, ((y.div_euclid(2)) * 1000 + x.div_euclid(2)) as u64);
-            let g = (v % 200) as u8 + 30;
-            image::Rgb([g, g / 2 + 40, 255 - g])
-        };
-        let a = RgbImage::from_fn(w, h, |x, y| tex(x as i64, y as i64));
-        let b = RgbImage::from_fn(w, h, |x, y| {
-            let shift = if x >= 80 { 6 } else { 0 };
-            tex(x as i64 - shift, y as i64)
-        });
-        (a, b)
+        super::test_pair()
     }
 
     #[test]
@@ -1010,6 +1015,83 @@ mod tests {
             }
         }
         assert!(good * 100 >= 95 * n, "{good} of {n} within 0.5 px");
+    }
+
+    /// A registration's homography that shears across the parallax (incompatible with the rig:
+    /// the true matches move along x only): the fitted lines pass through the true matches,
+    /// straight lines along the mean direction miss them by pixels.
+    #[test]
+    fn fitted_lines_absorb_a_sheared_plane() {
+        let h = Homography::from_matrix(nalgebra::Matrix3::new(
+            1.0, -0.03, -12.0, 0.012, 1.03, -6.0, 0.0, 2e-5, 1.0,
+        ))
+        .unwrap();
+        let (w, hgt) = (640u32, 480u32);
+        let mut matches = Vec::new();
+        for i in 0..400u64 {
+            let a = Point::new(
+                10.0 + 620.0 * crate::rng::unit(crate::rng::mix_at(1, i)),
+                10.0 + 460.0 * crate::rng::unit(crate::rng::mix_at(2, i)),
+            );
+            let depth = 4.0 + 24.0 * crate::rng::unit(crate::rng::mix_at(3, i));
+            matches.push((a, Point::new(a.x - depth, a.y)));
+        }
+        let geo = geometry(&matches, &h, (w, hgt)).unwrap();
+        let lines = geo.lines.expect("fitted lines");
+        let across = |m: Option<&[f64; 9]>| -> f64 {
+            matches
+                .iter()
+                .map(|&(a, b)| {
+                    let q = h.apply_inverse(b).unwrap();
+                    let f = line_frame(m, geo.direction, a.x, a.y);
+                    let (rx, ry) = (
+                        q.x - a.x - f64::from(f.offset[0]),
+                        q.y - a.y - f64::from(f.offset[1]),
+                    );
+                    (rx * f64::from(f.along[1]) - ry * f64::from(f.along[0])).abs()
+                })
+                .fold(0.0, f64::max)
+        };
+        let (fitted, straight) = (across(Some(&lines[0])), across(None));
+        assert!(
+            fitted < 0.5 && straight > 3.0,
+            "fitted {fitted} px, straight {straight} px"
+        );
+    }
+
+    /// An occluded run between a far (smaller motion than the plane's) and a near surface takes
+    /// the far one's disparity.
+    #[test]
+    fn occlusions_are_filled_from_the_farther_side() {
+        // The plane moves +x (near = +), far surface d = -3, near surface d = +5.
+        let mut d = vec![-3.0, -3.0, 0.0, 0.0, 5.0, 5.0];
+        let valid = [true, true, false, false, true, true];
+        fill(&mut d, &valid, 6, 1.0);
+        assert_eq!(d, [-3.0, -3.0, -3.0, -3.0, 5.0, 5.0]);
+        let mut d = vec![5.0, 0.0, -3.0];
+        fill(&mut d, &[true, false, true], 3, -1.0);
+        assert_eq!(d, [5.0, 5.0, -3.0]);
+    }
+
+    #[test]
+    fn a_field_refuses_what_does_not_fit_and_derives_its_flow() {
+        let ok = |d: Vec<f32>, dir: [f32; 2], lines: Option<[f64; 9]>| {
+            Field::new(3, 2, dir, lines, d, vec![true; 6])
+        };
+        assert!(ok(vec![0.0; 5], [1.0, 0.0], None).is_err());
+        assert!(ok(vec![0.0; 6], [2.0, 0.0], None).is_err());
+        assert!(ok(vec![0.0, f32::NAN, 0.0, 0.0, 0.0, 0.0], [1.0, 0.0], None).is_err());
+        let mut nan_lines = [0.0; 9];
+        nan_lines[4] = f64::INFINITY;
+        assert!(ok(vec![0.0; 6], [1.0, 0.0], Some(nan_lines)).is_err());
+        // Straight along (0, -1): d = 2 moves 2 px up; a line model's constant offset of 1.5 px
+        // moves the line across, along the direction's normal (-vy, vx) = (1, 0).
+        let f = ok(vec![2.0; 6], [0.0, -1.0], None).unwrap();
+        assert_eq!(f.flow_px(4), [0.0, -2.0]);
+        let mut m = [0.0; 9];
+        m[0] = 1.5;
+        let f = ok(vec![2.0; 6], [0.0, -1.0], Some(m)).unwrap();
+        assert_eq!(f.flow_px(4), [1.5, -2.0]);
     }
 
     #[test]

@@ -1793,17 +1793,8 @@ mod tests {
     /// homographies that move the output.
     #[test]
     fn renderer_morph_matches_the_reference_morph() {
-        let (w, h) = (160u32, 96u32);
-        let tex = |x: i64, y: i64| {
-            let v = crate::rng::mix_at(7, ((y.div_euclid(2)) * 1000 + x.div_euclid(2)) as u64);
-            let g = (v % 200) as u8 + 30;
-            image::Rgb([g, g / 2 + 40, 255 - g])
-        };
-        let a = RgbImage::from_fn(w, h, |x, y| tex(x as i64, y as i64));
-        let b = RgbImage::from_fn(w, h, |x, y| {
-            let shift = if x >= 80 { 6 } else { 0 };
-            tex(x as i64 - shift, y as i64)
-        });
+        let (a, b) = crate::parallax::test_pair();
+        let (w, h) = a.dimensions();
         let hab = Homography::translation(-2.0, 0.0);
         let geo = crate::parallax::Geometry::straight([1.0, 0.0], -4, 12);
         let par = crate::parallax::estimate(
