@@ -73,9 +73,39 @@ impl OutputKind {
         !matches!(self, OutputKind::Video | OutputKind::Image)
     }
 
-    fn marker(self) -> String {
-        format!("{MARKER_PREFIX} {}", self.name())
+    /// The marker of an output of this kind with identity `id` ([`identity`]).
+    fn marker(self, id: &str) -> String {
+        format!("{MARKER_PREFIX} {} {id}", self.name())
     }
+}
+
+/// What a marker records about the output it is in, so that only the very file or folder vt
+/// wrote there matches it: the device and inode of the written file (kept by the rename into
+/// place; new for any copy, and for another tool's rewrite to a new file) and a hash of the
+/// final path (another for a copy or a move to another name). `file`: the file or folder to
+/// take the inode of (the temporary while writing, the target when checking); `target`: where
+/// it is (to be).
+fn identity(file: &Path, target: &Path) -> Result<String> {
+    let meta = std::fs::metadata(file).map_err(|e| Error::io(file, e))?;
+    #[cfg(unix)]
+    let (dev, ino) = {
+        use std::os::unix::fs::MetadataExt;
+        (meta.dev(), meta.ino())
+    };
+    #[cfg(not(unix))]
+    let (dev, ino) = {
+        let _ = meta;
+        (0u64, 0u64)
+    };
+    let place = canonical_target(target).unwrap_or_else(|| target.to_path_buf());
+    // FNV-1a over the path's bytes.
+    let hash = place
+        .to_string_lossy()
+        .bytes()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        });
+    Ok(format!("{dev:x}-{ino:x}-{hash:016x}"))
 }
 
 /// Temporaries and encoder processes of this run, removed or killed on SIGINT/SIGTERM.
@@ -256,6 +286,18 @@ impl Output {
         })
     }
 
+    /// ffmpeg arguments that put vt's marker in an mp4's metadata, for an encoder writing to
+    /// [`Output::path`]: creates that file (empty) so the marker can record its identity (the
+    /// encoder then writes into the same file).
+    pub fn mp4_marker_args(&self) -> Result<[String; 2]> {
+        std::fs::File::create(&self.tmp).map_err(|e| Error::io(&self.tmp, e))?;
+        let id = identity(&self.tmp, &self.target)?;
+        Ok([
+            "-metadata".into(),
+            format!("comment={}", OutputKind::Video.marker(&id)),
+        ])
+    }
+
     /// Where to write now (the temporary).
     pub fn path(&self) -> &Path {
         &self.tmp
@@ -273,7 +315,7 @@ impl Output {
             let mut entries = Vec::new();
             list_entries(&self.tmp, Path::new(""), &mut entries)
                 .map_err(|e| Error::io(&self.tmp, e))?;
-            let mut text = self.kind.marker();
+            let mut text = self.kind.marker(&identity(&self.tmp, &self.target)?);
             text.push('\n');
             for e in entries {
                 text.push_str(&e);
@@ -282,7 +324,7 @@ impl Output {
             let marker = self.tmp.join(MARKER_FILE);
             std::fs::write(&marker, text).map_err(|e| Error::io(&marker, e))?;
         } else {
-            embed_marker(&self.tmp, self.kind)?;
+            embed_marker(&self.tmp, self.kind, &self.target)?;
         }
         // Re-check the target: something may have appeared there while we worked.
         check_existing(&self.target, self.kind)?;
@@ -458,7 +500,9 @@ fn check_existing(target: &Path, kind: OutputKind) -> Result<()> {
         };
         let mut lines = text.lines();
         let first = lines.next().unwrap_or("");
-        let found = first.strip_prefix(MARKER_PREFIX).map(str::trim);
+        let mut words = first.strip_prefix(MARKER_PREFIX).map(str::split_whitespace);
+        let found = words.as_mut().and_then(|w| w.next());
+        let id = words.as_mut().and_then(|w| w.next());
         if found != Some(kind.name()) {
             return Err(out_err(
                 target,
@@ -468,6 +512,16 @@ fn check_existing(target: &Path, kind: OutputKind) -> Result<()> {
                         Some(k) if !k.is_empty() => format!("a vt {} output", shorten(k)),
                         _ => "a folder with an unreadable vt marker".to_string(),
                     },
+                    kind.name()
+                ),
+            ));
+        }
+        if id != Some(identity(target, target)?.as_str()) {
+            return Err(out_err(
+                target,
+                format!(
+                    "holds a vt {} marker but is not the folder vt wrote here (a copy, or moved \
+                     from elsewhere); {how}",
                     kind.name()
                 ),
             ));
@@ -504,7 +558,8 @@ fn check_existing(target: &Path, kind: OutputKind) -> Result<()> {
         _ => Err(out_err(
             target,
             format!(
-                "exists and is not a vt {} output (no vt marker in it); {how}",
+                "exists and is not a vt {} output written here (no vt marker of this very file: \
+                 another tool's file, or a copy of a vt output); {how}",
                 kind.name()
             ),
         )),
@@ -583,8 +638,9 @@ fn stale_pid(name: &str) -> Option<u32> {
 /// Adds vt's marker to a finished file, in a way its format allows: a PNG `tEXt` chunk after
 /// `IHDR`, a JPEG `COM` segment after `SOI`, a GIF comment extension before the trailer. MP4 files
 /// get theirs from the encoder (`-metadata comment=...`, see [`mp4_marker_args`]) and are only
-/// checked here.
-pub fn embed_marker(path: &Path, kind: OutputKind) -> Result<()> {
+/// checked here. The marker records the identity of `path` as the file that will be at `target`
+/// ([`identity`]); the marking rewrites `path` in place (same inode).
+pub fn embed_marker(path: &Path, kind: OutputKind, target: &Path) -> Result<()> {
     let mut head = [0u8; 8];
     let mut f = std::fs::OpenOptions::new()
         .read(true)
@@ -592,7 +648,7 @@ pub fn embed_marker(path: &Path, kind: OutputKind) -> Result<()> {
         .open(path)
         .map_err(|e| Error::io(path, e))?;
     let n = f.read(&mut head).map_err(|e| Error::io(path, e))?;
-    let marker = kind.marker();
+    let marker = kind.marker(&identity(path, target)?);
     let io = |e| Error::io(path, e);
     if n == 8 && head == *b"\x89PNG\r\n\x1a\n" {
         let mut data = Vec::new();
@@ -629,7 +685,7 @@ pub fn embed_marker(path: &Path, kind: OutputKind) -> Result<()> {
         }
         f.seek(SeekFrom::Start(len - 1)).map_err(io)?;
         f.write_all(&gif_comment(&marker)).map_err(io)
-    } else if has_marker(path, kind)? {
+    } else if contains_marker(path, &marker)? {
         Ok(())
     } else {
         Err(out_err(path, "vt could not mark this file as its output"))
@@ -643,17 +699,14 @@ fn gif_comment(marker: &str) -> Vec<u8> {
     v
 }
 
-/// ffmpeg arguments that put vt's marker in an mp4's metadata.
-pub fn mp4_marker_args() -> [String; 2] {
-    [
-        "-metadata".into(),
-        format!("comment={}", OutputKind::Video.marker()),
-    ]
+/// Whether a file carries vt's marker of `kind` for itself, where it is (see [`embed_marker`]):
+/// false for a copy of a vt output, or one moved from another name.
+pub fn has_marker(path: &Path, kind: OutputKind) -> Result<bool> {
+    contains_marker(path, &kind.marker(&identity(path, path)?))
 }
 
-/// Whether a file carries vt's marker of `kind` (see [`embed_marker`]).
-pub fn has_marker(path: &Path, kind: OutputKind) -> Result<bool> {
-    let marker = kind.marker();
+/// Whether a file carries the marker text `marker` where its format keeps vt's marker.
+fn contains_marker(path: &Path, marker: &str) -> Result<bool> {
     let io = |e| Error::io(path, e);
     let mut f = std::fs::File::open(path).map_err(io)?;
     let len = f.metadata().map_err(io)?.len();
@@ -687,7 +740,7 @@ pub fn has_marker(path: &Path, kind: OutputKind) -> Result<bool> {
         return Ok(head[2..].starts_with(&seg));
     }
     if head.starts_with(b"GIF8") {
-        let tail = gif_comment(&marker);
+        let tail = gif_comment(marker);
         if len < tail.len() as u64 {
             return Ok(false);
         }
@@ -928,5 +981,60 @@ mod tests {
             shorten(&"9".repeat(309)),
             format!("{}... (309 characters)", "9".repeat(32))
         );
+    }
+
+    /// The mark records the very file (or folder) vt wrote there: a copy of a vt output, one
+    /// copied over another vt output, or one moved from another name is refused as a target and
+    /// kept; vt's own output at its place is still replaced.
+    #[test]
+    fn a_copied_mark_does_not_make_a_file_replaceable() {
+        let root = tempfile::tempdir().unwrap();
+        let img = image::RgbImage::from_pixel(5, 4, image::Rgb([1, 2, 3]));
+        let target = root.path().join("a.png");
+        let write = |t: &Path| {
+            let o = Output::file(t, OutputKind::Image, &[]).unwrap();
+            img.save_with_format(o.path(), image::ImageFormat::Png)
+                .unwrap();
+            o.commit().unwrap();
+        };
+        write(&target);
+        write(&target);
+        let refused = |t: &Path| {
+            let e = Output::file(t, OutputKind::Image, &[])
+                .err()
+                .expect("refused")
+                .to_string();
+            assert!(e.contains("not a vt image output written here"), "{e}");
+        };
+        // A copy under another name.
+        let copy = root.path().join("holiday.png");
+        std::fs::copy(&target, &copy).unwrap();
+        refused(&copy);
+        // Copied over another vt output (the same inode there, other bytes).
+        let other = root.path().join("b.png");
+        write(&other);
+        std::fs::copy(&target, &other).unwrap();
+        refused(&other);
+        // Moved to another name.
+        let moved = root.path().join("moved.png");
+        std::fs::rename(&target, &moved).unwrap();
+        refused(&moved);
+        assert!(moved.exists() && copy.exists() && other.exists());
+        // A folder output copied elsewhere.
+        let dir = root.path().join("frames");
+        let o = Output::dir(&dir, OutputKind::Frames, &[]).unwrap();
+        std::fs::write(o.path().join("f.png"), b"x").unwrap();
+        o.commit().unwrap();
+        assert!(Output::dir(&dir, OutputKind::Frames, &[]).is_ok());
+        let dcopy = root.path().join("frames-copy");
+        std::fs::create_dir(&dcopy).unwrap();
+        for name in ["f.png", MARKER_FILE] {
+            std::fs::copy(dir.join(name), dcopy.join(name)).unwrap();
+        }
+        let e = Output::dir(&dcopy, OutputKind::Frames, &[])
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains("not the folder vt wrote here"), "{e}");
     }
 }

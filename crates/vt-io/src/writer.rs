@@ -76,7 +76,7 @@ impl VideoWriter {
         } else {
             cmd.args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264"])
                 .args(["-pix_fmt", "yuv420p", "-crf", &MP4_CRF.to_string()])
-                .args(output::mp4_marker_args())
+                .args(output.mp4_marker_args()?)
                 .args(["-movflags", "+faststart", "-f", "mp4"]);
         }
         let mut child = cmd
@@ -312,6 +312,27 @@ mod tests {
                     "{name}"
                 );
             }
+        }
+        // vt's mp4 copied, or remuxed by ffmpeg (which keeps the metadata and so vt's
+        // marker), to a new name is not replaceable; vt's own still is (above).
+        let ours = dir.path().join("a.mp4");
+        let copy = dir.path().join("copy.mp4");
+        std::fs::copy(&ours, &copy).unwrap();
+        let remux = dir.path().join("my_holiday.mp4");
+        let st = std::process::Command::new("ffmpeg")
+            .args(["-v", "error", "-i"])
+            .arg(&ours)
+            .args(["-c", "copy", "-map_metadata", "0"])
+            .arg(&remux)
+            .status()
+            .unwrap();
+        assert!(st.success());
+        for p in [&copy, &remux] {
+            let e = VideoWriter::create(p, &[], 33, 17, 10.0)
+                .err()
+                .expect("refused")
+                .to_string();
+            assert!(e.contains("not a vt video output written here"), "{e}");
         }
         // A user's file with the same name is refused and kept.
         let user = dir.path().join("mine.mp4");
