@@ -16,13 +16,14 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
 use vt_fv::camera::Ring;
 use vt_fv::dataset::{
-    build_summarised, parse_bounds, write_eval_images, write_hull, write_json, BuildSummary,
-    DataOptions, Dataset, EvalSummary, ModelParams,
+    parse_bounds, read_model, write_eval_images, write_hull, write_json, BuildSummary, DataOptions,
+    Dataset, EvalSummary, ModelParams,
 };
 use vt_fv::hull::Aabb;
+use vt_fv::modelfile::ModelHeader;
 use vt_fv::pipeline::{novel_view_in, Method, ViewOptions, ViewParams};
 use vt_fv::texture::model_centre;
-use vt_fv::{Camera, VoxelModel};
+use vt_fv::VoxelModel;
 use vt_io::output::{Output, OutputKind};
 
 use crate::progress::{bar, StageBars};
@@ -30,7 +31,8 @@ use crate::progress::{bar, StageBars};
 /// Free-viewpoint commands.
 #[derive(Subcommand)]
 pub enum FvCommand {
-    /// Build the visual hull and the photo hull; write DIR/hull.ply and DIR/summary.json.
+    /// Build the visual hull and the photo hull; write DIR/model.vtfv (for --model),
+    /// DIR/hull.ply and DIR/summary.json.
     Hull(HullArgs),
     /// Render one new view (textured by default; --method rough|paper) into an image file.
     Render(RenderArgs),
@@ -179,9 +181,27 @@ pub struct HullArgs {
     data: DataArgs,
     #[command(flatten)]
     model: ModelArgs,
+    /// Build the model without this view (0-based in camera order), for `vt fv eval
+    /// --leave-out I --model DIR/model.vtfv`.
+    #[arg(long, value_name = "I")]
+    leave_out: Option<usize>,
     /// Output directory (replaced atomically).
     #[arg(long)]
     out: PathBuf,
+}
+
+/// A model written by `vt fv hull`, used instead of carving again.
+#[derive(Args, Clone)]
+pub struct ModelFileArgs {
+    /// Use this model (`vt fv hull`'s DIR/model.vtfv, or DIR) instead of building one: it must
+    /// come from the same data folder loaded the same way (cameras, photos and silhouettes are
+    /// checked by fingerprint).
+    #[arg(
+        long = "model",
+        value_name = "FILE",
+        conflicts_with_all = ["grid", "bounds", "photo_threshold", "paper_carving"]
+    )]
+    file: Option<PathBuf>,
 }
 
 /// `vt fv render`.
@@ -191,6 +211,8 @@ pub struct RenderArgs {
     data: DataArgs,
     #[command(flatten)]
     model: ModelArgs,
+    #[command(flatten)]
+    from: ModelFileArgs,
     #[command(flatten)]
     view: ViewArgs,
     /// The new camera: a par line `name k11..k33 r11..r33 t1 t2 t3`, `angle:DEG` (on the
@@ -211,6 +233,8 @@ pub struct OrbitArgs {
     #[command(flatten)]
     model: ModelArgs,
     #[command(flatten)]
+    from: ModelFileArgs,
+    #[command(flatten)]
     view: ViewArgs,
     /// Frames in one turn.
     #[arg(long, default_value_t = 48)]
@@ -230,6 +254,8 @@ pub struct EvalArgs {
     data: DataArgs,
     #[command(flatten)]
     model: ModelArgs,
+    #[command(flatten)]
+    from: ModelFileArgs,
     #[command(flatten)]
     view: ViewArgs,
     /// The views to withhold one at a time, 0-based in camera order (the par file's lines,
@@ -359,12 +385,15 @@ impl ViewArgs {
     }
 }
 
-/// Visual hull then photo hull in `bounds`, with progress bars.
-fn build(d: &Dataset, bounds: Aabb, m: &ModelParams) -> Result<(VoxelModel, BuildSummary)> {
+/// The model from all views, or all but `withheld`, with progress bars (the volume from the
+/// silhouettes of the views it is built from unless `--bounds` is given).
+fn build(
+    d: &Dataset,
+    withheld: Option<usize>,
+    m: &ModelParams,
+) -> Result<(VoxelModel, BuildSummary)> {
     let mut bars = StageBars::default();
-    let r = build_summarised(&d.cams, &d.images, &d.masks, bounds, m, &mut |s, i, n| {
-        bars.update(s, i, n)
-    });
+    let r = d.build_without(withheld, m, &mut |s, i, n| bars.update(s, i, n));
     bars.finish();
     r.with_context(|| {
         format!(
@@ -374,34 +403,80 @@ fn build(d: &Dataset, bounds: Aabb, m: &ModelParams) -> Result<(VoxelModel, Buil
     })
 }
 
+/// A model: read from `--model` (checked against the data folder) or built from every view.
+/// Returns it with one line saying where it came from and how long that took.
+fn model_for(
+    d: &Dataset,
+    m: &ModelParams,
+    from: &ModelFileArgs,
+) -> Result<(VoxelModel, Option<ModelHeader>, String)> {
+    let Some(f) = &from.file else {
+        let (model, s) = build(d, None, m)?;
+        let line = format!(
+            "model: built, {} surface voxels ({} passes) in {:.2} s",
+            s.surface_voxels,
+            s.photo_hull_passes,
+            s.visual_hull_secs + s.photo_hull_secs
+        );
+        return Ok((model, None, line));
+    };
+    let t = Instant::now();
+    let (model, h) = read_model(f, d)?;
+    let line = format!(
+        "model: read from {} in {:.2} s ({} surface voxels; building it took {:.2} s)",
+        f.display(),
+        t.elapsed().as_secs_f64(),
+        model.surface.len(),
+        h.build_secs
+    );
+    Ok((model, Some(h), line))
+}
+
+/// Refuses a model built without a view where every view is needed (render, orbit).
+fn whole(h: Option<&ModelHeader>, from: &ModelFileArgs) -> Result<()> {
+    if let (Some(k), Some(f)) = (h.and_then(|h| h.withheld), &from.file) {
+        bail!(
+            "--model {}: built without view {k} (for `vt fv eval --leave-out {k}`); render and orbit take a model of every view",
+            f.display()
+        );
+    }
+    Ok(())
+}
+
+/// The run's inputs with the model file.
+fn inputs_with<'a>(data: &'a DataArgs, from: &'a ModelFileArgs) -> Vec<&'a Path> {
+    let mut v = data.inputs();
+    v.extend(from.file.as_deref());
+    v
+}
+
 fn hull(a: HullArgs) -> Result<()> {
     let m = a.model.params()?;
     // The output is checked before any work: never the data folder, never a foreign path.
     let dir = Output::dir(&a.out, OutputKind::Hull, &a.data.inputs())?;
     let d = a.data.load()?;
-    let bounds = d
-        .volume(m.bounds)
-        .context("volume bounds from the silhouettes")?;
-    let (model, s) = build(&d, bounds, &m)?;
+    if let Some(k) = a.leave_out {
+        d.check_withheld(&[k]).map_err(flag)?;
+    }
+    let (model, s) = build(&d, a.leave_out, &m)?;
+    let bounds = Aabb::new(s.bounds_min.into(), s.bounds_max.into());
     // Fewer than 3 views leave nothing to check against.
     let check = if d.cams.len() >= 3 {
         Some(d.check_silhouettes(bounds).context("silhouette check")?)
     } else {
         None
     };
-    write_hull(
-        dir.path(),
-        &d,
-        &model,
-        m.photo_threshold,
-        &s,
-        check.as_ref(),
-    )?;
+    let header = d.model_header(a.leave_out, &m, &s);
+    write_hull(dir.path(), &d, &model, &header, &s, check.as_ref())?;
     dir.commit()?;
     let (w, h) = d.size();
     let [gx, gy, gz] = s.grid;
+    let without = a
+        .leave_out
+        .map(|k| format!(" (without view {k}, {})", d.cams[k].name))
+        .unwrap_or_default();
     println!(
-        "{} views {w}x{h}, grid {gx}x{gy}x{gz}, silhouettes from {}",
+        "{} views{without} {w}x{h}, grid {gx}x{gy}x{gz}, silhouettes from {}",
         d.cams.len(),
         d.silhouettes
     );
@@ -409,7 +484,10 @@ fn hull(a: HullArgs) -> Result<()> {
     if let Some(c) = &check {
         println!("{c}");
     }
-    println!("wrote {}/hull.ply and summary.json", a.out.display());
+    println!(
+        "wrote {}/model.vtfv (for --model), hull.ply and summary.json",
+        a.out.display()
+    );
     Ok(())
 }
 
@@ -421,27 +499,31 @@ fn render(a: RenderArgs) -> Result<()> {
     ) {
         bail!("--out {}: use a .png or .jpg file name", a.out.display());
     }
+    let inputs = inputs_with(&a.data, &a.from);
     // Checked before any work (nothing is created yet).
-    drop(Output::file(&a.out, OutputKind::Image, &a.data.inputs())?);
+    drop(Output::file(&a.out, OutputKind::Image, &inputs)?);
     let d = a.data.load()?;
     let (w, h) = d.size();
     let view = a.view.params(w, h)?;
-    // Check the camera against the volume before the expensive model build.
-    let bounds = d
-        .volume(m.bounds)
-        .context("volume bounds from the silhouettes")?;
-    let camera = |target| {
-        d.camera(&a.camera, a.data.scale, &target, &bounds)
+    let camera = |target: nalgebra::Vector3<f64>, bounds: &Aabb| {
+        d.camera(&a.camera, a.data.scale, &target, bounds)
             .map_err(|e| anyhow!("--camera {e}"))
     };
-    let cam = camera(bounds.centre())?;
-    let (model, s) = build(&d, bounds, &m)?;
-    // Ring cameras look at the model's centre, now that it is known.
-    let cam = if a.camera.trim().starts_with("angle:") {
-        camera(model_centre(&model))?
+    let (model, model_line) = if a.from.file.is_some() {
+        let (model, header, line) = model_for(&d, &m, &a.from)?;
+        whole(header.as_ref(), &a.from)?;
+        (model, line)
     } else {
-        cam
+        // Check the camera against the volume before the expensive model build.
+        let bounds = d
+            .volume(m.bounds)
+            .context("volume bounds from the silhouettes")?;
+        camera(bounds.centre(), &bounds)?;
+        let (model, _, line) = model_for(&d, &m, &a.from)?;
+        (model, line)
     };
+    // Ring cameras look at the model's centre.
+    let cam = camera(model_centre(&model), &model.grid.bounds())?;
     let t = Instant::now();
     let pb = bar(1, view.name());
     // What eval scores: the model's render trimmed to the reference silhouettes, then the
@@ -464,13 +546,8 @@ fn render(a: RenderArgs) -> Result<()> {
         bail!("--camera {}: camera sees none of the model", cam.name);
     }
     let render_secs = t.elapsed().as_secs_f64();
-    vt_io::writer::write_image(&a.out, &a.data.inputs(), &img)?;
-    println!(
-        "model: {} surface voxels ({} passes) in {:.2} s; view in {render_secs:.2} s, {what}",
-        s.surface_voxels,
-        s.photo_hull_passes,
-        s.visual_hull_secs + s.photo_hull_secs,
-    );
+    vt_io::writer::write_image(&a.out, &inputs, &img)?;
+    println!("{model_line}; view in {render_secs:.2} s, {what}");
     println!("wrote {} ({w}x{h})", a.out.display());
     Ok(())
 }
@@ -490,69 +567,96 @@ fn orbit(a: OrbitArgs) -> Result<()> {
     if a.fps == 0 || a.fps > 240 {
         bail!("--fps {} must be in 1..=240", a.fps);
     }
+    let inputs = inputs_with(&a.data, &a.from);
     // Checked before any work (nothing is created yet).
-    drop(Output::file(&a.out, OutputKind::Video, &a.data.inputs())?);
+    drop(Output::file(&a.out, OutputKind::Video, &inputs)?);
     let d = a.data.load()?;
     let (w, h) = d.size();
     let view = a.view.params(w, h)?;
     let ring = Ring::fit(&d.cams).context("orbit: the cameras' ring")?;
-    let bounds = d
-        .volume(m.bounds)
-        .context("volume bounds from the silhouettes")?;
-    let (model, _) = build(&d, bounds, &m)?;
+    // One model for every frame.
+    let (model, header, model_line) = model_for(&d, &m, &a.from)?;
+    whole(header.as_ref(), &a.from)?;
     let target = model_centre(&model);
     // vt-io's one video writer: H.264 at CRF 18 (or GIF), marked as vt's, atomic.
-    let mut video =
-        vt_io::writer::VideoWriter::create(&a.out, &a.data.inputs(), w, h, a.fps as f64)?;
+    let mut video = vt_io::writer::VideoWriter::create(&a.out, &inputs, w, h, a.fps as f64)?;
     let pb = bar(a.frames as u64, "orbit frames");
-    for i in 0..a.frames {
-        let angle = 360.0 * i as f64 / a.frames as f64;
-        let cam: Camera = ring.camera(angle, &target)?;
-        let v = novel_view_in(
-            &model,
-            &d.cams,
-            &d.images,
-            Some(&d.masks),
-            &cam,
-            w,
-            h,
-            &view,
-        )
-        .with_context(|| format!("frame {i} (angle {angle:.1})"))?;
-        video.write(&v.guided)?;
-        pb.inc(1);
-    }
+    let t = Instant::now();
+    let steady = vt_fv::orbit::orbit::<anyhow::Error>(
+        &model,
+        &d.cams,
+        &d.images,
+        Some(&d.masks),
+        &ring,
+        &target,
+        a.frames,
+        (w, h),
+        &view,
+        &mut |i, angle, v| {
+            video
+                .write(&v.guided)
+                .with_context(|| format!("frame {i} (angle {angle:.1})"))?;
+            pb.inc(1);
+            Ok(())
+        },
+    )?;
+    let secs = t.elapsed().as_secs_f64();
     pb.finish_and_clear();
     video.finish()?;
+    println!("{model_line}");
     println!(
-        "wrote {} ({} frames, {w}x{h}, {} fps); each frame {}",
+        "wrote {} ({} frames, {w}x{h}, {} fps) in {secs:.2} s ({:.3} s a frame); each frame {}",
         a.out.display(),
         a.frames,
         a.fps,
+        secs / a.frames as f64,
         view.describe()
     );
+    println!("{steady}");
     Ok(())
 }
 
 fn eval(a: EvalArgs) -> Result<()> {
     let m = a.model.params()?;
+    let inputs = inputs_with(&a.data, &a.from);
     let save = match &a.save {
         Some(dir) if dir.exists() && !dir.is_dir() => {
             bail!("--save {}: exists and is not a folder", dir.display())
         }
-        Some(dir) => Some(Output::dir(dir, OutputKind::Folder, &a.data.inputs())?),
+        Some(dir) => Some(Output::dir(dir, OutputKind::Folder, &inputs)?),
         None => None,
     };
+    if a.from.file.is_some() && a.leave_out.len() != 1 {
+        bail!("--model: a model is built without one view; give that one view to --leave-out");
+    }
     let d = a.data.load()?;
     d.check_withheld(&a.leave_out).map_err(flag)?;
     let (w, h) = d.size();
     let view = a.view.params(w, h)?;
+    let read = match &a.from.file {
+        Some(f) => {
+            let t = Instant::now();
+            let (model, header) = read_model(f, &d)?;
+            let line = format!(
+                "model: read from {} in {:.2} s ({} surface voxels; building it took {:.2} s)",
+                f.display(),
+                t.elapsed().as_secs_f64(),
+                model.surface.len(),
+                header.build_secs
+            );
+            Some((f, model, header, line))
+        }
+        None => None,
+    };
     let pb = bar(a.leave_out.len() as u64, "leave one out");
     let mut reports = Vec::new();
     for &k in &a.leave_out {
-        let (r, imgs) = d
-            .leave_one_out(k, &m, &view)
-            .with_context(|| format!("leaving out view {k} ({})", d.cams[k].name))?;
+        let (r, imgs) = match &read {
+            Some((f, model, header, _)) => d.leave_one_out_with(k, model, header, f, &view)?,
+            None => d
+                .leave_one_out(k, &m, &view)
+                .with_context(|| format!("leaving out view {k} ({})", d.cams[k].name))?,
+        };
         if let Some(dir) = &save {
             let sub = dir.path().join(format!("view_{k:02}"));
             std::fs::create_dir(&sub).with_context(|| sub.display().to_string())?;
@@ -562,6 +666,10 @@ fn eval(a: EvalArgs) -> Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    // On stderr, so that --json prints exactly one JSON object on stdout.
+    if let Some((.., line)) = &read {
+        eprintln!("{line}");
+    }
     let summary = EvalSummary::new(view.name(), &reports, &d.cams);
     if let Some(dir) = save {
         write_json(&dir.path().join("eval.json"), &summary.views)?;

@@ -528,3 +528,170 @@ fn kettle_hull_and_render_from_automatic_silhouettes() {
         im.pixels().filter(|p| p.0 != [0, 0, 0]).count() as f64 / (im.width() * im.height()) as f64;
     assert!((0.04..=0.2).contains(&covered), "covered {covered:.3}");
 }
+
+/// Pixels of an image file.
+fn pixels(p: &Path) -> Vec<u8> {
+    image::open(p).unwrap().to_rgb8().into_raw()
+}
+
+#[test]
+fn hull_model_is_reused_by_render_orbit_and_eval() {
+    let obj = object();
+    let root = scratch("model");
+    let hull = root.join("hull");
+    let out = vt_ok(&["fv", "hull", s(obj), "--out", s(&hull), "--grid", "64"]);
+    assert!(out.contains("model.vtfv"), "{out}");
+    let model = hull.join("model.vtfv");
+    assert!(model.is_file());
+    // The same picture, built or read back (the hull folder or the file).
+    let (built, read) = (root.join("built.png"), root.join("read.png"));
+    let cam = "angle:40";
+    let a = vt_ok(&[
+        "fv",
+        "render",
+        s(obj),
+        "--camera",
+        cam,
+        "--out",
+        s(&built),
+        "--grid",
+        "64",
+    ]);
+    let b = vt_ok(&[
+        "fv",
+        "render",
+        s(obj),
+        "--camera",
+        cam,
+        "--out",
+        s(&read),
+        "--model",
+        s(&hull),
+    ]);
+    assert!(
+        a.contains("model: built") && b.contains("model: read from"),
+        "{a}\n{b}"
+    );
+    assert_eq!(pixels(&built), pixels(&read));
+    println!("built: {a}\nread: {b}");
+    // Model flags and --model together are refused (clap: exit 2).
+    vt_err(
+        &[
+            "fv",
+            "render",
+            s(obj),
+            "--camera",
+            cam,
+            "--out",
+            s(&read),
+            "--model",
+            s(&model),
+            "--grid",
+            "32",
+        ],
+        &["--grid"],
+    );
+    // An orbit from the model prints its steadiness.
+    let gif = root.join("orbit.gif");
+    if vt_io::video::ffmpeg_available() {
+        let o = vt_ok(&[
+            "fv",
+            "orbit",
+            s(obj),
+            "--model",
+            s(&model),
+            "--frames",
+            "12",
+            "--out",
+            s(&gif),
+        ]);
+        assert!(o.contains("largest/median"), "{o}");
+    } else {
+        println!("skipped orbit: no ffmpeg");
+    }
+    // Eval: a model of all views holds the withheld one and is refused; one built without it
+    // gives the same scores as carving again.
+    vt_err(
+        &[
+            "fv",
+            "eval",
+            s(obj),
+            "--leave-out",
+            "2",
+            "--model",
+            s(&model),
+        ],
+        &["model.vtfv", "without view 2"],
+    );
+    let hull2 = root.join("hull2");
+    vt_ok(&[
+        "fv",
+        "hull",
+        s(obj),
+        "--out",
+        s(&hull2),
+        "--grid",
+        "64",
+        "--leave-out",
+        "2",
+    ]);
+    let e1 = vt_ok(&[
+        "fv",
+        "eval",
+        s(obj),
+        "--leave-out",
+        "2",
+        "--grid",
+        "64",
+        "--json",
+    ]);
+    let e2 = vt_ok(&[
+        "fv",
+        "eval",
+        s(obj),
+        "--leave-out",
+        "2",
+        "--model",
+        s(&hull2),
+        "--json",
+    ]);
+    let (j1, j2): (Value, Value) = (
+        serde_json::from_str(&e1).unwrap(),
+        serde_json::from_str(&e2).unwrap(),
+    );
+    assert_eq!(j1["guided"], j2["guided"], "{e1}\n{e2}");
+    assert_eq!(j1["rough"], j2["rough"]);
+    // render refuses a model built without a view; another data folder is refused by name.
+    vt_err(
+        &[
+            "fv",
+            "render",
+            s(obj),
+            "--camera",
+            cam,
+            "--out",
+            s(&read),
+            "--model",
+            s(&hull2),
+        ],
+        &["without view 2"],
+    );
+    let other = object_copy("model-other");
+    std::fs::remove_file(other.join("view_05.png")).unwrap();
+    let img = image::open(obj.join("view_04.png")).unwrap();
+    img.save(other.join("view_05.png")).unwrap();
+    vt_err(
+        &[
+            "fv",
+            "render",
+            s(&other),
+            "--camera",
+            cam,
+            "--out",
+            s(&read),
+            "--model",
+            s(&model),
+        ],
+        &["model.vtfv", "view 5", "photo differs"],
+    );
+}

@@ -482,10 +482,56 @@ pub fn format_par(cams: &[Camera]) -> String {
     s
 }
 
-/// The circle through the camera centres, fitted by least squares.
+/// The centre of the circle through `points` in the plane through `origin` across `normal`,
+/// by the algebraic least-squares fit (x^2 + y^2 + D x + E y + F = 0): photos over part of a
+/// turn have their centroid off the axis they turn about. `None` when the points are nearly
+/// collinear (the fit is ill-conditioned) or the centre lands absurdly far.
+fn circle_centre(
+    points: &[Vector3<f64>],
+    origin: &Vector3<f64>,
+    normal: &Vector3<f64>,
+) -> Option<Vector3<f64>> {
+    let any = if normal.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = (any - normal * any.dot(normal)).normalize();
+    let e2 = normal.cross(&e1);
+    let mut a = Matrix3::zeros();
+    let mut b = Vector3::zeros();
+    let mut spread = 0.0f64;
+    for p in points {
+        let d = p - origin;
+        let (x, y) = (d.dot(&e1), d.dot(&e2));
+        let row = Vector3::new(x, y, 1.0);
+        a += row * row.transpose();
+        b -= row * (x * x + y * y);
+        spread = spread.max((x * x + y * y).sqrt());
+    }
+    let eig = a.symmetric_eigen();
+    let (lo, hi) = (eig.eigenvalues.min(), eig.eigenvalues.max());
+    if !(spread > 0.0) || lo <= 1e-9 * hi {
+        return None;
+    }
+    let sol = a.try_inverse()? * b;
+    let (cx, cy) = (-sol.x / 2.0, -sol.y / 2.0);
+    let c = origin + e1 * cx + e2 * cy;
+    ((cx * cx + cy * cy).sqrt() <= 10.0 * spread && c.iter().all(|v| v.is_finite())).then_some(c)
+}
+
+/// Length of the mean of the cameras' unit "down" vectors from which [`Ring::fit`] takes the
+/// photos as upright (0.9, about 25 degrees of spread): the ring is then fitted across that
+/// direction.
+pub const UPRIGHT_AGREEMENT: f64 = 0.9;
+
+/// The circle through the camera centres: in the plane across the photos' common down
+/// direction when they are upright, else in the plane fitted by least squares.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Ring {
-    /// Centroid of the camera centres.
+    /// Centre of the circle fitted to the camera centres in the ring's plane (algebraic least
+    /// squares, in the plane through their centroid; the centroid when that fit is
+    /// ill-conditioned).
     pub centre: Vector3<f64>,
     /// Mean distance of the centres (projected on the plane) from `centre`.
     pub radius: f64,
@@ -499,6 +545,14 @@ pub struct Ring {
     pub k: Matrix3<f64>,
     /// Average image "down" direction of the cameras, in world coordinates.
     pub down: Vector3<f64>,
+    /// Average image "down" direction of the cameras in each camera's own place on the ring:
+    /// components along `normal`, along the ring's tangent (`normal x radial`) and along the
+    /// outward radial direction; `Some` unless the photos agree on one world down direction
+    /// ([`UPRIGHT_AGREEMENT`]; photos held sideways, as the temple's, do not). A ring camera
+    /// then takes its down direction from these: a world direction in the ring's plane is
+    /// parallel to the view somewhere round the ring, where the picture would spin half a turn
+    /// between two frames.
+    pub down_local: Option<Vector3<f64>>,
 }
 
 impl Ring {
@@ -513,7 +567,8 @@ impl Ring {
         }
         let centres: Vec<Vector3<f64>> = cams.iter().map(Camera::centre).collect();
         let n = centres.len() as f64;
-        let centre = centres.iter().sum::<Vector3<f64>>() / n;
+        let centroid = centres.iter().sum::<Vector3<f64>>() / n;
+        let centre = centroid;
         let mut cov = Matrix3::zeros();
         for c in &centres {
             let d = c - centre;
@@ -521,7 +576,21 @@ impl Ring {
         }
         let eig = cov.symmetric_eigen();
         let imin = eig.eigenvalues.imin();
-        let mut normal: Vector3<f64> = eig.eigenvectors.column(imin).into_owned().normalize();
+        // Photos held upright agree on one world "down" (the mean of their unit down vectors
+        // is near 1 long): the ring then lies across it, whatever plane the camera centres fit
+        // best (hand-held photos at varying heights over part of a turn tilt that plane, and
+        // an orbit in it passes over the object and under it).
+        let down_sum = cams
+            .iter()
+            .map(|c| c.r.row(1).transpose())
+            .sum::<Vector3<f64>>();
+        let upright = down_sum.norm() / n >= UPRIGHT_AGREEMENT;
+        let mut normal: Vector3<f64> = if upright {
+            -down_sum.normalize()
+        } else {
+            eig.eigenvectors.column(imin).into_owned().normalize()
+        };
+        let centre = circle_centre(&centres, &centroid, &normal).unwrap_or(centroid);
         let inplane = |p: &Vector3<f64>, nrm: &Vector3<f64>| {
             let d = p - centre;
             d - nrm * d.dot(nrm)
@@ -554,6 +623,18 @@ impl Ring {
         } else {
             -normal
         };
+        let mut down_local = Vector3::zeros();
+        for (c, cam) in centres.iter().zip(cams) {
+            let radial = inplane(c, &normal);
+            let d = cam.r.row(1).transpose();
+            if radial.norm() < 1e-12 {
+                continue;
+            }
+            let radial = radial.normalize();
+            let tangent = normal.cross(&radial);
+            down_local += Vector3::new(d.dot(&normal), d.dot(&tangent), d.dot(&radial));
+        }
+        let down_local = (!upright && down_local.norm() > 1e-9).then(|| down_local.normalize());
         Ok(Self {
             centre,
             radius,
@@ -562,6 +643,7 @@ impl Ring {
             v,
             k,
             down,
+            down_local,
         })
     }
 
@@ -578,14 +660,22 @@ impl Ring {
     }
 
     /// A camera on the ring at `angle_deg` looking at `target` (e.g. the ring centre or the volume
-    /// centre), with the cameras' average `K` and "down" direction.
+    /// centre), with the cameras' average `K` and their average "down" direction relative to
+    /// the ring at that angle ([`Ring::down_local`]).
     pub fn camera(&self, angle_deg: f64, target: &Vector3<f64>) -> Result<Camera> {
+        let a = angle_deg.to_radians();
+        let radial = self.u * a.cos() + self.v * a.sin();
+        let tangent = self.normal.cross(&radial);
+        let down = match self.down_local {
+            Some(l) => self.normal * l.x + tangent * l.y + radial * l.z,
+            None => self.down,
+        };
         Camera::look_at(
             format!("ring{angle_deg:.2}"),
             self.k,
             self.point(angle_deg),
             *target,
-            self.down,
+            down,
         )
     }
 }
@@ -825,6 +915,28 @@ mod tests {
             c2.r,
             cams[2].r
         );
+        // Photos held sideways (image down along the ring's tangent, as the temple's): every
+        // ring camera is held the same way, between the cameras too.
+        let sideways: Vec<Camera> = (0..8)
+            .map(|i| {
+                let a = i as f64 * std::f64::consts::FRAC_PI_4;
+                let c = Vector3::new(3.0 * a.cos(), 3.0 * a.sin(), 0.5);
+                let tangent = Vector3::new(-a.sin(), a.cos(), 0.0);
+                let k = Matrix3::new(500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0);
+                Camera::look_at("s", k, c, target, tangent).unwrap()
+            })
+            .collect();
+        let ring = Ring::fit(&sideways).unwrap();
+        for deg in [0.0, 10.0, 22.5, 100.0, 200.0, 300.0] {
+            let c = ring.camera(deg, &target).unwrap();
+            let a = ring.angle_of(&c.centre()).to_radians();
+            let tangent = ring.normal.cross(&(ring.u * a.cos() + ring.v * a.sin()));
+            let down = c.r.row(1).transpose();
+            assert!(
+                down.dot(&tangent) > 0.99,
+                "{deg}: down {down} vs tangent {tangent}"
+            );
+        }
         let mid = interpolate(&cams[0], &cams[2], 0.5).unwrap();
         assert!((mid.r - cams[1].r).norm() < 1e-6);
         let end = interpolate(&cams[0], &cams[2], 1.0).unwrap();

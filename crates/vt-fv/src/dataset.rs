@@ -15,9 +15,11 @@ use crate::camera::{parse_camera_spec, parse_par, parse_projection, Camera, MAX_
 use crate::colmap;
 use crate::hull::{auto_bounds, dims_for, visual_hull, Aabb, HullParams};
 use crate::lens::{Lens, Resample};
+use crate::modelfile::{decode, encode, view_prints, ModelHeader};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
 use crate::pipeline::{
-    error_map, leave_one_out_from, EvalImages, EvalReport, Others, Score, ViewParams,
+    error_map, leave_one_out_from, score_withheld, EvalImages, EvalReport, Others, Score,
+    ViewParams,
 };
 use crate::silhouette::{
     backdrop_silhouette, border_level, mask_from_image, threshold_silhouette, BackdropParams, Mask,
@@ -1143,6 +1145,171 @@ impl Dataset {
     }
 }
 
+/// The model file's name inside a hull folder (`vt fv hull`).
+pub const MODEL_FILE: &str = "model.vtfv";
+
+/// Largest model file read (a 1024^3 grid's occupancy is 128 MiB as bits; runs and surface
+/// voxels take less on any real model).
+pub const MAX_MODEL_BYTES: u64 = 1 << 30;
+
+impl Dataset {
+    /// The views a model is built from: all, or all but `withheld`.
+    pub fn model_views(&self, withheld: Option<usize>) -> Vec<usize> {
+        (0..self.cams.len())
+            .filter(|&i| Some(i) != withheld)
+            .collect()
+    }
+
+    /// The header of a model built from this folder's views (all but `withheld`) with `m`.
+    pub fn model_header(
+        &self,
+        withheld: Option<usize>,
+        m: &ModelParams,
+        build: &BuildSummary,
+    ) -> ModelHeader {
+        let (w, h) = self.size();
+        let views = self.model_views(withheld);
+        ModelHeader {
+            cameras: self.cameras_file.display().to_string(),
+            all_views: self.cams.len(),
+            views: view_prints(&views, &self.cams, &self.images, &self.masks),
+            withheld,
+            image_size: [w, h],
+            silhouettes: self.silhouettes.clone(),
+            photo_threshold: m.photo_threshold,
+            paper_carving: m.paper_carving,
+            build_secs: build.visual_hull_secs + build.photo_hull_secs,
+        }
+    }
+
+    /// Builds the model from all views but `withheld` (the volume from their silhouettes unless
+    /// `m.bounds` is given), as [`Dataset::leave_one_out`] builds it; `None` builds from all.
+    pub fn build_without(
+        &self,
+        withheld: Option<usize>,
+        m: &ModelParams,
+        progress: &mut dyn FnMut(&str, u64, u64),
+    ) -> crate::Result<(VoxelModel, BuildSummary)> {
+        let keep = self.model_views(withheld);
+        if withheld.is_none() {
+            let bounds = self.volume(m.bounds)?;
+            return build_summarised(&self.cams, &self.images, &self.masks, bounds, m, progress);
+        }
+        let o = Others::of(&self.cams, &self.images, &self.masks, &keep);
+        let bounds = volume(m.bounds, &o.cams, &o.masks)?;
+        build_summarised(&o.cams, &o.images, &o.masks, bounds, m, progress)
+    }
+
+    /// Checks that a model file's header describes this folder's views as loaded: same number
+    /// of views and photo size, and for each view it was built from the same photo name,
+    /// camera, photo and carving silhouette (fingerprints). The error names the file and the
+    /// first difference.
+    pub fn check_model(&self, path: &Path, h: &ModelHeader) -> Result<(), DataError> {
+        let n = self.cams.len();
+        let err = |what: String| path_err(path, what);
+        if h.all_views != n {
+            return Err(err(format!(
+                "built from a data folder of {} views ({}), but {} has {n}",
+                h.all_views,
+                h.cameras,
+                self.cameras_file.display()
+            )));
+        }
+        let (w, ht) = self.size();
+        if h.image_size != [w, ht] {
+            return Err(err(format!(
+                "built from {}x{} photos, these are {w}x{ht} (another data folder or --scale?)",
+                h.image_size[0], h.image_size[1]
+            )));
+        }
+        let expect = self.model_views(h.withheld.filter(|&k| k < n));
+        if h.withheld.is_some_and(|k| k >= n)
+            || h.views.iter().map(|v| v.index).ne(expect.iter().copied())
+        {
+            return Err(err(
+                "its list of views is inconsistent (damaged file?)".into()
+            ));
+        }
+        let here = view_prints(&expect, &self.cams, &self.images, &self.masks);
+        for (a, b) in h.views.iter().zip(&here) {
+            let what = if a.name != b.name {
+                format!("is {} there, {} here: another data folder", a.name, b.name)
+            } else if a.camera != b.camera {
+                "its camera differs from the one the model was built from (another data folder, --scale or --photo-fit?)".into()
+            } else if a.photo != b.photo {
+                "its photo differs from the one the model was built from".into()
+            } else if a.silhouette != b.silhouette {
+                format!(
+                    "its silhouette differs from the one the model was built from (model: {}; here: {}; use the --masks, --silhouettes, --threshold and --carve-* the model was built with)",
+                    h.silhouettes, self.silhouettes
+                )
+            } else {
+                continue;
+            };
+            return Err(err(format!("view {} ({}) {what}", a.index, b.name)));
+        }
+        Ok(())
+    }
+
+    /// Leaves view `k` out with a model read from a file (`vt fv hull --leave-out k`), which
+    /// must have been built without view `k`: the same report as [`Dataset::leave_one_out`]
+    /// gives, without carving again. The report's build times are the file's.
+    pub fn leave_one_out_with(
+        &self,
+        k: usize,
+        model: &VoxelModel,
+        header: &ModelHeader,
+        path: &Path,
+        view: &ViewParams,
+    ) -> Result<(EvalReport, EvalImages), DataError> {
+        if header.withheld != Some(k) {
+            let built = match header.withheld {
+                None => "from all views".to_string(),
+                Some(j) => format!("without view {j}"),
+            };
+            return Err(path_err(
+                path,
+                format!(
+                    "built {built}, not without view {k}: the withheld view must not be in the model (build it with `vt fv hull DATA --leave-out {k}`)"
+                ),
+            ));
+        }
+        let keep = self.model_views(Some(k));
+        let others = Others::of(&self.cams, &self.images, &self.masks, &keep);
+        let view_k = (k, &self.cams[k], &self.images[k], &self.score_masks[k]);
+        let times = Vec::new();
+        Ok(score_withheld(&others, &keep, view_k, model, view, times)?)
+    }
+}
+
+/// Writes a model file (inside an output folder being built).
+pub fn write_model(path: &Path, model: &VoxelModel, header: &ModelHeader) -> Result<(), DataError> {
+    std::fs::write(path, encode(model, header)).map_err(|e| path_err(path, e.to_string()))
+}
+
+/// Reads a model file (or a hull folder's [`MODEL_FILE`]) and checks it against the data
+/// folder `d` was loaded from ([`Dataset::check_model`]). Errors name the file.
+pub fn read_model(path: &Path, d: &Dataset) -> Result<(VoxelModel, ModelHeader), DataError> {
+    let file = if path.is_dir() {
+        path.join(MODEL_FILE)
+    } else {
+        path.to_path_buf()
+    };
+    if !file.is_file() {
+        return Err(path_err(
+            &file,
+            "no model file here (`vt fv hull DATA --out DIR` writes DIR/model.vtfv)",
+        ));
+    }
+    let bytes = vt_io::limits::read_bytes(&file, MAX_MODEL_BYTES, "model file")?;
+    let (model, header) = decode(&bytes).map_err(|cause| DataError::File {
+        path: file.clone(),
+        cause,
+    })?;
+    d.check_model(&file, &header)?;
+    Ok((model, header))
+}
+
 /// The volume a model is built in: `given`, else found from the silhouettes ([`auto_bounds`]
 /// with [`HullParams::default`]).
 /// Every camera is checked to have the volume's centre in front of it (a pose read the wrong
@@ -1405,15 +1572,18 @@ impl std::fmt::Display for SilhouetteCheck {
     }
 }
 
-/// Writes `hull.ply` (the coloured surface voxels) and `summary.json` into `dir`.
+/// Writes `hull.ply` (the coloured surface voxels), `summary.json` and the model file
+/// [`MODEL_FILE`] (what `render`, `orbit` and `eval` read with `--model`) into `dir`.
 pub fn write_hull(
     dir: &Path,
     d: &Dataset,
     model: &VoxelModel,
-    photo_threshold: f64,
+    header: &ModelHeader,
     build: &BuildSummary,
     check: Option<&SilhouetteCheck>,
 ) -> Result<(), DataError> {
+    write_model(&dir.join(MODEL_FILE), model, header)?;
+    let photo_threshold = header.photo_threshold;
     let ply = dir.join("hull.ply");
     let mut bytes = Vec::new();
     model

@@ -149,6 +149,13 @@ pub enum Error {
         /// The valid range.
         why: String,
     },
+    /// A model file (`vt fv hull`'s `model.vtfv`) that cannot be used; the path is added by
+    /// [`crate::dataset`].
+    #[error("{what}")]
+    ModelFile {
+        /// What is wrong with it.
+        what: String,
+    },
     /// An error from vt-core's primitives (metrics, masks, images).
     #[error(transparent)]
     Core(#[from] vt_core::Error),

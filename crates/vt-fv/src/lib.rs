@@ -20,6 +20,8 @@ pub mod dataset;
 mod error;
 pub mod hull;
 pub mod lens;
+pub mod modelfile;
+pub mod orbit;
 pub mod silhouette;
 
 pub use camera::Camera;

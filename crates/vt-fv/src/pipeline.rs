@@ -105,7 +105,7 @@ impl ViewParams {
                 self.guided.patch
             ),
             Method::Textured => format!(
-                "textured: the {} photo{} nearest in viewing direction projected onto the voxel model's surface, blended per pixel and softened where they disagree{}",
+                "textured: the {} photo{} nearest in viewing direction (and the next one, fading in or out as the view moves) projected onto the voxel model's surface, blended per pixel and softened where they disagree{}",
                 self.texture.references,
                 if self.texture.references == 1 { "" } else { "s" },
                 if self.refine {
@@ -237,10 +237,18 @@ impl NovelView {
                 cams[self.reference].name
             ),
             Method::Textured => format!(
-                "textured: the {} photo{} nearest in viewing direction ({}) projected onto the voxel model's surface, blended per pixel and softened where they disagree{}",
-                names.len(),
-                if names.len() == 1 { "" } else { "s" },
-                names.join(", "),
+                "textured: the {} photo{} nearest in viewing direction ({}) projected onto the voxel model's surface, blended per pixel (weights fading as the view moves) and softened where they disagree{}",
+                p.texture.references.min(names.len()),
+                if p.texture.references.min(names.len()) == 1 { "" } else { "s" },
+                if names.len() > p.texture.references {
+                    format!(
+                        "{}; the next, fading: {}",
+                        names[..p.texture.references].join(", "),
+                        names[p.texture.references..].join(", ")
+                    )
+                } else {
+                    names.join(", ")
+                },
                 if p.refine {
                     ", then refined by guided synthesis"
                 } else {
@@ -613,12 +621,33 @@ pub(crate) fn leave_one_out_from(
         &mut |_, _, _| {},
     )?;
     times.push(("photo hull", t.elapsed().as_secs_f64()));
+    score_withheld(
+        others,
+        keep,
+        (withheld, cam, truth, mask),
+        &model,
+        view,
+        times,
+    )
+}
+
+/// The scoring half of [`leave_one_out_from`]: makes the withheld view from `model` (built from
+/// `others`) and scores it and the baselines; `times` holds the build's stages.
+pub(crate) fn score_withheld(
+    others: &Others,
+    keep: &[usize],
+    (withheld, cam, truth, mask): (usize, &Camera, &RgbImage, &Mask),
+    model: &VoxelModel,
+    view: &ViewParams,
+    mut times: Vec<(&'static str, f64)>,
+) -> Result<(EvalReport, EvalImages)> {
+    let (sub_cams, sub_imgs, sub_masks) = (&others.cams, &others.images, &others.masks);
     let (w, h) = truth.dimensions();
-    let v = novel_view_in(&model, sub_cams, sub_imgs, Some(sub_masks), cam, w, h, view)?;
+    let v = novel_view_in(model, sub_cams, sub_imgs, Some(sub_masks), cam, w, h, view)?;
     times.extend(v.times.iter().copied());
     let t = Instant::now();
     // The baseline photo: nearest by direction from the object, as the texturing picks it.
-    let nearest = nearest_by_direction(sub_cams, cam, &model_centre(&model), 1)[0];
+    let nearest = nearest_by_direction(sub_cams, cam, &model_centre(model), 1)[0];
     let blurred = blur2(&v.rough.image)?;
     let report = EvalReport {
         withheld,

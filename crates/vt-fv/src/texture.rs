@@ -2,14 +2,15 @@
 //! voxel model's surface, instead of painting each voxel one flat colour (the rough view).
 //!
 //! For every pixel the rough render covers, its surface point is the back-projection of the
-//! pixel at the rendered depth. The point is projected into the `references` reference cameras
+//! pixel at the rendered depth. The point is projected into the `references` reference cameras (and the next one)
 //! nearest in viewing direction (angle between the directions from the model's centre to the
 //! cameras); a camera contributes when the point is not hidden in it (its depth is within
 //! `depth_tolerance` voxels of the camera's own render of the model at that pixel) and the
 //! sample lies inside the camera's photo. Samples are bilinear and blended with weights
-//! `1 / (angle^2 + eps^2)`, `angle` being the angle at the surface point between the new ray and
-//! the reference ray (unstructured-lumigraph style: a camera that looks along the same ray
-//! dominates). Pixels no camera sees keep the voxel colour; cracks of the rough render inside
+//! `fade / (angle^2 + eps^2)`, `angle` being the angle at the surface point between the new ray
+//! and the reference ray (unstructured-lumigraph style: a camera that looks along the same ray
+//! dominates) and `fade` the reference's [`fading_references`] weight, which reaches 0 as the
+//! photo leaves the set, so the blend varies continuously with the viewpoint. Pixels no camera sees keep the voxel colour; cracks of the rough render inside
 //! its closed coverage (closing radius `fill_radius`) are filled by push-pull interpolation.
 
 use image::{Rgb, RgbImage};
@@ -118,6 +119,47 @@ pub fn nearest_by_direction(
     chosen
 }
 
+/// Fade at or above which a reference counts fully as a second view for the softening (0.25).
+pub const FULL_FADE: f64 = 0.25;
+
+/// The references of a new view with their fades: the `n + 1` cameras nearest by direction from
+/// `centre` ([`nearest_by_direction`]), each faded by `1 - angle / next`, `next` being the
+/// angle of the camera after them (180 degrees when there is none); those whose fade is 0 are
+/// left out. A camera's fade reaches 0 exactly when it leaves the nearest `n + 1` (another
+/// one is then as near), so blending weights multiplied by the fades vary continuously with
+/// the viewpoint: no pop when the set changes. Between two cameras of an evenly spaced ring
+/// the two get equal fades and the third none; at a camera, it gets 1 and both neighbours
+/// equal fades.
+pub fn fading_references(
+    cams: &[Camera],
+    cam: &Camera,
+    centre: &Vector3<f64>,
+    n: usize,
+) -> (Vec<usize>, Vec<f64>) {
+    let d = (cam.centre() - centre).normalize();
+    let all = nearest_by_direction(cams, cam, centre, n + 2);
+    let angle = |i: usize| (cams[i].centre() - centre).normalize().angle(&d);
+    let next = all.get(n + 1).map_or(std::f64::consts::PI, |&i| angle(i));
+    let (mut chosen, mut fade) = (Vec::new(), Vec::new());
+    for &i in all.iter().take(n + 1) {
+        let f = if next > 0.0 {
+            (1.0 - angle(i) / next).max(0.0)
+        } else {
+            1.0
+        };
+        if f > 0.0 {
+            chosen.push(i);
+            fade.push(f);
+        }
+    }
+    if chosen.is_empty() {
+        // Every candidate as far as the next one: they tie, all count equally.
+        chosen = all.into_iter().take(n + 1).collect();
+        fade = vec![1.0; chosen.len()];
+    }
+    (chosen, fade)
+}
+
 /// Whether two cameras share a pose: centres within 1e-6 of their distance from the origin
 /// (at least 1e-9) and forward directions within 1e-6 rad.
 pub fn same_pose(a: &Camera, b: &Camera) -> bool {
@@ -207,7 +249,7 @@ pub fn texture_view(
     }
     let (w, h) = rough.image.dimensions();
     let centre = model_centre(model);
-    let chosen = nearest_by_direction(cams, cam, &centre, p.references);
+    let (chosen, fade) = fading_references(cams, cam, &centre, p.references);
     let refs: Vec<Reference> = chosen
         .par_iter()
         .map(|&i| {
@@ -257,7 +299,7 @@ pub fn texture_view(
                 continue;
             }
             let angle = view.angle(&(r.centre - pt).normalize());
-            out.push((k, u, v, 1.0 / (angle * angle + eps2)));
+            out.push((k, u, v, fade[k] / (angle * angle + eps2)));
         }
         out
     };
@@ -279,15 +321,21 @@ pub fn texture_view(
                         if s.len() < 2 {
                             return f32::NAN;
                         }
-                        let cols: Vec<[f64; 3]> = s
+                        // Weighted by the references' fade, so a reference fading out of the
+                        // set stops counting gradually.
+                        let cols: Vec<([f64; 3], f64)> = s
                             .iter()
-                            .map(|&(k, u, v, _)| bilinear(refs[k].image, u, v))
+                            .map(|&(k, u, v, _)| (bilinear(refs[k].image, u, v), fade[k]))
                             .collect();
-                        let m = cols.len() as f64;
+                        let m = cols.iter().map(|c| c.1).sum::<f64>();
                         let mut var = 0.0;
                         for ch in 0..3 {
-                            let mean = cols.iter().map(|c| c[ch]).sum::<f64>() / m;
-                            var += cols.iter().map(|c| (c[ch] - mean).powi(2)).sum::<f64>() / m;
+                            let mean = cols.iter().map(|c| c.1 * c.0[ch]).sum::<f64>() / m;
+                            var += cols
+                                .iter()
+                                .map(|c| c.1 * (c.0[ch] - mean).powi(2))
+                                .sum::<f64>()
+                                / m;
                         }
                         var as f32
                     })
@@ -314,8 +362,7 @@ pub fn texture_view(
     } else {
         depth.clone()
     };
-    // Per pixel: Some((colour, standard deviation across the references)) when some
-    // reference sees it.
+    // Per pixel: Some((colour, softening in [0, 1])) when some reference sees it.
     let samples: Vec<Option<([u8; 3], f64)>> = (0..n)
         .into_par_iter()
         .map(|i| {
@@ -324,7 +371,14 @@ pub fn texture_view(
                 return None;
             }
             let (mut acc, mut sq, mut wsum, mut m) = ([0.0f64; 3], [0.0f64; 3], 0.0f64, 0);
+            // The two largest fades among the references that see the point.
+            let mut top = [0.0f64; 2];
             for (k, u, v, wt) in seen(&point(i, d)) {
+                if fade[k] > top[0] {
+                    top = [fade[k], top[0]];
+                } else if fade[k] > top[1] {
+                    top[1] = fade[k];
+                }
                 let c = bilinear(refs[k].image, u, v);
                 for ch in 0..3 {
                     acc[ch] += wt * c[ch];
@@ -343,7 +397,16 @@ pub fn texture_view(
                         .sum::<f64>()
                         / 3.0
                 };
-                (mean.map(|c| c.round().clamp(0.0, 255.0) as u8), sd)
+                // Softening: where the references disagree, and where only one reference
+                // (counted by fade, so a reference fading out of the set counts less and less)
+                // sees the point.
+                let single = 1.0 - (top[1] / FULL_FADE).min(1.0);
+                let t = if p.agree_sd > 0.0 {
+                    (sd / p.agree_sd).min(1.0).max(single)
+                } else {
+                    1.0
+                };
+                (mean.map(|c| c.round().clamp(0.0, 255.0) as u8), t)
             })
         })
         .collect();
@@ -394,10 +457,7 @@ pub fn texture_view(
             if !crate::silhouette::bit(&region, i) {
                 continue;
             }
-            let t = match samples[i] {
-                Some((_, sd)) if p.agree_sd > 0.0 => (sd / p.agree_sd).min(1.0),
-                _ => 1.0,
-            };
+            let t = samples[i].map_or(1.0, |(_, t)| t);
             for ch in 0..3 {
                 px.0[ch] = ((1.0 - t) * px.0[ch] as f64 + t * sp.0[ch] as f64).round() as u8;
             }
