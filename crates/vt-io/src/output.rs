@@ -40,6 +40,8 @@ pub enum OutputKind {
     Video,
     /// A single PNG or JPEG image (`vt fv render`).
     Image,
+    /// A points file (`vt mark`): text, the marker its first line as a `#` comment.
+    Points,
     /// A synthetic texture scene folder (`vt synth textures`).
     SynthTextures,
     /// A synthetic object folder (`vt synth object`).
@@ -60,6 +62,7 @@ impl OutputKind {
             OutputKind::Frames => "frames",
             OutputKind::Video => "video",
             OutputKind::Image => "image",
+            OutputKind::Points => "points",
             OutputKind::SynthTextures => "synth-textures",
             OutputKind::SynthObject => "synth-object",
             OutputKind::Hull => "hull",
@@ -70,7 +73,10 @@ impl OutputKind {
 
     /// True for kinds that are folders.
     pub fn is_dir(self) -> bool {
-        !matches!(self, OutputKind::Video | OutputKind::Image)
+        !matches!(
+            self,
+            OutputKind::Video | OutputKind::Image | OutputKind::Points
+        )
     }
 
     /// The marker of an output of this kind with identity `id` ([`identity`]).
@@ -398,32 +404,8 @@ fn out_err(path: &Path, message: impl Into<String>) -> Error {
 
 /// All checks before writing; returns the temporary path.
 fn prepare(target: &Path, kind: OutputKind, inputs: &[&Path]) -> Result<PathBuf> {
-    match target.components().next_back() {
-        Some(Component::Normal(_)) => {}
-        _ => return Err(out_err(target, "is not a file or folder name to write")),
-    }
+    check_place(target)?;
     let parent = parent_of(target);
-    match std::fs::metadata(&parent) {
-        Ok(m) if m.is_dir() => {}
-        Ok(_) => {
-            return Err(out_err(
-                target,
-                format!(
-                    "cannot be written: {} is a file, not a folder",
-                    parent.display()
-                ),
-            ))
-        }
-        Err(_) => {
-            return Err(out_err(
-                target,
-                format!(
-                    "cannot be written: folder {} does not exist",
-                    parent.display()
-                ),
-            ))
-        }
-    }
     check_not_input(target, inputs)?;
     check_existing(target, kind)?;
     remove_stale_temps(&parent);
@@ -433,6 +415,41 @@ fn prepare(target: &Path, kind: OutputKind, inputs: &[&Path]) -> Result<PathBuf>
         remove_path(&tmp);
     }
     Ok(tmp)
+}
+
+/// Checks that an output of `kind` may be written at `target` (the checks [`Output::file`] and
+/// [`Output::dir`] make first), without creating anything: for a tool that asks before its
+/// work starts.
+pub fn check_target(target: &Path, kind: OutputKind, inputs: &[&Path]) -> Result<()> {
+    check_place(target)?;
+    check_not_input(target, inputs)?;
+    check_existing(target, kind)
+}
+
+/// Refuses a target that is no name to write, or whose folder does not exist.
+fn check_place(target: &Path) -> Result<()> {
+    match target.components().next_back() {
+        Some(Component::Normal(_)) => {}
+        _ => return Err(out_err(target, "is not a file or folder name to write")),
+    }
+    let parent = parent_of(target);
+    match std::fs::metadata(&parent) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => Err(out_err(
+            target,
+            format!(
+                "cannot be written: {} is a file, not a folder",
+                parent.display()
+            ),
+        )),
+        Err(_) => Err(out_err(
+            target,
+            format!(
+                "cannot be written: folder {} does not exist",
+                parent.display()
+            ),
+        )),
+    }
 }
 
 /// Refuses an output that is one of the inputs or holds one.
@@ -635,7 +652,8 @@ fn stale_pid(name: &str) -> Option<u32> {
 
 // ---- Markers embedded in single files ----
 
-/// Adds vt's marker to a finished file, in a way its format allows: a PNG `tEXt` chunk after
+/// Adds vt's marker to a finished file, in a way its format allows: a first line `# MARKER` in
+/// a points file (text), a PNG `tEXt` chunk after
 /// `IHDR`, a JPEG `COM` segment after `SOI`, a GIF comment extension before the trailer. MP4 files
 /// get theirs from the encoder (`-metadata comment=...`, see [`mp4_marker_args`]) and are only
 /// checked here. The marker records the identity of `path` as the file that will be at `target`
@@ -650,7 +668,12 @@ pub fn embed_marker(path: &Path, kind: OutputKind, target: &Path) -> Result<()> 
     let n = f.read(&mut head).map_err(|e| Error::io(path, e))?;
     let marker = kind.marker(&identity(path, target)?);
     let io = |e| Error::io(path, e);
-    if n == 8 && head == *b"\x89PNG\r\n\x1a\n" {
+    if kind == OutputKind::Points {
+        let mut data = format!("# {marker}\n").into_bytes();
+        f.seek(SeekFrom::Start(0)).map_err(io)?;
+        f.read_to_end(&mut data).map_err(io)?;
+        std::fs::write(path, data).map_err(io)
+    } else if n == 8 && head == *b"\x89PNG\r\n\x1a\n" {
         let mut data = Vec::new();
         f.seek(SeekFrom::Start(0)).map_err(io)?;
         f.read_to_end(&mut data).map_err(io)?;
@@ -713,6 +736,12 @@ fn contains_marker(path: &Path, marker: &str) -> Result<bool> {
     let mut head = vec![0u8; 64 << 10];
     let n = read_up_to(&mut f, &mut head).map_err(io)?;
     head.truncate(n);
+    if head.starts_with(b"# ") {
+        // A text file: the marker is its first line, as a comment.
+        let line = head.split(|&b| b == b'\n').next().unwrap_or_default();
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        return Ok(line.strip_prefix(b"# ") == Some(marker.as_bytes()));
+    }
     if head.starts_with(b"\x89PNG") {
         // tEXt chunks before IDAT; vt puts its own right after IHDR.
         let mut o = 8usize;

@@ -153,79 +153,22 @@ pub fn format_points(views: &[Vec<Point>]) -> String {
     s
 }
 
-/// First line of a points file vt wrote ([`write_points_file`]): its vt marker, so a later save
-/// may replace it and nothing else ([`crate::output`]'s rules, for a text file).
+/// How the first line of a points file vt wrote begins ([`write_points_file`]): vt's marker as a
+/// comment, recording the very file ([`crate::output`]'s rules), so a later save may replace it
+/// and nothing else.
 pub const OUTPUT_MARKER: &str = "# vt-output points";
 
-/// Checks that [`write_points_file`] may write `path`: its folder exists, it is none of `inputs`,
-/// and whatever is there already is a points file vt wrote (first line [`OUTPUT_MARKER`]), not
-/// a link, a folder or anyone else's file.
+/// Checks that [`write_points_file`] may write `path` ([`crate::output::check_target`]): its
+/// folder exists, it is none of `inputs`, and whatever is there already is the points file vt
+/// wrote there, not a link, a folder, a copy or anyone else's file.
 pub fn check_points_output(path: &Path, inputs: &[&Path]) -> Result<()> {
-    let err = |message: String| Error::Output {
-        path: path.to_path_buf(),
-        message,
-    };
-    let how = "choose another --out, or move it away first";
-    let name = match path.components().next_back() {
-        Some(std::path::Component::Normal(n)) => n,
-        _ => return Err(err("is not a file name to write".into())),
-    };
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if !parent.is_dir() {
-        let what = if parent.exists() {
-            "is a file, not a folder"
-        } else {
-            "does not exist"
-        };
-        return Err(err(format!(
-            "cannot be written: {} {what}",
-            parent.display()
-        )));
-    }
-    let target = std::fs::canonicalize(parent).map(|p| p.join(name)).ok();
-    let target = target.map(|t| std::fs::canonicalize(&t).unwrap_or(t));
-    for input in inputs {
-        if target.is_some() && std::fs::canonicalize(input).ok() == target {
-            return Err(err(
-                "is one of this run's inputs; choose another --out".into()
-            ));
-        }
-    }
-    let Ok(meta) = std::fs::symlink_metadata(path) else {
-        return Ok(());
-    };
-    if meta.file_type().is_symlink() {
-        return Err(err(format!(
-            "exists and is a symbolic link, not a vt output; {how}"
-        )));
-    }
-    if meta.is_dir() {
-        return Err(err(format!(
-            "exists and is a folder, not a vt points file; {how}"
-        )));
-    }
-    let mut head = [0u8; OUTPUT_MARKER.len() + 1];
-    let n = std::fs::File::open(path)
-        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
-        .map_err(|e| Error::io(path, e))?;
-    let first = &head[..n];
-    if !(first.starts_with(OUTPUT_MARKER.as_bytes())
-        && matches!(first.get(OUTPUT_MARKER.len()), Some(b'\n' | b'\r') | None))
-    {
-        return Err(err(format!(
-            "exists and is not a vt points output (no vt marker in it); {how}"
-        )));
-    }
-    Ok(())
+    crate::output::check_target(path, crate::output::OutputKind::Points, inputs)
 }
 
-/// Writes a points file of `views` (every view the same K >= 4 finite points) at `path`, under
-/// [`crate::output`]'s rules ([`check_points_output`]): written to a temporary sibling
-/// `.NAME.vt-tmp-PID` and renamed into place, so the file is either whole or untouched. The
-/// first line is [`OUTPUT_MARKER`], then [`format_points`]'s text.
+/// Writes a points file of `views` (every view the same K >= 4 finite points) at `path` through
+/// [`crate::output::Output`] (checked as [`check_points_output`] says, written to a temporary
+/// sibling and renamed into place, so the file is either whole or untouched). The first line is
+/// vt's marker (it begins [`OUTPUT_MARKER`]), then [`format_points`]'s text.
 pub fn write_points_file(path: &Path, views: &[Vec<Point>], inputs: &[&Path]) -> Result<()> {
     let err = |message: String| Error::Points {
         path: path.to_path_buf(),
@@ -247,28 +190,13 @@ pub fn write_points_file(path: &Path, views: &[Vec<Point>], inputs: &[&Path]) ->
     {
         return Err(err("a point is not finite".into()));
     }
-    check_points_output(path, inputs)?;
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    crate::output::remove_stale_temps(parent);
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let tmp = parent.join(format!(".{name}.vt-tmp-{}", std::process::id()));
-    let text = format!("{OUTPUT_MARKER}\n{}", format_points(views));
-    let written = std::fs::File::create(&tmp).and_then(|mut f| {
-        std::io::Write::write_all(&mut f, text.as_bytes())?;
+    let out = crate::output::Output::file(path, crate::output::OutputKind::Points, inputs)?;
+    let written = std::fs::File::create(out.path()).and_then(|mut f| {
+        std::io::Write::write_all(&mut f, format_points(views).as_bytes())?;
         f.sync_all()
     });
-    // Something may have appeared at the path meanwhile: check again just before the rename.
-    let moved = written
-        .map_err(|e| Error::io(&tmp, e))
-        .and_then(|()| check_points_output(path, inputs))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
-    if moved.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    moved
+    written.map_err(|e| Error::io(out.path(), e))?;
+    out.commit().map(|_| ())
 }
 
 #[cfg(test)]
@@ -338,7 +266,13 @@ mod tests {
         assert!(e.contains("not a vt points output"), "{e}");
         assert_eq!(std::fs::read_to_string(&user).unwrap(), "1 2 3 4 5 6 7 8\n");
         let e = write_points_file(&dir, &v, &[]).unwrap_err().to_string();
-        assert!(e.contains("is a folder"), "{e}");
+        assert!(e.contains("(a folder with"), "{e}");
+        // A copy of vt's own points file is not vt's output there.
+        let copy = dir.join("copy.txt");
+        std::fs::copy(&out, &copy).unwrap();
+        let e = write_points_file(&copy, &v, &[]).unwrap_err().to_string();
+        assert!(e.contains("not a vt points output written here"), "{e}");
+        std::fs::remove_file(&copy).unwrap();
         let e = write_points_file(&out, &v, &[&out])
             .unwrap_err()
             .to_string();
