@@ -197,6 +197,25 @@ fn ext_of(p: &Path) -> Option<String> {
         .map(str::to_ascii_lowercase)
 }
 
+/// Whether `a` becomes `b` by one edit (a letter added, dropped, changed, or two neighbours
+/// swapped), ASCII case ignored; both at least 3 letters long.
+fn one_edit_apart(a: &str, b: &str) -> bool {
+    let (a, b) = (a.to_ascii_lowercase(), b.to_ascii_lowercase());
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a == b || a.len() < 3 || b.len() < 3 || a.len().abs_diff(b.len()) > 1 {
+        return false;
+    }
+    let pre = a.iter().zip(b).take_while(|(x, y)| x == y).count();
+    let (ra, rb) = (&a[pre..], &b[pre..]);
+    match (ra.len(), rb.len()) {
+        (n, m) if n == m => {
+            ra[1..] == rb[1..] || (n >= 2 && ra[0] == rb[1] && ra[1] == rb[0] && ra[2..] == rb[2..])
+        }
+        (n, m) if n > m => ra[1..] == *rb,
+        _ => *ra == rb[1..],
+    }
+}
+
 /// Where rendered frames go: a video through ffmpeg, or a folder of PNG frames.
 pub enum FrameWriter {
     /// `.mp4` or `.gif`.
@@ -212,14 +231,22 @@ pub enum FrameWriter {
 
 impl FrameWriter {
     /// Chooses by the name: `.mp4`, `.gif`, or else a PNG folder, whatever dots its name has
-    /// (`run.v2`, `frames.2024`); only image and other video extensions are refused, since a
-    /// folder named like a file is surely a mistake.
+    /// (`run.v2`, `frames.2024`); image and other video extensions are refused, and so are
+    /// misspellings of them (one letter added, dropped, changed or swapped: `.mpg4`, `.gfi`),
+    /// since a folder named like a file is surely a mistake.
     pub fn create(target: &Path, inputs: &[&Path], w: u32, h: u32, fps: f64) -> Result<Self> {
         const REFUSED: [&str; 11] = [
             "png", "jpg", "jpeg", "avi", "mov", "mkv", "webm", "m4v", "mpg", "mpeg", "webp",
         ];
-        let ext =
-            ext_of(target).filter(|e| e == "mp4" || e == "gif" || REFUSED.contains(&e.as_str()));
+        let ext = ext_of(target).filter(|e| {
+            e == "mp4"
+                || e == "gif"
+                || REFUSED.contains(&e.as_str())
+                || ["mp4", "gif"]
+                    .iter()
+                    .chain(&REFUSED)
+                    .any(|k| one_edit_apart(e, k))
+        });
         match ext.as_deref() {
             None => Ok(FrameWriter::Folder {
                 output: Output::dir(target, OutputKind::Frames, inputs)?,
@@ -228,13 +255,20 @@ impl FrameWriter {
             Some("mp4" | "gif") => Ok(FrameWriter::Video(VideoWriter::create(
                 target, inputs, w, h, fps,
             )?)),
-            Some(other) => Err(video_err(
-                target,
-                format!(
-                    "unknown output extension '.{}': use .mp4, .gif, or a folder name (no extension) for PNG frames",
-                    output::shorten(other)
-                ),
-            )),
+            Some(other) => {
+                let near = ["mp4", "gif"]
+                    .into_iter()
+                    .find(|k| one_edit_apart(other, k))
+                    .map(|k| format!(" (did you mean .{k}?)"))
+                    .unwrap_or_default();
+                Err(video_err(
+                    target,
+                    format!(
+                        "unknown output extension '.{}'{near}: use .mp4, .gif, or a folder name (no extension) for PNG frames",
+                        output::shorten(other)
+                    ),
+                ))
+            }
         }
     }
 
@@ -285,6 +319,34 @@ pub fn write_image(target: &Path, inputs: &[&Path], img: &RgbImage) -> Result<Pa
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn misspelt_video_names_are_refused_and_folder_names_with_dots_are_not() {
+        for (a, b, want) in [
+            ("mpg4", "mp4", true),
+            ("mp5", "mp4", true),
+            ("pm4", "mp4", true),
+            ("gfi", "gif", true),
+            ("gifs", "gif", true),
+            ("MP4", "mp4", false),
+            ("v2", "mp4", false),
+            ("2024", "mp4", false),
+            ("txt", "gif", false),
+        ] {
+            assert_eq!(one_edit_apart(a, b), want, "{a} vs {b}");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let e = FrameWriter::create(&dir.path().join("trees.mpg4"), &[], 8, 8, 10.0)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains("'.mpg4' (did you mean .mp4?)"), "{e}");
+        assert!(!dir.path().join("trees.mpg4").exists());
+        for ok in ["run.v2", "frames.2024"] {
+            let w = FrameWriter::create(&dir.path().join(ok), &[], 8, 8, 10.0).unwrap();
+            assert!(matches!(w, FrameWriter::Folder { .. }), "{ok}");
+        }
+    }
     use super::*;
 
     fn has_ffmpeg() -> bool {
