@@ -730,6 +730,20 @@ pub fn parse_camera_spec(
             .ok_or_else(|| bad(format!("T {:?} is not in [0, 1]", f[2])))?;
         return interpolate(&cams[i], &cams[j], t).map_err(|e| bad(e.to_string()));
     }
+    // A word and a colon is a named spec, not a par line: an unknown or misspelt name.
+    if let Some((word, _)) = spec.split_once(':') {
+        if !word.is_empty() && word.chars().all(|c| c.is_ascii_alphabetic()) {
+            let near = ["angle", "between"]
+                .into_iter()
+                .find(|k| edit_distance(&word.to_ascii_lowercase(), k) <= 2)
+                .map(|k| format!(" (did you mean {k}:?)"))
+                .unwrap_or_default();
+            return Err(bad(format!(
+                "unknown camera spec '{word}:'{near}; expected angle:DEG, between:I,J,T or a \
+                 par line (name k11 .. k33 r11 .. r33 t1 t2 t3)"
+            )));
+        }
+    }
     let cam = parse_par(&format!("1\n{spec}\n"))
         .map_err(|e| {
             // The spec is line 2 of the wrapped text; report it as the spec's.
@@ -739,6 +753,24 @@ pub fn parse_camera_spec(
         })?
         .remove(0);
     Ok(if scale == 1.0 { cam } else { cam.scaled(scale) })
+}
+
+/// Levenshtein distance of two short ASCII words.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b = b.as_bytes();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, &ca) in a.as_bytes().iter().enumerate() {
+        let mut cur = vec![i + 1];
+        for (j, &cb) in b.iter().enumerate() {
+            cur.push(
+                (prev[j] + usize::from(ca != cb))
+                    .min(prev[j + 1] + 1)
+                    .min(cur[j] + 1),
+            );
+        }
+        prev = cur;
+    }
+    prev[b.len()]
 }
 
 /// A camera between cameras `a` and `b` at `s` in `[0, 1]`: rotation by slerp, centre and `K` by
