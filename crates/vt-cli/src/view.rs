@@ -55,6 +55,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
         viewer.port()
     );
     std::io::stdout().flush().ok();
+    vt_io::output::interrupt_means_stop();
     viewer.serve();
     Ok(())
 }

@@ -740,4 +740,15 @@ fn viewer_survives_hostile_http() {
     assert_eq!(ok, 30, "only {ok} of 30 concurrent streams got frames");
     assert!(server.0.try_wait().unwrap().is_none(), "vt view exited");
     drop(idle);
+    // Ctrl-C is how the viewer ends: "stopped", status 0, not an error.
+    let sent = Command::new("kill")
+        .args(["-INT", &server.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut server.0.stderr.take().unwrap(), &mut stderr).unwrap();
+    let status = server.0.wait().unwrap();
+    assert_eq!(status.code(), Some(0), "{stderr}");
+    assert_eq!(stderr.trim(), "stopped", "{stderr}");
 }

@@ -196,8 +196,9 @@ fn discard_name(p: &Path) -> Option<PathBuf> {
 }
 
 /// Kills this run's encoders and removes its temporaries; later registrations fail. Called by
-/// the signal handler; also usable before an abnormal exit.
-pub fn cleanup_now() {
+/// the signal handler; also usable before an abnormal exit. Returns how many temporaries it
+/// removed.
+pub fn cleanup_now() -> usize {
     let mut l = live();
     l.stopping = true;
     for c in l.children.drain(..) {
@@ -205,9 +206,19 @@ pub fn cleanup_now() {
         let _ = c.kill();
         let _ = c.wait();
     }
+    let n = l.temps.len();
     for t in l.temps.drain(..) {
         remove_path(&t);
     }
+    n
+}
+
+static STOP_IS_DONE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Tells the interrupt handler that this command runs until it is stopped (`vt view`): Ctrl-C
+/// then ends it with "stopped" and status 0, unless it had output in progress.
+pub fn interrupt_means_stop() {
+    STOP_IS_DONE.store(true, std::sync::atomic::Ordering::SeqCst);
 }
 
 /// True once an interruption started cleaning up; waits until the cleanup is done. A run whose
@@ -220,8 +231,17 @@ pub fn interrupted() -> bool {
 /// temporaries, kills its encoders, says so on stderr and exits with status 130.
 pub fn install_interrupt_cleanup() -> Result<()> {
     ctrlc::set_handler(|| {
-        cleanup_now();
-        eprintln!("error: interrupted; temporary output removed");
+        let removed = cleanup_now();
+        if removed == 0 && STOP_IS_DONE.load(std::sync::atomic::Ordering::SeqCst) {
+            // A command that runs until stopped (a server): Ctrl-C is how it ends.
+            eprintln!("stopped");
+            std::process::exit(0);
+        }
+        if removed > 0 {
+            eprintln!("error: interrupted; temporary output removed");
+        } else {
+            eprintln!("error: interrupted");
+        }
         std::process::exit(130);
     })
     .map_err(|e| Error::Output {
