@@ -557,8 +557,8 @@ fn check_existing(target: &Path, kind: OutputKind) -> Result<()> {
             return Err(out_err(
                 target,
                 format!(
-                    "holds a vt {} marker but is not the folder vt wrote here (a copy, or moved \
-                     from elsewhere); {how}",
+                    "holds a vt {} marker but is not the folder vt wrote here (a copy, moved \
+                     from elsewhere, or written by a vt from before 2026-11-24); {how}",
                     kind.name()
                 ),
             ));
@@ -596,7 +596,8 @@ fn check_existing(target: &Path, kind: OutputKind) -> Result<()> {
             target,
             format!(
                 "exists and is not a vt {} output written here (no vt marker of this very file: \
-                 another tool's file, or a copy of a vt output); {how}",
+                 another tool's file, a copy of a vt output, or one from a vt before \
+                 2026-11-24); {how}",
                 kind.name()
             ),
         )),
