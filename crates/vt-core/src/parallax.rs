@@ -1188,7 +1188,7 @@ pub fn analyse_pair(
     if mode == BackgroundMode::Plane {
         return None;
     }
-    let Some((v, lo, hi)) = direction_and_range(matches, h) else {
+    let Some(geo) = geometry(matches, h, a.dimensions()) else {
         let none = ParallaxFigures {
             residual_px: 0.0,
             confirmed: 0.0,
@@ -1196,6 +1196,7 @@ pub fn analyse_pair(
         };
         return Some((none, None));
     };
+    let v = geo.direction;
     let mut along: Vec<f64> = matches
         .iter()
         .filter_map(|(pa, pb)| h.apply_inverse(*pb).map(|q| (q.x - pa.x, q.y - pa.y)))
@@ -1216,7 +1217,6 @@ pub fn analyse_pair(
         };
         return Some((f, None));
     }
-    let geo = geometry(matches, h, a.dimensions()).unwrap_or(Geometry::straight(v, lo, hi));
     let pair = estimate(a, b, h, &geo, params);
     let confirmed =
         pair.a.valid.iter().filter(|&&x| x).count() as f64 / pair.a.valid.len().max(1) as f64;

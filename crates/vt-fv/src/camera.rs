@@ -417,7 +417,7 @@ pub const MAX_CAMERAS: usize = 10_000;
 pub const ROTATION_TOLERANCE: f64 = 1e-3;
 
 /// A user's value shortened for a message (at most 40 characters).
-fn shorten(s: &str) -> String {
+pub(crate) fn shorten(s: &str) -> String {
     let n = s.chars().count();
     if n <= 40 {
         return s.to_string();

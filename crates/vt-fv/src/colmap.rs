@@ -107,16 +107,7 @@ fn param_count(model: &str) -> Result<usize, String> {
     ))
 }
 
-fn short(s: &str) -> String {
-    let n = s.chars().count();
-    if n <= 40 {
-        return s.to_string();
-    }
-    format!(
-        "{}... ({n} characters)",
-        s.chars().take(32).collect::<String>()
-    )
-}
+use crate::camera::shorten as short;
 
 fn num(tok: &str, what: &str) -> Result<f64, String> {
     let v: f64 = tok
