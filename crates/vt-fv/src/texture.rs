@@ -29,7 +29,9 @@ pub struct TextureParams {
     /// Reference photos blended per pixel (the nearest by viewing direction), at least 1 (2).
     pub references: usize,
     /// Visibility slack in voxel sizes: a reference sees a surface point when the point's depth
-    /// is at most its own render's depth plus this (2).
+    /// is at most its own render's depth plus this (4; leave-one-out PSNR inside the silhouette
+    /// against 2: kettle 21.18 vs 21.05 dB, temple 21.33 vs 21.26, synthetic object 21.68 vs
+    /// 21.49, every view of each scored).
     pub depth_tolerance: f64,
     /// Angle in degrees below which a reference counts as looking along the same ray (the eps
     /// of the blending weights, 2).
@@ -62,7 +64,7 @@ impl Default for TextureParams {
     fn default() -> Self {
         Self {
             references: 2,
-            depth_tolerance: 2.0,
+            depth_tolerance: 4.0,
             eps_deg: 2.0,
             fill_radius: 3,
             depth_smooth: 3,
