@@ -2,6 +2,7 @@
 //! and free-viewpoint images).
 
 mod analyze;
+mod export;
 mod fv;
 mod mark;
 mod progress;
@@ -36,6 +37,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Live viewer in the browser: move the viewpoint while the video texture plays.
     View(view::ViewArgs),
+    /// Write a web page that plays a scene in any browser, from disk or a static host (no server).
+    Export(export::ExportArgs),
     /// Mark or fix the points that register the views, in the browser; saves a points file.
     Mark(mark::MarkArgs),
     /// Free-viewpoint images from calibrated photos (System B).
@@ -100,6 +103,7 @@ fn main() {
         Command::Analyze(args) => analyze::run(args).map(|_| ()),
         Command::Render(args) => render::run(args),
         Command::View(args) => view::run(args),
+        Command::Export(args) => export::run(args),
         Command::Mark(args) => mark::run(args),
         Command::Fv { what } => fv::run(what),
         Command::Demo { out, frames } => demo(out, frames),

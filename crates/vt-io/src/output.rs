@@ -50,6 +50,8 @@ pub enum OutputKind {
     Hull,
     /// The demo's folder (`vt demo`).
     Demo,
+    /// A web page that plays a scene (`vt export`).
+    WebExport,
     /// Any other folder (written through [`crate::atomic::AtomicDir`]).
     Folder,
 }
@@ -67,6 +69,7 @@ impl OutputKind {
             OutputKind::SynthObject => "synth-object",
             OutputKind::Hull => "hull",
             OutputKind::Demo => "demo",
+            OutputKind::WebExport => "web-export",
             OutputKind::Folder => "folder",
         }
     }

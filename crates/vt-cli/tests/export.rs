@@ -1,0 +1,378 @@
+//! `vt export` in a real browser: Debian's Chromium, headless, software WebGL (SwiftShader),
+//! driven over the Chrome DevTools Protocol. The page is opened from file:// (no server, no
+//! flag that relaxes file:// rules), must play (frames change), must follow the slider, the
+//! arrow keys and a drag given as real input events, and must draw the frames vt draws: the page
+//! plays a viewpoint path through its own player and renderer (`vt.play`) and the test compares
+//! ten of its frames with the frames `vt render`'s library path (`LoadedScene::play`) draws for
+//! the same path, including a fractional q, a loop wrap and a view switch.
+//!
+//! Scenes: the demo's (`vt demo`: 3 views, dynamic region, background morph) and the 5-view scene
+//! made from testdata/tree.avi (`vt synth real` + `vt analyze`, as in real_scene.rs). Figures are
+//! printed with `VT_TEST_VERBOSE=1`. Without `chromium` the test says "skipped".
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use common::cdp::{Kill, Page};
+use common::*;
+use image::RgbImage;
+use vt_core::render::{Player, RenderParams, Step};
+use vt_io::scene::LoadedScene;
+
+fn verbose() -> bool {
+    std::env::var_os("VT_TEST_VERBOSE").is_some()
+}
+
+/// Headless Chromium with software WebGL2; None when it is not installed.
+fn chromium_webgl(profile: &Path) -> Option<(Kill, String)> {
+    let spawned = Command::new("chromium")
+        .args([
+            "--headless=new",
+            "--no-sandbox",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--remote-debugging-port=0",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg("about:blank")
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn();
+    let mut child = match spawned {
+        Ok(c) => Kill(c),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
+        Err(e) => panic!("cannot start chromium: {e}"),
+    };
+    let stderr = BufReader::new(child.0.stderr.take().unwrap());
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for l in stderr.lines().map_while(Result::ok) {
+            if let Some(i) = l.find("ws://") {
+                let _ = tx.send(l[i..].trim().to_string());
+            }
+        }
+    });
+    let ws = rx
+        .recv_timeout(Duration::from_secs(30))
+        .expect("chromium printed its DevTools URL");
+    Some((child, ws))
+}
+
+fn tree() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi")
+}
+
+/// The demo's scene (3 views of 60 frames).
+fn demo_scene(root: &Path) -> PathBuf {
+    let out = root.join("demo");
+    vt_ok(&["demo", "--out", s(&out), "--frames", "60"]);
+    out.join("scene")
+}
+
+/// The 5-view scene made from tree.avi (real_scene.rs's exact-points scene).
+fn tree_scene(root: &Path) -> PathBuf {
+    let real = root.join("real");
+    vt_ok(&[
+        "synth",
+        "real",
+        s(&tree()),
+        "--out",
+        s(&real),
+        "--views",
+        "5",
+        "--frames",
+        "70",
+        "--usable",
+        "54",
+        "--marking-noise",
+        "0",
+    ]);
+    let out = root.join("tree-scene");
+    let views: Vec<String> = (0..5)
+        .map(|p| s(&real.join(format!("view_{p:02}.mp4"))).to_string())
+        .collect();
+    let mut args = vec!["analyze"];
+    args.extend(views.iter().map(String::as_str));
+    let points = real.join("points.txt");
+    args.extend_from_slice(&["--out", s(&out), "--min-length", "40"]);
+    args.extend_from_slice(&["--points", s(&points)]);
+    vt_ok(&args);
+    out
+}
+
+/// Bytes of every file in a folder, recursively.
+fn folder_bytes(dir: &Path) -> u64 {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            let m = e.metadata().unwrap();
+            if m.is_dir() {
+                folder_bytes(&e.path())
+            } else {
+                m.len()
+            }
+        })
+        .sum()
+}
+
+/// The viewpoint path both players play: a fractional q held while view 0 plays (and wraps),
+/// then a move across the views (switches), then a fractional q held near the far end.
+fn path(views: usize, n: usize) -> Vec<f64> {
+    let q_max = (views - 1) as f64;
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / n as f64;
+            if t < 0.55 {
+                0.25
+            } else if t < 0.75 {
+                0.25 + (q_max - 0.5) * (t - 0.55) / 0.2
+            } else {
+                q_max - 0.375
+            }
+        })
+        .map(|q: f64| (q * 64.0).round() / 64.0)
+        .collect()
+}
+
+/// vt's frames for `qs` through the library path of `vt render`, and the player's choices.
+fn vt_frames(
+    scene: &LoadedScene,
+    qs: &[f64],
+    params: RenderParams,
+) -> (Vec<RgbImage>, Vec<vt_core::render::FrameChoice>) {
+    let mut frames = Vec::new();
+    scene
+        .play(qs, params, &mut |f| {
+            frames.push(f.clone());
+            Ok(())
+        })
+        .unwrap();
+    let mut player = Player::new();
+    let choices = qs
+        .iter()
+        .map(|&q| player.advance(&scene.render, q).unwrap())
+        .collect();
+    (frames, choices)
+}
+
+/// Ten states of the path: the first frame, fractional q, the first wraps and switches and the
+/// frames after them, the rest spread over the path.
+fn states(choices: &[vt_core::render::FrameChoice], qs: &[f64]) -> Vec<usize> {
+    let mut keep = vec![0];
+    let wrap = choices
+        .iter()
+        .position(|c| c.step == Step::Wrap)
+        .expect("the path wraps a loop");
+    let switch = choices
+        .iter()
+        .position(|c| matches!(c.step, Step::Switch { .. }))
+        .expect("the path switches views");
+    keep.extend([wrap, wrap + 1, switch, switch + 1]);
+    let n = qs.len();
+    let mut i = 1;
+    while keep.len() < 10 {
+        let cand = (i * n / 7).min(n - 1);
+        if !keep.contains(&cand) {
+            keep.push(cand);
+        }
+        i += 1;
+    }
+    keep.sort_unstable();
+    keep.dedup();
+    assert!(keep.iter().any(|&i| qs[i].fract() != 0.0));
+    keep
+}
+
+fn decode_b64(s: &str) -> Vec<u8> {
+    let val = |c: u8| -> u32 {
+        match c {
+            b'A'..=b'Z' => (c - b'A') as u32,
+            b'a'..=b'z' => (c - b'a' + 26) as u32,
+            b'0'..=b'9' => (c - b'0' + 52) as u32,
+            b'+' => 62,
+            b'/' => 63,
+            _ => panic!("not base64: {c}"),
+        }
+    };
+    let bytes = s.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len() / 4 * 3);
+    for chunk in bytes.chunks(4) {
+        let pad = chunk.iter().filter(|&&c| c == b'=').count();
+        let mut n = 0u32;
+        for (k, &c) in chunk.iter().enumerate() {
+            n |= if c == b'=' { 0 } else { val(c) } << (18 - 6 * k);
+        }
+        let b = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
+        out.extend_from_slice(&b[..3 - pad]);
+    }
+    out
+}
+
+/// Opens the export's index.html from disk and waits until it has loaded its assets.
+fn open_export(ws: &str, dir: &Path) -> Page {
+    let url = format!("file://{}", dir.join("index.html").display());
+    let mut page = Page::open_sized(ws, &url, Some((900, 760)));
+    page.wait_until(
+        "window.vt !== undefined && (window.vt.loaded || window.vt.error !== null)",
+        "the page to load",
+        "document.getElementById('status').textContent",
+    );
+    let error = page.eval("window.vt.error");
+    assert!(error.is_null(), "the page failed: {error}");
+    page
+}
+
+fn state(page: &mut Page) -> serde_json::Value {
+    page.eval("window.vt.state()")
+}
+
+/// The page plays, and its viewpoint follows the slider, the arrow keys and a drag.
+fn check_controls(page: &mut Page, views: usize) {
+    let q_max = (views - 1) as f64;
+    let first = state(page);
+    // Frames change by themselves (the video plays).
+    page.wait_until(
+        &format!(
+            "window.vt.state().drawn > {} && window.vt.state().frame !== {}",
+            first["drawn"], first["frame"]
+        ),
+        "the video to play",
+        "JSON.stringify(window.vt.state())",
+    );
+    // A click on the slider at 90% of its width (a real mouse event).
+    let rect = page.eval(
+        "(() => { const r = document.getElementById('q').getBoundingClientRect();
+           return [r.left, r.top, r.width, r.height]; })()",
+    );
+    let r: Vec<f64> = serde_json::from_value(rect).unwrap();
+    let x = r[0] + 0.9 * r[2];
+    page.click(x, r[1] + r[3] / 2.0);
+    let q = state(page)["q"].as_f64().unwrap();
+    assert!(
+        (q - 0.9 * q_max).abs() < 0.1 * q_max,
+        "slider clicked at 90%: q {q}"
+    );
+    // The view follows (the switch policy may hold the old view a few frames).
+    let want = vt_core::render::split_q(q).nearest;
+    page.wait_until(
+        &format!("window.vt.state().view === {want}"),
+        "the shown view to follow the slider",
+        "JSON.stringify(window.vt.state())",
+    );
+    // Arrow keys: 0.05 per press.
+    page.key("ArrowLeft", "ArrowLeft", 37);
+    page.key("ArrowLeft", "ArrowLeft", 37);
+    let q2 = state(page)["q"].as_f64().unwrap();
+    assert!((q2 - (q - 0.1)).abs() < 0.011, "two ArrowLeft: {q} -> {q2}");
+    // Dragging the picture to the left by half its width moves half the range down.
+    let rect = page.eval(
+        "(() => { const r = document.getElementById('video').getBoundingClientRect();
+           return [r.left, r.top, r.width, r.height]; })()",
+    );
+    let r: Vec<f64> = serde_json::from_value(rect).unwrap();
+    let (y, x0) = (r[1] + r[3] / 2.0, r[0] + 0.75 * r[2]);
+    page.drag((x0, y), (x0 - 0.5 * r[2], y), 8);
+    let q3 = state(page)["q"].as_f64().unwrap();
+    assert!(
+        (q3 - (q2 - 0.5 * q_max)).abs() < 0.05 * q_max + 0.011,
+        "drag by half the picture: {q2} -> {q3}"
+    );
+    let status = page.eval("document.getElementById('status').textContent");
+    assert!(
+        status.as_str().unwrap().contains(&format!("q {q3:.2}")),
+        "status line {status}"
+    );
+}
+
+/// The page's frames against vt's for ten states of the path; returns the PSNRs.
+fn check_frames(page: &mut Page, scene_dir: &Path, params: RenderParams, n: usize) -> Vec<f64> {
+    let scene = LoadedScene::open(scene_dir).unwrap();
+    let qs = path(scene.render.views.len(), n);
+    let (frames, choices) = vt_frames(&scene, &qs, params);
+    let keep = states(&choices, &qs);
+    let got = page.eval(&format!(
+        "window.vt.play({}, {})",
+        serde_json::json!(qs),
+        serde_json::json!(keep)
+    ));
+    let got = got.as_array().expect("vt.play returned frames");
+    assert_eq!(got.len(), keep.len());
+    let (w, h) = (scene.file.width, scene.file.height);
+    let mut psnrs = Vec::new();
+    for (g, &i) in got.iter().zip(&keep) {
+        let c = &choices[i];
+        assert_eq!(
+            (g["view"].as_u64(), g["frame"].as_u64()),
+            (Some(c.view as u64), Some(c.frame as u64)),
+            "state {i} (q {}): the page's player chose another frame than vt's",
+            qs[i]
+        );
+        let rgb = decode_b64(g["rgb"].as_str().unwrap());
+        let img = RgbImage::from_raw(w, h, rgb).expect("a whole frame");
+        let p = vt_core::metrics::psnr(&img, &frames[i], None).unwrap();
+        if verbose() || p < 40.0 {
+            eprintln!(
+                "  state {i}: q {:.4}, view {}, frame {}, {:?}: {p:.2} dB",
+                qs[i], c.view, c.frame, c.step
+            );
+        }
+        if p < 40.0 {
+            let dir = std::env::temp_dir();
+            img.save(dir.join(format!("vt-export-page-{i}.png"))).ok();
+            frames[i]
+                .save(dir.join(format!("vt-export-vt-{i}.png")))
+                .ok();
+        }
+        psnrs.push(p);
+    }
+    psnrs
+}
+
+#[test]
+fn export_plays_from_disk_and_matches_vt() {
+    let tmp = tempfile::tempdir().unwrap();
+    let profile = tmp.path().join("profile");
+    let Some((_browser, ws)) = chromium_webgl(&profile) else {
+        eprintln!("skipped: chromium is not installed");
+        return;
+    };
+    for (name, scene_dir, n) in [
+        ("demo", demo_scene(tmp.path()), 90),
+        ("tree.avi 5 views", tree_scene(tmp.path()), 110),
+    ] {
+        let web = tmp.path().join(format!("{}-web", name.replace(' ', "_")));
+        let stdout = vt_ok(&["export", s(&scene_dir), "--out", s(&web)]);
+        assert!(
+            stdout.contains("exported") && stdout.contains("MB"),
+            "{stdout}"
+        );
+        let (bytes, scene_bytes) = (folder_bytes(&web), folder_bytes(&scene_dir));
+        let mut page = open_export(&ws, &web);
+        check_controls(
+            &mut page,
+            LoadedScene::open(&scene_dir).unwrap().render.views.len(),
+        );
+        let psnrs = check_frames(&mut page, &scene_dir, RenderParams::default(), n);
+        let fps = page.eval("window.vt.bench(30)").as_f64().unwrap_or(0.0);
+        eprintln!(
+            "{name}: export {:.2} MB, scene {:.2} MB; PSNR {:.1?} dB; {fps:.1} fps (software WebGL)",
+            bytes as f64 / 1e6,
+            scene_bytes as f64 / 1e6,
+            psnrs
+        );
+        assert!(psnrs.iter().all(|&p| p >= 40.0), "{name}: PSNR {psnrs:?}");
+        assert!(
+            bytes <= 2 * scene_bytes,
+            "{name}: export {bytes} bytes, scene {scene_bytes}"
+        );
+    }
+}

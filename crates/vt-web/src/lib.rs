@@ -1,0 +1,682 @@
+//! `vt export`: an analysed scene as a folder with `index.html` and its assets that plays the
+//! scene in a browser with no server, opened from disk (file://) or from any static host.
+//!
+//! # Why the assets are scripts
+//! A page opened from file:// may not read files by `fetch` or XHR, and images or videos it loads
+//! from file:// taint WebGL (`texImage2D` throws). Scripts do load, so every asset is a small
+//! script `data/*.js` that hands a base64 payload to the player (`vtPayload(...)`); the player
+//! turns it into a `Blob` (same-origin) and decodes it with `createImageBitmap` for textures.
+//!
+//! # What the page does
+//! The player (`player.js`, with one fragment shader per warp: `blend.frag` eq. (3),
+//! `morph.frag` the background morph along the stored parallax fields, `composite.frag` the
+//! object and dynamic region of eq. (4)-(5) with the feathered alpha, `mix.frag` the crossfade
+//! and dissolve) is a port of [`vt_core::render`]'s `Player` (eq. 6 with the switch policy) and
+//! `Renderer` with the same [`RenderParams`]. What it cannot compute cheaply in the browser is
+//! computed here and shipped: the per-view gains ([`vt_core::render::estimate_gains`]) and
+//! `H_(p,q)^-1` on a grid of [`Q_STEPS`] viewpoints per view interval (the page interpolates
+//! between grid points; at grid points it is vt's own homography).
+//!
+//! # Media
+//! Backgrounds and dynamic-region alphas as vt's PNGs; each object frame's box as one JPEG
+//! (pixels outside the object filled from the background, so the edge costs no bits) and its
+//! mask bit-packed, all frames of a view deflated together; parallax fields as their per-pixel
+//! displacement (`i16`, 1/32 px), deflated.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+use vt_core::render::{ObjectFrames, ObjectPatch, RenderParams};
+use vt_core::warp::Interpolation;
+use vt_io::output::{Output, OutputKind};
+use vt_io::scene::LoadedScene;
+
+mod h264;
+
+/// Grid points per view interval at which `H_(p,q)^-1` is stored (the page interpolates).
+pub const Q_STEPS: usize = 64;
+
+/// Default JPEG quality of the object frames ([`Media::Jpeg`]).
+pub const DEFAULT_QUALITY: u8 = 92;
+
+/// Default constant rate factor of the object video ([`Media::H264`]).
+pub const DEFAULT_CRF: u8 = 12;
+
+/// How the object frames travel to the browser.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Media {
+    /// One H.264 stream per view (the default), decoded by the browser's WebCodecs.
+    H264 {
+        /// libx264's constant rate factor, 0..=51 (lower: better and larger).
+        crf: u8,
+    },
+    /// One JPEG per frame (any browser with WebGL2).
+    Jpeg {
+        /// Quality, 1..=100.
+        quality: u8,
+    },
+}
+
+impl Default for Media {
+    fn default() -> Self {
+        Media::H264 { crf: DEFAULT_CRF }
+    }
+}
+
+impl Media {
+    /// Checks the setting's range.
+    pub fn check(&self) -> Result<()> {
+        let (name, value, ok, why) = match *self {
+            Media::H264 { crf } => ("crf", crf, crf <= 51, "a constant rate factor from 0 to 51"),
+            Media::Jpeg { quality } => (
+                "quality",
+                quality,
+                (1..=100).contains(&quality),
+                "a JPEG quality from 1 to 100",
+            ),
+        };
+        if ok {
+            return Ok(());
+        }
+        Err(Error::InvalidParameter {
+            name,
+            value: value.to_string(),
+            why: why.into(),
+        })
+    }
+}
+
+const PAGE: &str = include_str!("index.html");
+const PLAYER: &str = include_str!("player.js");
+const VERTEX: &str = include_str!("quad.vert");
+const COMMON: &str = include_str!("common.glsl");
+const BLEND: &str = include_str!("blend.frag");
+const MORPH: &str = include_str!("morph.frag");
+const COMPOSITE: &str = include_str!("composite.frag");
+const MIX: &str = include_str!("mix.frag");
+const PRESENT: &str = include_str!("present.frag");
+
+/// What can go wrong in an export.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Reading the scene or writing the output.
+    #[error(transparent)]
+    Io(#[from] vt_io::Error),
+    /// The renderer's tables (homographies, gains, object frames).
+    #[error(transparent)]
+    Core(#[from] vt_core::Error),
+    /// A parameter out of its range.
+    #[error("{name} {value}: {why}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: String,
+        /// The rule it breaks.
+        why: String,
+    },
+    /// An image could not be encoded.
+    #[error("cannot encode {what}: {message}")]
+    Encode {
+        /// What was being encoded.
+        what: String,
+        /// The encoder's message.
+        message: String,
+    },
+}
+
+/// Result of this crate.
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// How to export.
+#[derive(Debug, Clone)]
+pub struct ExportOptions {
+    /// The render parameters the page plays with (crossfade, dissolve, neighbour fill, gains,
+    /// interpolation); background reuse is not exported (the page blends every new q).
+    pub params: RenderParams,
+    /// How the object frames are encoded.
+    pub media: Media,
+    /// The page's title (the scene's name).
+    pub title: String,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        Self {
+            params: RenderParams::default(),
+            media: Media::default(),
+            title: "scene".into(),
+        }
+    }
+}
+
+/// What an export wrote.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ExportSummary {
+    /// Bytes of the folder (every file).
+    pub bytes: u64,
+    /// Files written.
+    pub files: usize,
+    /// Bytes of the object frames' payloads (JPEG and masks, base64 included).
+    pub object_bytes: u64,
+    /// Object frames exported.
+    pub frames: usize,
+}
+
+/// Progress of an export: `(done, total)` object frames.
+pub type Progress<'a> = &'a mut (dyn FnMut(usize, usize) + Send);
+
+/// Writes the page for `scene` (read from `scene_dir`) to the folder `out` through
+/// [`vt_io::output`] (built under a temporary name, renamed into place; never replaces what vt
+/// did not write).
+pub fn export(
+    scene: &LoadedScene,
+    scene_dir: &Path,
+    out: &Path,
+    opts: &ExportOptions,
+    progress: Progress<'_>,
+) -> Result<ExportSummary> {
+    opts.media.check()?;
+    // The renderer's own checks of the parameters (crossfade and dissolve limits).
+    vt_core::render::Renderer::new(scene.render.clone(), opts.params)?;
+    let output = Output::dir(out, OutputKind::WebExport, &[scene_dir])?;
+    let root = output.path().to_path_buf();
+    let data = root.join("data");
+    std::fs::create_dir(&data).map_err(|e| vt_io::Error::io(&data, e))?;
+    let mut written = Written::default();
+    let render = &scene.render;
+    let m = render.views.len();
+    let (w, h) = (scene.file.width, scene.file.height);
+
+    // Per view: background, dynamic alpha, object frames.
+    let total: usize = render.views.iter().map(|v| v.to_next.len()).sum();
+    let mut done = 0;
+    let mut frames_per_view = Vec::with_capacity(m);
+    for (p, view) in render.views.iter().enumerate() {
+        let png = encode_png_rgb(&view.background, &format!("background of view {p}"))?;
+        written.script(
+            &data,
+            &format!("background_{p:03}.js"),
+            &format!("vtPayload('background',{p},'{}');", base64(&png)),
+        )?;
+        if let Some(d) = &view.dynamic {
+            let png = encode_png_gray(d, &format!("dynamic region of view {p}"))?;
+            written.script(
+                &data,
+                &format!("dynamic_{p:03}.js"),
+                &format!("vtPayload('dynamic',{p},'{}');", base64(&png)),
+            )?;
+        }
+        let n = view.to_next.len();
+        frames_per_view.push(n);
+        let text = match opts.media {
+            Media::Jpeg { quality } => objects_jpeg(scene, p, n, quality, &mut |_| {
+                done += 1;
+                progress(done, total)
+            })?,
+            Media::H264 { crf } => objects_h264(scene, p, n, crf, &mut |_| {
+                done += 1;
+                progress(done, total)
+            })?,
+        };
+        written.object_bytes += text.len() as u64;
+        written.script(&data, &format!("objects_{p:03}.js"), &text)?;
+    }
+
+    // Parallax fields of the morphed pairs.
+    let mut parallax = Vec::new();
+    for p in 0..m.saturating_sub(1) {
+        match render.parallax.get(p).and_then(Option::as_ref) {
+            Some(par) => {
+                let mut raw = Vec::with_capacity(par.a.flow().len() * 8);
+                for field in [&par.a, &par.b] {
+                    for u in field.flow() {
+                        raw.extend_from_slice(&u[0].to_le_bytes());
+                        raw.extend_from_slice(&u[1].to_le_bytes());
+                    }
+                }
+                written.script(
+                    &data,
+                    &format!("parallax_{p:03}.js"),
+                    &format!("vtPayload('parallax',{p},'{}');", base64(&deflate(&raw))),
+                )?;
+                parallax.push(Some([par.a.width(), par.a.height()]));
+            }
+            None => parallax.push(None),
+        }
+    }
+
+    // The scene's tables, gains and the homography grid.
+    let gains = if opts.params.gain_compensation {
+        vt_core::render::estimate_gains(render)?
+    } else {
+        vec![[1.0; 3]; m]
+    };
+    let grid = homography_grid(scene)?;
+    let views: Vec<serde_json::Value> = render
+        .views
+        .iter()
+        .enumerate()
+        .map(|(p, v)| {
+            let seam = |s: &[f32]| s.iter().map(|&x| x as f64).collect::<Vec<f64>>();
+            serde_json::json!({
+                "loop_start": v.loop_start,
+                "loop_end": v.loop_end,
+                "frames": frames_per_view[p],
+                "to_next": v.to_next,
+                "to_prev": v.to_prev,
+                "to_next_seam": seam(&v.to_next_seam),
+                "to_prev_seam": seam(&v.to_prev_seam),
+                "dynamic": v.dynamic.is_some(),
+                "gain": gains[p].map(f64::from),
+            })
+        })
+        .collect();
+    let policy = vt_core::render::SwitchPolicy::default();
+    let meta = serde_json::json!({
+        "title": opts.title,
+        "width": w,
+        "height": h,
+        "fps": scene.source_fps(120.0),
+        "views": views,
+        "parallax": parallax,
+        "q_steps": Q_STEPS,
+        "policy": {
+            "max_seam": policy.max_seam,
+            "max_past_tie": policy.max_past_tie,
+            "max_frames": policy.max_frames,
+        },
+        "params": {
+            "crossfade": opts.params.crossfade,
+            "dissolve": opts.params.dissolve,
+            "neighbour_fill": opts.params.neighbour_fill,
+            "nearest": opts.params.interpolation == Interpolation::Nearest,
+        },
+        "flow_unit": vt_core::parallax::FLOW_UNIT,
+        "morph_steps": vt_core::parallax::FIXED_POINT_STEPS,
+        "converged_px": vt_core::parallax::CONVERGED_PX,
+        "unconverged_weight": vt_core::parallax::UNCONVERGED_WEIGHT,
+    });
+    let mut grid_bytes = Vec::with_capacity(grid.len() * 4);
+    for v in &grid {
+        grid_bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    written.script(
+        &data,
+        "scene.js",
+        &format!(
+            "var vtScene={};vtScene.hinv='{}';",
+            meta,
+            base64(&grid_bytes)
+        ),
+    )?;
+    let shaders = serde_json::json!({
+        "vert": VERTEX, "common": COMMON, "blend": BLEND, "morph": MORPH, "composite": COMPOSITE,
+        "mix": MIX, "present": PRESENT,
+    });
+    written.script(
+        &data,
+        "player.js",
+        &format!("var vtShaders={shaders};\n{PLAYER}"),
+    )?;
+    let page = PAGE.replace("__TITLE__", &html_escape(&opts.title));
+    written.file(&root.join("index.html"), page.as_bytes())?;
+    output.commit()?;
+    Ok(ExportSummary {
+        bytes: written.bytes,
+        files: written.files,
+        object_bytes: written.object_bytes,
+        frames: total,
+    })
+}
+
+/// Bytes of every file under `dir` (a scene folder, to compare an export with).
+pub fn folder_bytes(dir: &Path) -> Result<u64> {
+    let mut total = 0;
+    let mut stack: Vec<PathBuf> = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let entries = std::fs::read_dir(&d).map_err(|e| vt_io::Error::io(&d, e))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| vt_io::Error::io(&d, e))?;
+            let meta = entry
+                .metadata()
+                .map_err(|e| vt_io::Error::io(entry.path(), e))?;
+            if meta.is_dir() {
+                stack.push(entry.path());
+            } else {
+                total += meta.len();
+            }
+        }
+    }
+    Ok(total)
+}
+
+/// Calls `f` with every object frame of view `p`, in order.
+fn each_frame(
+    scene: &LoadedScene,
+    p: usize,
+    n: usize,
+    f: &mut dyn FnMut(usize, &ObjectPatch) -> Result<()>,
+) -> Result<()> {
+    let mut patch = ObjectPatch::default();
+    for i in 0..n {
+        scene.objects.decode_into(p, i, &mut patch)?;
+        f(i, &patch)?;
+    }
+    Ok(())
+}
+
+/// View `p`'s object payload with one JPEG per frame's box.
+fn objects_jpeg(
+    scene: &LoadedScene,
+    p: usize,
+    n: usize,
+    quality: u8,
+    tick: &mut dyn FnMut(usize),
+) -> Result<String> {
+    let background = &scene.render.views[p].background;
+    let mut boxes = Vec::with_capacity(n);
+    let mut jpegs = Vec::with_capacity(n);
+    let mut masks = Vec::new();
+    // Frames in chunks: decoded in order, encoded in parallel.
+    const CHUNK: usize = 16;
+    let mut patches = Vec::with_capacity(CHUNK);
+    let mut flush = |patches: &mut Vec<(usize, ObjectPatch)>| -> Result<()> {
+        use rayon::prelude::*;
+        let encoded: Vec<Result<Vec<u8>>> = patches
+            .par_iter()
+            .map(|(i, pt)| encode_patch(pt, background, quality, p, *i))
+            .collect();
+        for ((i, pt), jpeg) in patches.drain(..).zip(encoded) {
+            boxes.push([pt.x0, pt.y0, pt.width, pt.height]);
+            jpegs.push(jpeg?);
+            pack_bits(&pt.mask, &mut masks);
+            tick(i);
+        }
+        Ok(())
+    };
+    each_frame(scene, p, n, &mut |i, pt| {
+        patches.push((i, pt.clone()));
+        if patches.len() == CHUNK {
+            flush(&mut patches)?;
+        }
+        Ok(())
+    })?;
+    flush(&mut patches)?;
+    let mut text = format!(
+        "vtPayload('objects',{p},{{boxes:{},masks:'{}',jpeg:[",
+        serde_json::json!(boxes),
+        base64(&deflate(&masks))
+    );
+    for (i, j) in jpegs.iter().enumerate() {
+        if i > 0 {
+            text.push(',');
+        }
+        text.push('\'');
+        text.push_str(&base64(j));
+        text.push('\'');
+    }
+    text.push_str("]});");
+    Ok(text)
+}
+
+/// View `p`'s object payload as one H.264 stream over the union of its frames' boxes
+/// ([`h264`]), masks bit-packed and deflated.
+fn objects_h264(
+    scene: &LoadedScene,
+    p: usize,
+    n: usize,
+    crf: u8,
+    tick: &mut dyn FnMut(usize),
+) -> Result<String> {
+    let background = &scene.render.views[p].background;
+    // Pass 1: boxes, masks and their union.
+    let mut boxes = Vec::with_capacity(n);
+    let mut masks = Vec::new();
+    let (mut lo, mut hi) = ([u32::MAX; 2], [0u32; 2]);
+    each_frame(scene, p, n, &mut |_, pt| {
+        boxes.push([pt.x0, pt.y0, pt.width, pt.height]);
+        pack_bits(&pt.mask, &mut masks);
+        if pt.width > 0 && pt.height > 0 {
+            lo = [lo[0].min(pt.x0), lo[1].min(pt.y0)];
+            hi = [hi[0].max(pt.x0 + pt.width), hi[1].max(pt.y0 + pt.height)];
+        }
+        Ok(())
+    })?;
+    let masks = base64(&deflate(&masks));
+    if hi[0] <= lo[0] || hi[1] <= lo[1] {
+        (0..n).for_each(&mut *tick);
+        return Ok(format!(
+            "vtPayload('objects',{p},{{boxes:{},masks:'{masks}',video:null}});",
+            serde_json::json!(boxes)
+        ));
+    }
+    // Pass 2: each frame over the union box, the background where it has no object pixel.
+    let (ux, uy, uw, uh) = (lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]);
+    let mut crop = Vec::with_capacity(uw as usize * uh as usize * 3);
+    for y in uy..uy + uh {
+        let row = (y * background.width() + ux) as usize * 3;
+        crop.extend_from_slice(&background.as_raw()[row..row + uw as usize * 3]);
+    }
+    let mut patch = ObjectPatch::default();
+    let stream = h264::encode(
+        uw,
+        uh,
+        crf,
+        n,
+        &format!("object frames of view {p}"),
+        &mut |i, buf| {
+            scene.objects.decode_into(p, i, &mut patch)?;
+            buf.extend_from_slice(&crop);
+            for y in 0..patch.height {
+                for x in 0..patch.width {
+                    let k = (y * patch.width + x) as usize;
+                    if patch.mask[k] != 0 {
+                        let o = ((patch.y0 + y - uy) * uw + (patch.x0 + x - ux)) as usize * 3;
+                        buf[o..o + 3].copy_from_slice(&patch.rgb[3 * k..3 * k + 3]);
+                    }
+                }
+            }
+            tick(i);
+            Ok(())
+        },
+    )?;
+    let mut text = format!(
+        "vtPayload('objects',{p},{{boxes:{},masks:'{masks}',video:{{codec:'{}',x0:{ux},y0:{uy},width:{},height:{},key:{},units:[",
+        serde_json::json!(boxes),
+        stream.codec,
+        uw + uw % 2,
+        uh + uh % 2,
+        serde_json::json!(stream.key),
+    );
+    for (i, u) in stream.units.iter().enumerate() {
+        if i > 0 {
+            text.push(',');
+        }
+        text.push('\'');
+        text.push_str(&base64(u));
+        text.push('\'');
+    }
+    text.push_str("]}});");
+    Ok(text)
+}
+
+/// `H_(p,q)^-1` (row-major, scaled so its last entry is 1 where it is not near 0) for every view
+/// p and every `q = k / Q_STEPS` in `[0, M - 1]`: `[p][k][9]` as `f32`.
+fn homography_grid(scene: &LoadedScene) -> Result<Vec<f32>> {
+    let render = &scene.render;
+    let m = render.views.len();
+    let steps = Q_STEPS * (m - 1) + 1;
+    let mut out = Vec::with_capacity(m * steps * 9);
+    let mut buf = Vec::new();
+    for p in 0..m {
+        for k in 0..steps {
+            let q = k as f64 / Q_STEPS as f64;
+            let h = render.homography_to_with(p, q, &mut buf)?;
+            let inv = h.raw().1;
+            let s = if inv[(2, 2)].abs() > 1e-12 {
+                inv[(2, 2)]
+            } else {
+                1.0
+            };
+            for r in 0..3 {
+                for c in 0..3 {
+                    out.push((inv[(r, c)] / s) as f32);
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The object frame's box as a JPEG: object pixels, the rest from the view's background (so
+/// the edge of the object is smooth for the encoder; the page reads only object pixels).
+fn encode_patch(
+    patch: &ObjectPatch,
+    background: &RgbImage,
+    quality: u8,
+    view: usize,
+    frame: usize,
+) -> Result<Vec<u8>> {
+    if patch.width == 0 || patch.height == 0 {
+        return Ok(Vec::new());
+    }
+    let (pw, ph) = (patch.width, patch.height);
+    let mut img = RgbImage::new(pw, ph);
+    for y in 0..ph {
+        for x in 0..pw {
+            let i = (y * pw + x) as usize;
+            let px = if patch.mask[i] != 0 {
+                [patch.rgb[3 * i], patch.rgb[3 * i + 1], patch.rgb[3 * i + 2]]
+            } else {
+                background
+                    .get_pixel_checked(patch.x0 + x, patch.y0 + y)
+                    .map_or([0; 3], |p| p.0)
+            };
+            img.put_pixel(x, y, image::Rgb(px));
+        }
+    }
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, quality)
+        .encode_image(&img)
+        .map_err(|e| Error::Encode {
+            what: format!("object frame {frame} of view {view}"),
+            message: e.to_string(),
+        })?;
+    Ok(bytes)
+}
+
+fn encode_png_rgb(img: &RgbImage, what: &str) -> Result<Vec<u8>> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)
+        .map_err(|e| Error::Encode {
+            what: what.into(),
+            message: e.to_string(),
+        })?;
+    Ok(bytes.into_inner())
+}
+
+fn encode_png_gray(img: &image::GrayImage, what: &str) -> Result<Vec<u8>> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)
+        .map_err(|e| Error::Encode {
+            what: what.into(),
+            message: e.to_string(),
+        })?;
+    Ok(bytes.into_inner())
+}
+
+/// Appends `mask` (0 or 1 per pixel) as bits, least significant first, padded to a byte.
+fn pack_bits(mask: &[u8], out: &mut Vec<u8>) {
+    for chunk in mask.chunks(8) {
+        let mut b = 0u8;
+        for (i, &v) in chunk.iter().enumerate() {
+            if v != 0 {
+                b |= 1 << i;
+            }
+        }
+        out.push(b);
+    }
+}
+
+/// zlib-deflated bytes (what the browser's `DecompressionStream('deflate')` inflates).
+fn deflate(bytes: &[u8]) -> Vec<u8> {
+    let mut enc = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+    enc.write_all(bytes).expect("writing to a Vec cannot fail");
+    enc.finish().expect("writing to a Vec cannot fail")
+}
+
+/// Standard base64 with padding.
+pub fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for c in bytes.chunks(3) {
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
+        s.push(A[(n >> 18) as usize & 63] as char);
+        s.push(A[(n >> 12) as usize & 63] as char);
+        s.push(if c.len() > 1 {
+            A[(n >> 6) as usize & 63] as char
+        } else {
+            '='
+        });
+        s.push(if c.len() > 2 {
+            A[n as usize & 63] as char
+        } else {
+            '='
+        });
+    }
+    s
+}
+
+fn html_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Files written so far and their bytes.
+#[derive(Default)]
+struct Written {
+    bytes: u64,
+    files: usize,
+    object_bytes: u64,
+}
+
+impl Written {
+    fn file(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        std::fs::write(path, bytes).map_err(|e| vt_io::Error::io(path, e))?;
+        self.bytes += bytes.len() as u64;
+        self.files += 1;
+        Ok(())
+    }
+
+    fn script(&mut self, dir: &Path, name: &str, text: &str) -> Result<()> {
+        self.file(&dir.join(name), text.as_bytes())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_the_standard_alphabet() {
+        assert_eq!(base64(b""), "");
+        assert_eq!(base64(b"f"), "Zg==");
+        assert_eq!(base64(b"fo"), "Zm8=");
+        assert_eq!(base64(b"foo"), "Zm9v");
+        assert_eq!(base64(b"foobar"), "Zm9vYmFy");
+        assert_eq!(base64(&[0xff, 0xfe, 0x00]), "//4A");
+    }
+
+    #[test]
+    fn bits_are_least_significant_first() {
+        let mut out = Vec::new();
+        pack_bits(&[1, 0, 0, 0, 0, 0, 0, 1, 1], &mut out);
+        assert_eq!(out, vec![0x81, 0x01]);
+    }
+}

@@ -1,0 +1,698 @@
+// vt's player in the browser: eq. (6) with the switch policy (vt_core::render::Player) and the
+// renderer (vt_core::render::Renderer: eq. 3-5, gains, dynamic region, neighbour fill,
+// crossfade and dissolve, background morph) in WebGL2, one fragment shader per warp. Assets
+// arrive as scripts (data/*.js calling vtPayload), which load from file:// where fetch cannot.
+'use strict';
+(function () {
+  const S = window.vtScene;
+  const M = S.views.length;
+  const W = S.width;
+  const H = S.height;
+  const P = S.params;
+  const qMax = M - 1;
+  const status = document.getElementById('status');
+  const payloads = { background: [], dynamic: [], objects: [], parallax: [] };
+  window.vtPayload = (kind, index, data) => { payloads[kind][index] = data; };
+
+  // ---- eq. (6): the player ---------------------------------------------------------------
+
+  // f, c and qbar of eq. (3)-(5): the right view at the 0.5 tie.
+  function splitQ(q) {
+    const f = Math.floor(q);
+    const c = Math.ceil(q);
+    return { floor: f, ceil: c, nearest: q - f < 0.5 ? f : c };
+  }
+
+  class Player {
+    constructor() {
+      this.state = null;
+      this.wraps = 0;
+      this.switches = 0;
+      this.delayed = 0;
+      this.postponed = 0;
+    }
+
+    postpone(q, pv, pj, qbar) {
+      const pol = S.policy;
+      if (!Number.isFinite(pol.max_seam) || Math.abs(pv - qbar) !== 1 || this.delayed >= pol.max_frames) return false;
+      if (Math.abs(q - pv) > 0.5 + Math.min(Math.max(pol.max_past_tie, 0), 0.45)) return false;
+      const v = S.views[pv];
+      const seams = qbar > pv ? v.to_next_seam : v.to_prev_seam;
+      return pj < seams.length && seams[pj] > pol.max_seam;
+    }
+
+    advance(q) {
+      q = Math.min(Math.max(q, 0), qMax);
+      let qbar = splitQ(q).nearest;
+      if (this.state && this.state[0] !== qbar && this.postpone(q, this.state[0], this.state[1], qbar)) {
+        this.delayed += 1;
+        this.postponed += 1;
+        qbar = this.state[0];
+      } else {
+        this.delayed = 0;
+      }
+      const v = S.views[qbar];
+      let frame, step, continuation = null;
+      if (!this.state) {
+        frame = v.loop_start + 1;
+        step = 'start';
+      } else if (this.state[0] === qbar) {
+        const [pv, pj] = this.state;
+        if (pj === v.loop_end) {
+          this.wraps += 1;
+          if (pj + 1 < v.frames) continuation = [pv, pj + 1];
+          frame = v.loop_start + 1;
+          step = 'wrap';
+        } else {
+          frame = pj + 1;
+          step = 'play';
+        }
+      } else {
+        const [pv, pj] = this.state;
+        let s = pj;
+        let p = pv;
+        while (p !== qbar) {
+          const up = qbar > p;
+          const table = up ? S.views[p].to_next : S.views[p].to_prev;
+          const np = up ? p + 1 : p - 1;
+          const t = s < table.length ? table[s] : null;
+          s = t === null || t === undefined ? S.views[np].loop_start : t;
+          p = np;
+          this.switches += 1;
+        }
+        if (pj + 1 < S.views[pv].frames) continuation = [pv, pj + 1];
+        frame = s + 1;
+        step = 'switch';
+      }
+      this.state = [qbar, frame];
+      return { view: qbar, frame, step, continuation };
+    }
+  }
+
+  // ---- WebGL2 ------------------------------------------------------------------------------
+
+  const canvas = document.getElementById('video');
+  canvas.width = W;
+  canvas.height = H;
+  const gl = canvas.getContext('webgl2', { antialias: false, depth: false, preserveDrawingBuffer: true });
+  if (!gl) {
+    status.textContent = 'this browser has no WebGL2';
+    window.vt = { error: 'no WebGL2' };
+    return;
+  }
+  gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+  gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
+  gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
+  gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
+
+  function program(name) {
+    const src = vtShaders.common + '\n' + vtShaders[name];
+    const compile = (type, text) => {
+      const sh = gl.createShader(type);
+      gl.shaderSource(sh, text);
+      gl.compileShader(sh);
+      if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) throw new Error(name + ': ' + gl.getShaderInfoLog(sh));
+      return sh;
+    };
+    const prog = gl.createProgram();
+    gl.attachShader(prog, compile(gl.VERTEX_SHADER, vtShaders.vert));
+    gl.attachShader(prog, compile(gl.FRAGMENT_SHADER, src));
+    gl.bindAttribLocation(prog, 0, 'pos');
+    gl.linkProgram(prog);
+    if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) throw new Error(name + ': ' + gl.getProgramInfoLog(prog));
+    const loc = {};
+    const n = gl.getProgramParameter(prog, gl.ACTIVE_UNIFORMS);
+    for (let i = 0; i < n; i++) {
+      const u = gl.getActiveUniform(prog, i);
+      loc[u.name] = gl.getUniformLocation(prog, u.name);
+    }
+    return { prog, loc };
+  }
+
+  const quad = gl.createBuffer();
+  gl.bindBuffer(gl.ARRAY_BUFFER, quad);
+  gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1]), gl.STATIC_DRAW);
+  gl.enableVertexAttribArray(0);
+  gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 0, 0);
+
+  function texture(internal, w, h, format, type, data) {
+    const t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    if (data && !ArrayBuffer.isView(data)) {
+      // An ImageBitmap or a VideoFrame.
+      gl.texImage2D(gl.TEXTURE_2D, 0, internal, format, type, data);
+    } else {
+      gl.texImage2D(gl.TEXTURE_2D, 0, internal, w, h, 0, format, type, data);
+    }
+    return t;
+  }
+
+  function target() {
+    const tex = texture(gl.RGBA8, W, H, gl.RGBA, gl.UNSIGNED_BYTE, null);
+    const fb = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
+    return { tex, fb };
+  }
+
+  let progs = null;
+  const targets = [target(), target(), target()];
+  const tex = { video: [], background: [], dynamic: [], flow: [], rgb: [], origin: [], mask: [], boxes: [] };
+  const dummy = texture(gl.RGBA8, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));
+  let grid = null;
+
+  function bindTex(unit, t, kind) {
+    gl.activeTexture(gl.TEXTURE0 + unit);
+    gl.bindTexture(gl.TEXTURE_2D, t || dummy);
+    return unit;
+  }
+
+  // H_(p,q)^-1 from the stored grid (vt's own at grid points, linear between).
+  function hinv(p, q) {
+    const steps = S.q_steps;
+    const k = M > 1 ? q * steps : 0;
+    const n = steps * (M - 1) + 1;
+    let k0 = Math.floor(k);
+    if (k0 >= n - 1) k0 = n - 1;
+    const t = k - k0;
+    const base = (p * n + k0) * 9;
+    const out = new Float32Array(9);
+    for (let i = 0; i < 9; i++) {
+      const a = grid[base + i];
+      out[i] = t > 0 ? a + (grid[base + 9 + i] - a) * t : a;
+    }
+    return out;
+  }
+
+  function draw(fb) {
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+    gl.viewport(0, 0, W, H);
+    gl.drawArrays(gl.TRIANGLES, 0, 6);
+  }
+
+  // Eq. (3), or the morph for a pair with stored parallax, into `fb`.
+  function drawBackground(q, fb) {
+    const { floor: f, ceil: c } = splitQ(q);
+    const gi = (p) => S.views[p].gain.map((g) => 1 / g);
+    gl.disable(gl.BLEND);
+    const flow = f !== c ? tex.flow[f] : null;
+    if (flow) {
+      const { prog, loc } = progs.morph;
+      gl.useProgram(prog);
+      gl.uniform1i(loc.bg0, bindTex(0, tex.background[f]));
+      gl.uniform1i(loc.bg1, bindTex(1, tex.background[c]));
+      gl.uniform1i(loc.flow0, bindTex(2, flow.a));
+      gl.uniform1i(loc.flow1, bindTex(3, flow.b));
+      gl.uniformMatrix3fv(loc.h0, false, hinv(f, q));
+      gl.uniformMatrix3fv(loc.h1, false, hinv(c, q));
+      gl.uniform3fv(loc.gi0, gi(f));
+      gl.uniform3fv(loc.gi1, gi(c));
+      gl.uniform1f(loc.frac0, q - f);
+      gl.uniform1f(loc.frac1, 1 - (q - f));
+      gl.uniform1f(loc.flowUnit, S.flow_unit);
+      gl.uniform1i(loc.steps, S.morph_steps);
+      gl.uniform1f(loc.converged2, S.converged_px * S.converged_px);
+      gl.uniform1f(loc.unconverged, S.unconverged_weight);
+      gl.uniform2i(loc.size, W, H);
+      gl.uniform2i(loc.fieldSize, flow.w, flow.h);
+    } else {
+      const { prog, loc } = progs.blend;
+      gl.useProgram(prog);
+      const two = f !== c;
+      const [w0, w1] = two ? [c - q, q - f] : [1, 0];
+      gl.uniform1i(loc.bg0, bindTex(0, tex.background[f]));
+      gl.uniform1i(loc.bg1, bindTex(1, tex.background[c]));
+      gl.uniformMatrix3fv(loc.h0, false, hinv(f, q));
+      gl.uniformMatrix3fv(loc.h1, false, hinv(c, q));
+      gl.uniform3fv(loc.wg0, gi(f).map((g) => Math.fround(w0) * Math.fround(g)));
+      gl.uniform3fv(loc.wg1, gi(c).map((g) => Math.fround(w1) * Math.fround(g)));
+      gl.uniform1f(loc.w0, w0);
+      gl.uniform1f(loc.w1, w1);
+      gl.uniform1i(loc.two, two ? 1 : 0);
+      gl.uniform1i(loc.nearest, P.nearest ? 1 : 0);
+      gl.uniform2i(loc.size, W, H);
+    }
+    draw(fb);
+  }
+
+  // Frame `frame` of view `v` over `fb` at q with opacity `alpha`.
+  function composite(fb, v, frame, alpha, q) {
+    const box = tex.boxes[v][frame];
+    if (!box || box[2] === 0 || box[3] === 0) return;
+    const { prog, loc } = progs.composite;
+    gl.useProgram(prog);
+    gl.enable(gl.BLEND);
+    gl.blendFuncSeparate(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA, gl.ZERO, gl.ONE);
+    const pic = tex.rgb[v][frame];
+    gl.uniform1i(loc.yuv, pic.y ? 1 : 0);
+    gl.uniform1i(loc.rgb, bindTex(0, pic.rgb));
+    gl.uniform1i(loc.yPlane, bindTex(3, pic.y));
+    gl.uniform1i(loc.uPlane, bindTex(4, pic.u));
+    gl.uniform1i(loc.vPlane, bindTex(5, pic.v));
+    if (pic.y) gl.uniform2i(loc.ySize, pic.size[0], pic.size[1]);
+    gl.uniform1i(loc.mask, bindTex(1, tex.mask[v][frame]));
+    gl.uniform1i(loc.dyn, bindTex(2, tex.dynamic[v]));
+    gl.uniform1i(loc.hasDyn, tex.dynamic[v] ? 1 : 0);
+    gl.uniform2i(loc.dynSize, W, H);
+    gl.uniformMatrix3fv(loc.h, false, hinv(v, q));
+    gl.uniform4f(loc.box, box[0], box[1], box[2], box[3]);
+    const origin = tex.video[v] ? tex.origin[v] : box;
+    gl.uniform2i(loc.rgbOrigin, origin[0], origin[1]);
+    gl.uniform3fv(loc.gain, S.views[v].gain);
+    gl.uniform1f(loc.alpha, alpha);
+    gl.uniform1i(loc.nearest, P.nearest ? 1 : 0);
+    draw(fb);
+    gl.disable(gl.BLEND);
+  }
+
+  // ---- eq. (3)-(5): the renderer ---------------------------------------------------------
+
+  class Renderer {
+    constructor() { this.blend = null; }
+
+    nextBlend(choice) {
+      const cf = P.crossfade;
+      const d = P.dissolve;
+      const b = this.blend;
+      const jump = choice.step === 'wrap' || choice.step === 'switch';
+      if (jump && choice.continuation && cf > 0) return { type: 'fade', old: choice.continuation, k: 0 };
+      if (jump && choice.continuation && d > 0 && choice.continuation[1] > 0) {
+        const [v, j] = choice.continuation;
+        return { type: 'dissolve', from: [v, j - 1], to: [choice.view, choice.frame + d], k: 0 };
+      }
+      if (choice.step === 'play' && b && b.type === 'fade' && b.k + 1 < cf) {
+        return { type: 'fade', old: [b.old[0], b.old[1] + 1], k: b.k + 1 };
+      }
+      if (choice.step === 'play' && b && b.type === 'dissolve' && b.k + 1 < d && choice.view === b.to[0]) {
+        return { type: 'dissolve', from: b.from, to: b.to, k: b.k + 1 };
+      }
+      return null;
+    }
+
+    // The other view of q's pair at the transition table's frame, where both have dynamic regions.
+    fillFrame(q, view, frame) {
+      if (!P.neighbour_fill) return null;
+      const { floor, ceil } = splitQ(q);
+      if (floor === ceil) return null;
+      let other;
+      if (view === floor) other = ceil;
+      else if (view === ceil) other = floor;
+      else return null;
+      const V = S.views;
+      if (!V[view].dynamic || !V[other].dynamic) return null;
+      const table = other > view ? V[view].to_next : V[view].to_prev;
+      const t = frame < table.length ? table[frame] : null;
+      if (t === null || t === undefined) return null;
+      return t < V[other].frames ? [other, t] : null;
+    }
+
+    // Renders viewpoint q showing `choice`; returns the target holding the frame.
+    render(q, choice) {
+      const V = S.views;
+      this.blend = this.nextBlend(choice);
+      const view = choice.view;
+      const b = this.blend;
+      let shown = [view, choice.frame];
+      let old = null;
+      let alpha = 1;
+      if (b && b.type === 'fade' && b.old[1] < V[b.old[0]].frames) {
+        old = b.old;
+        alpha = Math.fround((b.k + 1) / (P.crossfade + 1));
+      } else if (b && b.type === 'dissolve' && b.from[1] < V[b.from[0]].frames && b.to[1] < V[b.to[0]].frames) {
+        shown = b.to;
+        old = b.from;
+        alpha = Math.fround((b.k + 1) / (P.dissolve + 1));
+      } else {
+        this.blend = null;
+      }
+      const fill = this.fillFrame(q, view, shown[1]);
+      const fillAlpha = Math.min(2 * Math.abs(q - view), 1);
+      const compositeShown = (fb) => {
+        if (fill) composite(fb, fill[0], fill[1], fillAlpha, q);
+        composite(fb, shown[0], shown[1], 1, q);
+      };
+      const [out, layer, mixed] = targets;
+      drawBackground(q, out.fb);
+      if (!old) {
+        compositeShown(out.fb);
+        return out;
+      }
+      drawBackground(q, layer.fb);
+      compositeShown(layer.fb);
+      composite(out.fb, old[0], old[1], 1, q);
+      const { prog, loc } = progs.mix;
+      gl.useProgram(prog);
+      gl.uniform1i(loc.old, bindTex(0, out.tex));
+      gl.uniform1i(loc.layer, bindTex(1, layer.tex));
+      gl.uniform1f(loc.alpha, alpha);
+      draw(mixed.fb);
+      return mixed;
+    }
+  }
+
+  // Waits until the GPU has drawn everything so far (a one-pixel read: gl.finish() may return
+  // early), so frame times are real.
+  const onePixel = new Uint8Array(4);
+  function sync() {
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, onePixel);
+  }
+
+  function present(t) {
+    const { prog, loc } = progs.present;
+    gl.useProgram(prog);
+    gl.uniform1i(loc.frame, bindTex(0, t.tex));
+    gl.uniform1i(loc.rows, H);
+    draw(null);
+  }
+
+  // The frame in `t` as RGB bytes, top row first, base64.
+  function readRgb(t) {
+    gl.bindFramebuffer(gl.FRAMEBUFFER, t.fb);
+    const rgba = new Uint8Array(W * H * 4);
+    gl.readPixels(0, 0, W, H, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
+    const rgb = new Uint8Array(W * H * 3);
+    for (let i = 0, j = 0; i < rgba.length; i += 4, j += 3) {
+      rgb[j] = rgba[i];
+      rgb[j + 1] = rgba[i + 1];
+      rgb[j + 2] = rgba[i + 2];
+    }
+    let s = '';
+    for (let i = 0; i < rgb.length; i += 0x8000) s += String.fromCharCode.apply(null, rgb.subarray(i, i + 0x8000));
+    return btoa(s);
+  }
+
+  // ---- loading ---------------------------------------------------------------------------
+
+  function loadScript(src) {
+    return new Promise((resolve, reject) => {
+      const el = document.createElement('script');
+      el.src = src;
+      el.onload = resolve;
+      el.onerror = () => reject(new Error('cannot load ' + src));
+      document.head.appendChild(el);
+    });
+  }
+
+  function bytes(b64) {
+    const bin = atob(b64);
+    const out = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
+    return out;
+  }
+
+  async function inflate(data) {
+    const stream = new Blob([data]).stream().pipeThrough(new DecompressionStream('deflate'));
+    return new Uint8Array(await new Response(stream).arrayBuffer());
+  }
+
+  function bitmap(data, type) {
+    return createImageBitmap(new Blob([data], { type }), { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
+  }
+
+  // A decoded picture as textures: its Y, U and V planes (I420, converted to RGB in the shader
+  // by BT.601 limited range, the matrix the export signals, so every browser gives the same
+  // colours), or RGB converted by the browser for other layouts.
+  async function planes(frame) {
+    try {
+      const { width: w, height: h } = frame.visibleRect;
+      if (frame.format !== 'I420') {
+        return { rgb: texture(gl.RGBA8, 0, 0, gl.RGBA, gl.UNSIGNED_BYTE, frame) };
+      }
+      const buf = new Uint8Array(frame.allocationSize());
+      const layout = await frame.copyTo(buf);
+      const plane = (k, pw, ph) => {
+        gl.pixelStorei(gl.UNPACK_ROW_LENGTH, layout[k].stride);
+        const t = texture(gl.R8, pw, ph, gl.RED, gl.UNSIGNED_BYTE, buf.subarray(layout[k].offset));
+        gl.pixelStorei(gl.UNPACK_ROW_LENGTH, 0);
+        return t;
+      };
+      const cw = Math.ceil(w / 2);
+      const ch = Math.ceil(h / 2);
+      return { y: plane(0, w, h), u: plane(1, cw, ch), v: plane(2, cw, ch), size: [w, h] };
+    } finally {
+      frame.close();
+    }
+  }
+
+  // All frames of a view's H.264 stream (WebCodecs), each uploaded to a texture as it comes.
+  async function decodeVideo(video, p) {
+    if (typeof VideoDecoder === 'undefined') {
+      throw new Error('this browser cannot decode the H.264 frames (no WebCodecs); export with --media jpeg');
+    }
+    const frames = [];
+    let failed = null;
+    let chain = Promise.resolve();
+    const decoder = new VideoDecoder({
+      output: (frame) => {
+        const i = frames.length;
+        frames.push(null);
+        chain = chain.then(() => planes(frame)).then((t) => { frames[i] = t; }, (e) => { failed = e; });
+      },
+      error: (e) => { failed = e; },
+    });
+    decoder.configure({ codec: video.codec, codedWidth: video.width, codedHeight: video.height, optimizeForLatency: true });
+    video.units.forEach((u, i) => {
+      decoder.decode(new EncodedVideoChunk({ type: video.key[i] ? 'key' : 'delta', timestamp: i * 40000, data: bytes(u) }));
+    });
+    await decoder.flush();
+    await chain;
+    decoder.close();
+    if (failed) throw failed;
+    if (frames.length !== video.units.length) {
+      throw new Error(`view ${p}: ${frames.length} of ${video.units.length} frames decoded`);
+    }
+    return frames;
+  }
+
+  const pad = (i) => String(i).padStart(3, '0');
+
+  async function load() {
+    progs = {};
+    for (const name of ['blend', 'morph', 'composite', 'mix', 'present']) progs[name] = program(name);
+    grid = new Float32Array(bytes(S.hinv).buffer);
+    const scripts = [];
+    for (let p = 0; p < M; p++) {
+      scripts.push('background_' + pad(p));
+      if (S.views[p].dynamic) scripts.push('dynamic_' + pad(p));
+      if (p < M - 1 && S.parallax[p]) scripts.push('parallax_' + pad(p));
+      scripts.push('objects_' + pad(p));
+    }
+    let done = 0;
+    for (const name of scripts) {
+      status.textContent = `loading ${name} (${done + 1} of ${scripts.length})`;
+      await loadScript('data/' + name + '.js');
+      done += 1;
+    }
+    for (let p = 0; p < M; p++) {
+      const bg = await bitmap(bytes(payloads.background[p]), 'image/png');
+      tex.background[p] = texture(gl.RGBA8, W, H, gl.RGBA, gl.UNSIGNED_BYTE, bg);
+      bg.close();
+      if (payloads.dynamic[p]) {
+        const d = await bitmap(bytes(payloads.dynamic[p]), 'image/png');
+        tex.dynamic[p] = texture(gl.RGBA8, W, H, gl.RGBA, gl.UNSIGNED_BYTE, d);
+        d.close();
+      }
+      if (p < M - 1 && S.parallax[p]) {
+        const [fw, fh] = S.parallax[p];
+        const raw = await inflate(bytes(payloads.parallax[p]));
+        const flows = new Int16Array(raw.buffer, raw.byteOffset, raw.byteLength / 2);
+        const n = fw * fh * 2;
+        tex.flow[p] = {
+          w: fw,
+          h: fh,
+          a: texture(gl.RG16I, fw, fh, gl.RG_INTEGER, gl.SHORT, flows.subarray(0, n)),
+          b: texture(gl.RG16I, fw, fh, gl.RG_INTEGER, gl.SHORT, flows.subarray(n, 2 * n)),
+        };
+      }
+      const obj = payloads.objects[p];
+      const bits = await inflate(bytes(obj.masks));
+      tex.boxes[p] = obj.boxes;
+      tex.rgb[p] = [];
+      tex.mask[p] = [];
+      let bit = 0;
+      let rgb;
+      if (obj.video) {
+        tex.video[p] = true;
+        tex.origin[p] = [obj.video.x0, obj.video.y0];
+        rgb = await decodeVideo(obj.video, p);
+      } else {
+        const decoded = await Promise.all((obj.jpeg || []).map((j) => (j.length ? bitmap(bytes(j), 'image/jpeg') : null)));
+        rgb = decoded.map((b) => {
+          if (!b) return null;
+          const t = texture(gl.RGBA8, 0, 0, gl.RGBA, gl.UNSIGNED_BYTE, b);
+          b.close();
+          return { rgb: t };
+        });
+      }
+      for (let f = 0; f < obj.boxes.length; f++) {
+        const [, , bw, bh] = obj.boxes[f];
+        const n = bw * bh;
+        const m = new Uint8Array(n);
+        for (let i = 0; i < n; i++) m[i] = (bits[(bit + i) >> 3] >> ((bit + i) & 7)) & 1 ? 255 : 0;
+        bit += Math.ceil(n / 8) * 8;
+        if (n > 0) {
+          tex.mask[p][f] = texture(gl.R8, bw, bh, gl.RED, gl.UNSIGNED_BYTE, m);
+          tex.rgb[p][f] = rgb[f];
+        }
+      }
+      payloads.objects[p] = null;
+      status.textContent = `decoded view ${p + 1} of ${M}`;
+    }
+  }
+
+  // ---- the live page ---------------------------------------------------------------------
+
+  const qInput = document.getElementById('q');
+  const speedInput = document.getElementById('speed');
+  qInput.max = String(qMax);
+  const live = {
+    q: Math.min(qMax / 2, qMax),
+    speed: 1,
+    player: new Player(),
+    renderer: new Renderer(),
+    choice: null,
+    acc: 0,
+    last: null,
+    dirty: true,
+    drawn: 0,
+    renderMs: 0,
+    fpsCount: 0,
+    fpsStart: null,
+    fps: 0,
+  };
+
+  function setQ(v) {
+    live.q = Math.min(qMax, Math.max(0, v));
+    qInput.value = live.q.toFixed(2);
+    document.getElementById('qval').textContent = live.q.toFixed(2);
+    live.dirty = true;
+  }
+  setQ(Number((qMax / 2).toFixed(2)));
+  qInput.addEventListener('input', () => setQ(parseFloat(qInput.value)));
+  speedInput.addEventListener('input', () => {
+    live.speed = parseFloat(speedInput.value);
+    document.getElementById('speedval').textContent = live.speed.toFixed(2) + 'x';
+  });
+  document.addEventListener('keydown', (e) => {
+    const step = e.shiftKey ? 0.25 : 0.05;
+    if (e.key === 'ArrowRight' || e.key === 'ArrowUp') { setQ(live.q + step); e.preventDefault(); }
+    if (e.key === 'ArrowLeft' || e.key === 'ArrowDown') { setQ(live.q - step); e.preventDefault(); }
+  });
+  // Dragging across the whole picture sweeps the whole range of viewpoints (mouse and touch).
+  const stage = document.getElementById('stage');
+  let drag = null;
+  stage.addEventListener('pointerdown', (e) => {
+    drag = { x: e.clientX, q: live.q };
+    stage.setPointerCapture(e.pointerId);
+    e.preventDefault();
+  });
+  stage.addEventListener('pointermove', (e) => {
+    if (!drag) return;
+    const width = stage.getBoundingClientRect().width || 1;
+    setQ(drag.q + ((e.clientX - drag.x) / width) * qMax);
+  });
+  const endDrag = () => { drag = null; };
+  stage.addEventListener('pointerup', endDrag);
+  stage.addEventListener('pointercancel', endDrag);
+
+  function renderLive(advance) {
+    const t0 = performance.now();
+    if (advance || !live.choice) {
+      live.blendBefore = live.renderer.blend;
+      live.choice = live.player.advance(live.q);
+    } else {
+      // Paused: the same frame at the new viewpoint, from the blend state it was drawn with.
+      live.renderer.blend = live.blendBefore;
+    }
+    const t = live.renderer.render(live.q, live.choice);
+    present(t);
+    sync();
+    live.renderMs = performance.now() - t0;
+    live.drawn += 1;
+    live.fpsCount += 1;
+  }
+
+  function tick(now) {
+    requestAnimationFrame(tick);
+    if (live.fpsStart === null) live.fpsStart = now;
+    if (now - live.fpsStart >= 1000) {
+      live.fps = (live.fpsCount * 1000) / (now - live.fpsStart);
+      live.fpsCount = 0;
+      live.fpsStart = now;
+    }
+    const dt = live.last === null ? 0 : Math.min((now - live.last) / 1000, 0.5);
+    live.last = now;
+    live.acc += dt * S.fps * live.speed;
+    const due = live.acc >= 1 || !live.choice;
+    if (due) {
+      live.acc = Math.min(live.acc - 1, 1);
+      renderLive(true);
+    } else if (live.dirty) {
+      renderLive(false);
+    } else {
+      return;
+    }
+    live.dirty = false;
+    const c = live.choice;
+    status.textContent = `q ${live.q.toFixed(2)} · view ${c.view} · frame ${c.frame} · loop wraps ${live.player.wraps} · switches ${live.player.switches} · ${live.fps.toFixed(1)} fps · render ${live.renderMs.toFixed(1)} ms · speed ${live.speed.toFixed(2)}x`;
+  }
+
+  // The page's hooks: tests drive and read the renderer through these.
+  window.vt = {
+    loaded: false,
+    error: null,
+    scene: S,
+    // The live state.
+    state: () => ({
+      q: live.q,
+      view: live.choice ? live.choice.view : null,
+      frame: live.choice ? live.choice.frame : null,
+      drawn: live.drawn,
+      wraps: live.player.wraps,
+      switches: live.player.switches,
+      fps: live.fps,
+      renderMs: live.renderMs,
+    }),
+    // Plays the viewpoint path `qs` from the start with a new player and renderer (as
+    // vt_io::scene::LoadedScene::play does) and returns the frames at the indices in `keep`:
+    // { i, view, frame, step, rgb (base64, top row first) }.
+    play: (qs, keep) => {
+      const player = new Player();
+      const renderer = new Renderer();
+      const want = new Set(keep);
+      const out = [];
+      qs.forEach((q, i) => {
+        const c = player.advance(q);
+        const t = renderer.render(q, c);
+        if (want.has(i)) out.push({ i, view: c.view, frame: c.frame, step: c.step, rgb: readRgb(t) });
+      });
+      return out;
+    },
+    // Renders n frames back to back (the viewpoint moving, the video playing), each finished
+    // on the GPU (read back); returns frames per second.
+    bench: (n) => {
+      const player = new Player();
+      const renderer = new Renderer();
+      const t0 = performance.now();
+      for (let i = 0; i < n; i++) {
+        const q = (qMax * (0.5 + 0.5 * Math.sin(i / 7))) || 0;
+        const t = renderer.render(q, player.advance(q));
+        present(t);
+        sync();
+      }
+      return (n * 1000) / (performance.now() - t0);
+    },
+  };
+
+  load().then(() => {
+    window.vt.loaded = true;
+    requestAnimationFrame(tick);
+  }).catch((e) => {
+    window.vt.error = String(e && e.message ? e.message : e);
+    status.textContent = 'cannot play: ' + window.vt.error;
+  });
+})();
