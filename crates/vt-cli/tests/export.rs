@@ -345,23 +345,38 @@ fn export_plays_from_disk_and_matches_vt() {
         eprintln!("skipped: chromium is not installed");
         return;
     };
-    for (name, scene_dir, n) in [
-        ("demo", demo_scene(tmp.path()), 90),
-        ("tree.avi 5 views", tree_scene(tmp.path()), 110),
-    ] {
-        let web = tmp.path().join(format!("{}-web", name.replace(' ', "_")));
-        let stdout = vt_ok(&["export", s(&scene_dir), "--out", s(&web)]);
+    let demo = demo_scene(tmp.path());
+    let dissolve = RenderParams {
+        dissolve: 2,
+        ..RenderParams::default()
+    };
+    let cases: [(&str, PathBuf, usize, &[&str], RenderParams); 3] = [
+        ("demo", demo.clone(), 90, &[], RenderParams::default()),
+        (
+            "tree.avi 5 views",
+            tree_scene(tmp.path()),
+            110,
+            &[],
+            RenderParams::default(),
+        ),
+        ("demo, dissolve 2", demo, 90, &["--dissolve", "2"], dissolve),
+    ];
+    for (k, (name, scene_dir, n, flags, params)) in cases.into_iter().enumerate() {
+        let web = tmp.path().join(format!("web-{k}"));
+        let mut args = vec!["export", s(&scene_dir), "--out", s(&web)];
+        args.extend_from_slice(flags);
+        let stdout = vt_ok(&args);
         assert!(
             stdout.contains("exported") && stdout.contains("MB"),
             "{stdout}"
         );
         let (bytes, scene_bytes) = (folder_bytes(&web), folder_bytes(&scene_dir));
         let mut page = open_export(&ws, &web);
-        check_controls(
-            &mut page,
-            LoadedScene::open(&scene_dir).unwrap().render.views.len(),
-        );
-        let psnrs = check_frames(&mut page, &scene_dir, RenderParams::default(), n);
+        if flags.is_empty() {
+            let views = LoadedScene::open(&scene_dir).unwrap().render.views.len();
+            check_controls(&mut page, views);
+        }
+        let psnrs = check_frames(&mut page, &scene_dir, params, n);
         let fps = page.eval("window.vt.bench(30)").as_f64().unwrap_or(0.0);
         eprintln!(
             "{name}: export {:.2} MB, scene {:.2} MB; PSNR {:.1?} dB; {fps:.1} fps (software WebGL)",
@@ -375,4 +390,16 @@ fn export_plays_from_disk_and_matches_vt() {
             "{name}: export {bytes} bytes, scene {scene_bytes}"
         );
     }
+    // An export inside the scene folder is refused (it would change what it reads).
+    let inside = tmp.path().join("demo/scene/web");
+    vt_err(
+        &[
+            "export",
+            s(&tmp.path().join("demo/scene")),
+            "--out",
+            s(&inside),
+        ],
+        &["inside the scene folder"],
+    );
+    assert!(!inside.exists());
 }

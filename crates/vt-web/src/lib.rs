@@ -18,10 +18,15 @@
 //! between grid points; at grid points it is vt's own homography).
 //!
 //! # Media
-//! Backgrounds and dynamic-region alphas as vt's PNGs; each object frame's box as one JPEG
-//! (pixels outside the object filled from the background, so the edge costs no bits) and its
-//! mask bit-packed, all frames of a view deflated together; parallax fields as their per-pixel
-//! displacement (`i16`, 1/32 px), deflated.
+//! Backgrounds and dynamic-region alphas as vt's PNGs; masks bit-packed per frame box, all frames
+//! of a view deflated together; parallax fields as their per-pixel displacement (`i16`, 1/32 px),
+//! deflated. Object pixels ([`Media`]): by default one H.264 stream per view over the union of
+//! its boxes ([`h264`]), decoded by the browser's WebCodecs into I420 planes that the shader
+//! converts (BT.601 limited range, as signalled: browsers' own conversions differ, one cost
+//! 4.7 dB); or one JPEG per frame box. Either way the pixels outside the object are filled from
+//! the background, so the edge costs no bits. Measured on the tree.avi 5-view scene: H.264 at
+//! CRF 12 is 41.3-43.8 dB against vt's frames at 0.72x the compact scene's size (8.3 MB); JPEG
+//! quality 92 was 43.4-46.0 dB at 2.6x another compact scene of it (14.8 MB).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -178,6 +183,20 @@ pub fn export(
     progress: Progress<'_>,
 ) -> Result<ExportSummary> {
     opts.media.check()?;
+    // Inside the scene the export would change the folder it reads (and its size).
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if let (Ok(scene), Ok(parent)) = (scene_dir.canonicalize(), parent.canonicalize()) {
+        if parent.starts_with(&scene) {
+            return Err(Error::InvalidParameter {
+                name: "--out",
+                value: out.display().to_string(),
+                why: format!("is inside the scene folder {}", scene_dir.display()),
+            });
+        }
+    }
     // The renderer's own checks of the parameters (crossfade and dissolve limits).
     vt_core::render::Renderer::new(scene.render.clone(), opts.params)?;
     let output = Output::dir(out, OutputKind::WebExport, &[scene_dir])?;
