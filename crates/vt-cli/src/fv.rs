@@ -99,7 +99,7 @@ pub struct ModelArgs {
     /// Voxels along the longest side of the volume (paper: 256); voxels are cubes. 128 is
     /// measured best under the time budget: on templeSparseRing the result scores the same at
     /// 128, 192 and 256 and one leave-one-out takes 2.4x longer at 256 (vt-fv's README).
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = ModelParams::default().grid)]
     grid: usize,
     /// Volume to carve, x0,y0,z0,x1,y1,z1 in world units. Default: found from the silhouettes.
     #[arg(long, value_parser = parse_bounds, allow_hyphen_values = true)]
