@@ -12,7 +12,7 @@
 use std::path::Path;
 
 use vt_fv::dataset::{DataOptions, Dataset, ModelParams};
-use vt_fv::pipeline::ViewParams;
+use vt_fv::pipeline::{score_with_region, ViewParams};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -66,17 +66,10 @@ fn main() {
             // Fair to a region grown past the object: PSNR over the truth's silhouette united
             // with the image's own coverage (the rough render's for the blurred baseline).
             let sil = &data.score_masks[k];
-            let union = |cov: &image::RgbImage| {
-                vt_fv::Mask::from_fn(cov.width(), cov.height(), |x, y| {
-                    sil.get(x, y) || cov.get_pixel(x, y).0 != [0, 0, 0]
-                })
-            };
-            let ug =
-                vt_fv::pipeline::score(&imgs.guided, &imgs.truth, &union(&imgs.guided)).unwrap();
-            let ub = vt_fv::pipeline::score(&imgs.rough_blur2, &imgs.truth, &union(&imgs.rough))
-                .unwrap();
-            ulead.push(format!("{:+.1}", ug.inside.psnr - ub.inside.psnr));
-            usum += ug.inside.psnr - ub.inside.psnr;
+            let ug = score_with_region(&imgs.guided, &imgs.truth, sil, &imgs.guided).unwrap();
+            let ub = score_with_region(&imgs.rough_blur2, &imgs.truth, sil, &imgs.rough).unwrap();
+            ulead.push(format!("{:+.1}", ug.psnr - ub.psnr));
+            usum += ug.psnr - ub.psnr;
             per.push(format!("{lead:+.1}"));
             sum += r.guided.inside.psnr;
             base += r.rough_blur2.inside.psnr;

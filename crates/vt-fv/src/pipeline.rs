@@ -384,6 +384,34 @@ pub fn score(img: &RgbImage, truth: &RgbImage, mask: &Mask) -> Result<Scores> {
     })
 }
 
+/// PSNR and SSIM over the withheld photo's silhouette `mask` united with the pixels `region`
+/// covers (not black; pass the image itself, or the unblurred render a blurred baseline comes
+/// from). [`score`]'s `inside` never sees pixels outside the silhouette, so an object region
+/// grown past the true outline fills the silhouette's rim at no cost there; here it pays for
+/// what it paints over the backdrop.
+pub fn score_with_region(
+    img: &RgbImage,
+    truth: &RgbImage,
+    mask: &Mask,
+    region: &RgbImage,
+) -> Result<Score> {
+    if region.dimensions() != (mask.width(), mask.height()) {
+        return Err(Error::BadParam {
+            name: "region".into(),
+            value: format!("{}x{}", region.width(), region.height()),
+            why: format!(
+                "must be the silhouette's {}x{}",
+                mask.width(),
+                mask.height()
+            ),
+        });
+    }
+    let union = Mask::from_fn(mask.width(), mask.height(), |x, y| {
+        mask.get(x, y) || region.get_pixel(x, y).0 != [0, 0, 0]
+    });
+    Ok(score(img, truth, &union)?.inside)
+}
+
 /// Intersection over union of two masks of the same size (1 when both are empty).
 pub fn iou(a: &Mask, b: &Mask) -> f64 {
     let (mut inter, mut union) = (0u64, 0u64);

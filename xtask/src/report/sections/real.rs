@@ -3,7 +3,8 @@
 //! transitions within +-1 frame, loop wraps, homography corner error against marking noise.
 //! System B leave-one-out on templeSparseRing: nearest photo, rough render, rough render
 //! blurred (sigma 2), the paper's guided result and vt's default method, inside the withheld
-//! photo's silhouette and over the whole image.
+//! photo's silhouette and over the whole image; on the real kettle (COLMAP cameras, automatic
+//! silhouettes) against the blurred rough render; orbit steadiness on both.
 
 use anyhow::Result;
 use serde_json::json;
@@ -471,6 +472,155 @@ fn system_b(ctx: &mut Ctx) -> Result<Vec<Item>> {
     ])
 }
 
+/// System B on the real kettle (COLMAP cameras, white cloth, automatic silhouettes): every
+/// view (every fourth with `--quick`) left out and made by vt's default, against the blurred
+/// rough render; then the orbit's steadiness on the kettle and the temple.
+fn system_b_kettle(ctx: &mut Ctx) -> Result<Vec<Item>> {
+    let ds = vt_fv::dataset::Dataset::load(
+        &crate::report::testdata().join("kettle"),
+        &vt_fv::dataset::DataOptions::default(),
+    )?;
+    let model = FvModel::default();
+    let view = ViewParams::default();
+    let (w, h) = ds.size();
+    let n = ds.cams.len();
+    let withheld: Vec<usize> = (0..n).step_by(ctx.pick(4, 1)).collect();
+    let mut t = Table::new(
+        "real-b-kettle",
+        "System B: leave-one-out on the real kettle (COLMAP model, white cloth)",
+        format!(
+            "testdata/kettle: {n} phone photos of a kettle on white cloth at {w}x{h}, cameras \
+             from COLMAP's text model (SIMPLE_RADIAL, undistorted on load), silhouettes found \
+             automatically from the backdrop. Each withheld photo is rebuilt from the other \
+             {} as `vt fv eval` does it, with vt's defaults (model at {}^3, textured view). \
+             'inside' is PSNR inside the withheld photo's silhouette, as the issue's goal \
+             reads (vt default against the rough render blurred with sigma 2, goal: ahead by \
+             1 dB or more on every view). 'silhouette + own region' scores over the silhouette \
+             united with the pixels each image paints (the blurred render's from its unblurred \
+             render), so an object region grown past the true outline pays for what it paints \
+             over the cloth: growing vt's region by 1-2 px 'wins' 3-5 dB inside and loses \
+             0.5-2.5 dB here, so vt does not.",
+            n - 1,
+            model.grid
+        ),
+        &[
+            "withheld",
+            "blurred rough, inside (dB)",
+            "vt default, inside (dB)",
+            "lead inside (dB)",
+            "lead over silhouette + own region (dB)",
+            "SSIM vt default, inside",
+            "silhouette IoU",
+        ],
+    );
+    let (mut leads, mut fair) = (Vec::new(), Vec::new());
+    let mut gallery = Vec::new();
+    for &k in &withheld {
+        let (r, imgs) = ds.leave_one_out(k, &model, &view)?;
+        let sil = &ds.score_masks[k];
+        let ours =
+            vt_fv::pipeline::score_with_region(&imgs.guided, &imgs.truth, sil, &imgs.guided)?;
+        let base =
+            vt_fv::pipeline::score_with_region(&imgs.rough_blur2, &imgs.truth, sil, &imgs.rough)?;
+        let lead = r.guided.inside.psnr - r.rough_blur2.inside.psnr;
+        leads.push(lead);
+        fair.push(ours.psnr - base.psnr);
+        t.row(vec![
+            json!(ds.cams[k].name.clone()),
+            json!(r.rough_blur2.inside.psnr),
+            json!(r.guided.inside.psnr),
+            json!(lead),
+            json!(ours.psnr - base.psnr),
+            json!(r.guided.inside.ssim),
+            json!(r.silhouette_iou),
+        ]);
+        if gallery.is_empty() {
+            for (label, img) in [
+                ("withheld photo", &imgs.truth),
+                ("rough render blurred", &imgs.rough_blur2),
+                ("vt default", &imgs.guided),
+            ] {
+                let file =
+                    ctx.save_image(&format!("kettle-{k}-{}", label.replace(' ', "-")), img)?;
+                gallery.push((file, format!("{label} (view {k})")));
+            }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let ahead = leads.iter().filter(|&&l| l >= 1.0).count();
+    t.row(vec![
+        json!(format!(
+            "mean ({ahead} of {} views ahead by >= 1 dB)",
+            leads.len()
+        )),
+        json!(null),
+        json!(null),
+        json!(mean(&leads)),
+        json!(mean(&fair)),
+        json!(null),
+        json!(null),
+    ]);
+
+    // Orbit steadiness (issue #24 item 6): the largest step between consecutive frames over the
+    // median step, inside the object, on both real sets.
+    let mut o = Table::new(
+        "real-b-orbit",
+        "System B: orbit steadiness on real photos",
+        "`vt fv orbit` with vt's defaults: one model from every photo, then frames evenly round \
+         the cameras' ring. Step: mean absolute difference (0-255) between consecutive frames \
+         inside the object; the goal is a largest step at most 2x the median (no pop when the \
+         reference photos change).",
+        &[
+            "data",
+            "frames",
+            "median step",
+            "largest step",
+            "largest / median",
+            "s per frame",
+        ],
+    );
+    let temple = temple(ctx)?;
+    let frames = ctx.pick(24, 72);
+    for (name, d) in [("kettle", &ds), ("templeSparseRing", &temple.ds)] {
+        let (m, _) = d.build_without(None, &model, &mut |_, _, _| {})?;
+        let ring = vt_fv::camera::Ring::fit(&d.cams)?;
+        let target = vt_fv::texture::model_centre(&m);
+        let start = std::time::Instant::now();
+        let steady = vt_fv::orbit::orbit::<vt_fv::Error>(
+            &m,
+            &d.cams,
+            &d.images,
+            Some(&d.masks),
+            &ring,
+            &target,
+            frames,
+            d.size(),
+            &view,
+            &mut |_, _, _| Ok(()),
+        )?;
+        let secs = start.elapsed().as_secs_f64() / frames as f64;
+        o.row(vec![
+            json!(name),
+            json!(frames),
+            json!(steady.median()),
+            json!(steady.largest().1),
+            json!(steady.ratio()),
+            json!(secs),
+        ]);
+    }
+    Ok(vec![
+        Item::Table(t),
+        Item::Gallery(Gallery {
+            title: "System B on the real kettle, one withheld view".into(),
+            caption: "The withheld photo, the blurred rough render (the baseline) and vt's \
+                      default."
+                .into(),
+            images: gallery,
+        }),
+        Item::Table(o),
+    ])
+}
+
 /// Builds the section.
 pub fn build(ctx: &mut Ctx) -> Result<Vec<Item>> {
     let mut items = vec![
@@ -479,5 +629,6 @@ pub fn build(ctx: &mut Ctx) -> Result<Vec<Item>> {
     ];
     items.extend(depth_table(ctx)?);
     items.extend(system_b(ctx)?);
+    items.extend(system_b_kettle(ctx)?);
     Ok(items)
 }
