@@ -1,8 +1,6 @@
 //! End-to-end tests of `vt synth object` and `vt fv ...`, running the real binary on the
 //! synthetic object (truth ray cast by vt-fv's synth module, independent of the voxel code) and
 //! on the real templeSparseRing views in testdata/.
-//!
-//! `VT_SLOW_TESTS=1` runs the temple at full size and a 128^3 grid.
 
 mod common;
 
@@ -218,7 +216,7 @@ fn synth_object_hull_render_eval() {
 #[test]
 fn orbit_encodes_a_gif_and_an_mp4() {
     if Command::new("ffmpeg").arg("-version").output().is_err() {
-        eprintln!("ffmpeg not installed: skipping the orbit test");
+        eprintln!("skipped: ffmpeg is not installed (the orbit test needs it)");
         return;
     }
     let root = scratch("orbit");
@@ -340,16 +338,12 @@ fn bad_input_gives_one_clear_line() {
         &["--camera", "22 fields"],
     );
 
-    // A grid too large for memory is refused before allocating (and before loading).
-    let t = std::time::Instant::now();
+    // A grid too large for memory is refused before allocating (and before loading): its
+    // 10^15 voxels could not be allocated, so a refusal after trying would be an abort, not
+    // this message.
     vt_err(
         &["fv", "hull", s(obj), "--out", s(&out), "--grid", "100000"],
         &["--grid 100000", "refused before allocating"],
-    );
-    assert!(
-        t.elapsed().as_secs_f64() < 5.0,
-        "grid refusal took {:?}",
-        t.elapsed()
     );
 }
 
@@ -607,7 +601,7 @@ fn hull_model_is_reused_by_render_orbit_and_eval() {
         ]);
         assert!(o.contains("largest/median"), "{o}");
     } else {
-        println!("skipped orbit: no ffmpeg");
+        println!("skipped: the orbit part (ffmpeg is not installed)");
     }
     // Eval: a model of all views holds the withheld one and is refused; one built without it
     // gives the same scores as carving again.
