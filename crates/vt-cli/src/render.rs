@@ -26,6 +26,11 @@ pub struct RenderArgs {
     /// Output frame rate (default: the scene's source frame rate, else 30).
     #[arg(long)]
     fps: Option<f64>,
+    /// mp4 quality, x264's CRF 0..=51: lower is closer to the rendered frames and larger. On
+    /// the demo's sweep: 18 gives 38.8 dB at 165 KB, 12 40.0 dB at 421 KB, 0 41.0 dB at 2.8 MB
+    /// (4:2:0 chroma caps it); PNG frames (`--out` a folder) are exact.
+    #[arg(long, default_value_t = vt_io::writer::MP4_CRF)]
+    crf: u32,
     /// Total length in seconds (default: the path's own length; keyframe paths then hold their
     /// last q, sweeps go on back and forth).
     #[arg(long)]
@@ -94,6 +99,8 @@ impl RenderOptions {
 
 pub fn run(args: RenderArgs) -> Result<()> {
     args.options.check()?;
+    let enc = vt_io::writer::EncodeParams { crf: args.crf };
+    enc.check().map_err(anyhow::Error::msg)?;
     let scene = LoadedScene::open(&args.scene)?;
     let fps = args.fps.unwrap_or_else(|| scene.source_fps(1000.0));
     let qs = vt_io::path::viewpoints(
@@ -108,7 +115,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(f) = args.path.strip_prefix('@') {
         inputs.push(Path::new(f));
     }
-    let mut sink = FrameWriter::create(&args.out, &inputs, w, h, fps)?;
+    let mut sink = FrameWriter::create_with(&args.out, &inputs, w, h, fps, &enc)?;
     let pb = bar(qs.len() as u64, "render");
     let played = scene.play(&qs, args.options.params(), &mut |frame| {
         pb.inc(1);
