@@ -1353,7 +1353,8 @@ pub struct ModelParams {
     pub bounds: Option<Aabb>,
     /// Photo-consistency threshold ([`PhotoParams::threshold`]).
     pub photo_threshold: f64,
-    /// Carve as the paper does (no [`PhotoParams::keep_silhouettes`]).
+    /// Carve and colour as the paper does (no [`PhotoParams::keep_silhouettes`], no
+    /// [`PhotoParams::colour_partly_seen`]).
     pub paper_carving: bool,
 }
 
@@ -1419,6 +1420,7 @@ impl ModelParams {
         PhotoParams {
             threshold: self.photo_threshold,
             keep_silhouettes: !self.paper_carving,
+            colour_partly_seen: !self.paper_carving,
             ..Default::default()
         }
     }

@@ -32,7 +32,10 @@ pub mod photo;
 pub mod render;
 pub mod rng;
 
-pub use photo::{photo_hull, photo_hull_keeping, PhotoParams, SurfaceVoxel, VoxelModel};
+pub use photo::{
+    photo_hull, photo_hull_keeping, Consistency, PhotoParams, SurfaceVoxel, Visibility,
+    VoxelModel,
+};
 pub use render::{render_rough, Rendered};
 
 /// Builds the coloured voxel model: visual hull (SPEC B.1) then photo hull and colours (B.2,

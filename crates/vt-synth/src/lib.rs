@@ -16,6 +16,7 @@
 pub mod files;
 pub mod object;
 pub mod real;
+pub mod surface;
 
 use image::RgbImage;
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
