@@ -22,9 +22,10 @@ pub struct ExportArgs {
     /// without WebCodecs).
     #[arg(long, default_value = "h264", value_parser = ["h264", "jpeg"])]
     media: String,
-    /// H.264 constant rate factor with --media h264, 0-51 (lower: better and larger).
-    #[arg(long, default_value_t = vt_web::DEFAULT_CRF)]
-    crf: u8,
+    /// H.264 constant rate factor with --media h264, 0-51 (lower: better and larger). Default:
+    /// per view, the largest that keeps the moving pixels within 43 dB of the scene's.
+    #[arg(long)]
+    crf: Option<u8>,
     /// JPEG quality with --media jpeg, 1-100.
     #[arg(long, default_value_t = vt_web::DEFAULT_QUALITY)]
     quality: u8,
@@ -58,9 +59,15 @@ pub fn run(args: ExportArgs) -> Result<()> {
     pb.finish_and_clear();
     let scene_bytes = vt_web::folder_bytes(&args.scene)?;
     let mb = |b: u64| b as f64 / 1e6;
+    let media = if summary.crfs.is_empty() {
+        "JPEG".to_string()
+    } else {
+        let crfs: Vec<String> = summary.crfs.iter().map(u8::to_string).collect();
+        format!("H.264 at CRF {}", crfs.join(", "))
+    };
     println!(
-        "exported {} frames of {} views to {} ({} files, {:.2} MB, {:.2} MB of it object frames; \
-         the scene is {:.2} MB, {:.2}x)",
+        "exported {} frames of {} views to {} ({} files, {:.2} MB, {:.2} MB of it object frames \
+         ({media}); the scene is {:.2} MB, {:.2}x)",
         summary.frames,
         scene.render.views.len(),
         args.out.join("index.html").display(),

@@ -108,6 +108,20 @@ fn tree_scene(root: &Path) -> PathBuf {
     out
 }
 
+/// tree.avi itself as a one-view scene (no viewpoint to move: the page's q stays 0).
+fn single_view(root: &Path) -> PathBuf {
+    let out = root.join("tree-1");
+    vt_ok(&[
+        "analyze",
+        s(&tree()),
+        "--out",
+        s(&out),
+        "--min-length",
+        "30",
+    ]);
+    out
+}
+
 /// Bytes of every file in a folder, recursively.
 fn folder_bytes(dir: &Path) -> u64 {
     std::fs::read_dir(dir)
@@ -125,9 +139,14 @@ fn folder_bytes(dir: &Path) -> u64 {
 }
 
 /// The viewpoint path both players play: a fractional q held while view 0 plays (and wraps),
-/// then a move across the views (switches), then a fractional q held near the far end.
+/// then a move across the views (switches), then a fractional q held near the far end. The
+/// move's viewpoints fall between the page's grid of homographies (1/64 view), which it
+/// interpolates.
 fn path(views: usize, n: usize) -> Vec<f64> {
     let q_max = (views - 1) as f64;
+    if views == 1 {
+        return vec![0.0; n];
+    }
     (0..n)
         .map(|i| {
             let t = i as f64 / n as f64;
@@ -136,10 +155,9 @@ fn path(views: usize, n: usize) -> Vec<f64> {
             } else if t < 0.75 {
                 0.25 + (q_max - 0.5) * (t - 0.55) / 0.2
             } else {
-                q_max - 0.375
+                q_max - 0.3
             }
         })
-        .map(|q: f64| (q * 64.0).round() / 64.0)
         .collect()
 }
 
@@ -164,19 +182,23 @@ fn vt_frames(
     (frames, choices)
 }
 
-/// Ten states of the path: the first frame, fractional q, the first wraps and switches and the
-/// frames after them, the rest spread over the path.
+/// Ten states of the path: the first frame, fractional q, the first wrap and switch (with more
+/// than one view) and the frames after them, the rest spread over the path.
 fn states(choices: &[vt_core::render::FrameChoice], qs: &[f64]) -> Vec<usize> {
     let mut keep = vec![0];
     let wrap = choices
         .iter()
         .position(|c| c.step == Step::Wrap)
         .expect("the path wraps a loop");
-    let switch = choices
-        .iter()
-        .position(|c| matches!(c.step, Step::Switch { .. }))
-        .expect("the path switches views");
-    keep.extend([wrap, wrap + 1, switch, switch + 1]);
+    keep.extend([wrap, wrap + 1]);
+    let views = choices.iter().map(|c| c.view).max().unwrap_or(0) + 1;
+    if views > 1 {
+        let switch = choices
+            .iter()
+            .position(|c| matches!(c.step, Step::Switch { .. }))
+            .expect("the path switches views");
+        keep.extend([switch, switch + 1]);
+    }
     let n = qs.len();
     let mut i = 1;
     while keep.len() < 10 {
@@ -188,7 +210,7 @@ fn states(choices: &[vt_core::render::FrameChoice], qs: &[f64]) -> Vec<usize> {
     }
     keep.sort_unstable();
     keep.dedup();
-    assert!(keep.iter().any(|&i| qs[i].fract() != 0.0));
+    assert!(views == 1 || keep.iter().any(|&i| qs[i].fract() != 0.0));
     keep
 }
 
@@ -350,7 +372,7 @@ fn export_plays_from_disk_and_matches_vt() {
         dissolve: 2,
         ..RenderParams::default()
     };
-    let cases: [(&str, PathBuf, usize, &[&str], RenderParams); 3] = [
+    let cases: [(&str, PathBuf, usize, &[&str], RenderParams); 4] = [
         ("demo", demo.clone(), 90, &[], RenderParams::default()),
         (
             "tree.avi 5 views",
@@ -359,7 +381,20 @@ fn export_plays_from_disk_and_matches_vt() {
             &[],
             RenderParams::default(),
         ),
-        ("demo, dissolve 2", demo, 90, &["--dissolve", "2"], dissolve),
+        (
+            "demo, dissolve 2, jpeg",
+            demo,
+            90,
+            &["--dissolve", "2", "--media", "jpeg"],
+            dissolve,
+        ),
+        (
+            "tree.avi 1 view",
+            single_view(tmp.path()),
+            80,
+            &[],
+            RenderParams::default(),
+        ),
     ];
     for (k, (name, scene_dir, n, flags, params)) in cases.into_iter().enumerate() {
         let web = tmp.path().join(format!("web-{k}"));
@@ -372,8 +407,8 @@ fn export_plays_from_disk_and_matches_vt() {
         );
         let (bytes, scene_bytes) = (folder_bytes(&web), folder_bytes(&scene_dir));
         let mut page = open_export(&ws, &web);
-        if flags.is_empty() {
-            let views = LoadedScene::open(&scene_dir).unwrap().render.views.len();
+        let views = LoadedScene::open(&scene_dir).unwrap().render.views.len();
+        if flags.is_empty() && views > 1 {
             check_controls(&mut page, views);
         }
         let psnrs = check_frames(&mut page, &scene_dir, params, n);

@@ -4,8 +4,9 @@
 // object), divided by the view's gain; the view's dynamic-region alpha at the nearest source
 // pixel scales the opacity where it is set. Written with blending (alpha, 1 - alpha).
 uniform sampler2D rgb;
-// Or the picture as I420 planes (yuv set): BT.601 limited range, chroma bilinear from its
-// siting (horizontally on even columns, vertically between rows).
+// Or the picture as I420 planes (yuv set): BT.601 limited range, each chroma sample for its 2x2
+// block (vt's own 4:2:0 conversion, so the store's frames come back closest: 52 dB on a tree
+// frame, against 45.8 bilinear; the export's box starts at even coordinates to keep the blocks).
 uniform bool yuv;
 uniform sampler2D yPlane;
 uniform sampler2D uPlane;
@@ -30,16 +31,8 @@ float plane(sampler2D t, ivec2 i, ivec2 size) {
 
 vec3 fromYuv(ivec2 l) {
   ivec2 cs = (ySize + 1) / 2;
-  vec2 c = vec2(float(l.x) * 0.5, (float(l.y) - 0.5) * 0.5);
-  vec2 b = floor(c);
-  vec2 f = c - b;
-  ivec2 i = ivec2(b);
-  float u0 = mix(plane(uPlane, i, cs), plane(uPlane, i + ivec2(1, 0), cs), f.x);
-  float u1 = mix(plane(uPlane, i + ivec2(0, 1), cs), plane(uPlane, i + ivec2(1, 1), cs), f.x);
-  float v0 = mix(plane(vPlane, i, cs), plane(vPlane, i + ivec2(1, 0), cs), f.x);
-  float v1 = mix(plane(vPlane, i + ivec2(0, 1), cs), plane(vPlane, i + ivec2(1, 1), cs), f.x);
-  float u = mix(u0, u1, f.y) - 128.0;
-  float v = mix(v0, v1, f.y) - 128.0;
+  float u = plane(uPlane, l / 2, cs) - 128.0;
+  float v = plane(vPlane, l / 2, cs) - 128.0;
   float y = (plane(yPlane, l, ySize) - 16.0) * (255.0 / 219.0);
   return clamp(vec3(y + 1.596027 * v, y - 0.391762 * u - 0.812968 * v, y + 2.017232 * u), 0.0, 255.0);
 }

@@ -48,8 +48,6 @@ pub fn encode(
             "main",
             "-bf",
             "0",
-            "-preset",
-            "slow",
             "-pix_fmt",
             "yuv420p",
             "-crf",
@@ -137,6 +135,83 @@ pub fn encode(
         .and_then(|u| sps_codec(u))
         .unwrap_or_else(|| "avc1.42E01E".into());
     Ok(Stream { units, key, codec })
+}
+
+/// Decodes an Annex B stream of `w x h` pictures (even sides) with ffmpeg into I420 and converts
+/// it to RGB as the page's shader does ([`to_rgb`]), calling `f(i, rgb)` for each frame in order.
+pub fn decode(
+    stream: &[u8],
+    w: u32,
+    h: u32,
+    what: &str,
+    f: &mut dyn FnMut(usize, &[u8]) -> Result<()>,
+) -> Result<usize> {
+    let err = |message: String| Error::Encode {
+        what: what.to_string(),
+        message,
+    };
+    let mut child = Command::new("ffmpeg")
+        .args(["-v", "error", "-nostdin", "-f", "h264", "-i", "-"])
+        .args(["-f", "rawvideo", "-pix_fmt", "yuv420p", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .map_err(|e| err(format!("cannot run ffmpeg: {e}")))?;
+    let mut stdin = child.stdin.take().expect("stdin was piped");
+    let input = stream.to_vec();
+    let writer = std::thread::spawn(move || {
+        let _ = stdin.write_all(&input);
+    });
+    let mut stdout = child.stdout.take().expect("stdout was piped");
+    let (wu, hu) = (w as usize, h as usize);
+    let mut frame = vec![0u8; wu * hu * 3 / 2];
+    let mut rgb = vec![0u8; wu * hu * 3];
+    let mut n = 0;
+    let mut result = Ok(());
+    while stdout.read_exact(&mut frame).is_ok() {
+        to_rgb(&frame, wu, hu, &mut rgb);
+        if let Err(e) = f(n, &rgb) {
+            result = Err(e);
+            break;
+        }
+        n += 1;
+    }
+    if result.is_err() {
+        let _ = child.kill();
+    }
+    let _ = writer.join();
+    let status = child
+        .wait()
+        .map_err(|e| err(format!("waiting for ffmpeg: {e}")))?;
+    result?;
+    if !status.success() {
+        return Err(err("ffmpeg could not decode the encoded frames".into()));
+    }
+    Ok(n)
+}
+
+/// I420 (even sides) to RGB as `composite.frag` converts it: BT.601 limited range, each chroma
+/// sample for its 2x2 block.
+fn to_rgb(i420: &[u8], w: usize, h: usize, rgb: &mut [u8]) {
+    let (y_plane, chroma) = i420.split_at(w * h);
+    let (u_plane, v_plane) = chroma.split_at(w * h / 4);
+    for y in 0..h {
+        for x in 0..w {
+            let c = (y / 2) * (w / 2) + x / 2;
+            let l = (y_plane[y * w + x] as f32 - 16.0) * (255.0 / 219.0);
+            let u = u_plane[c] as f32 - 128.0;
+            let v = v_plane[c] as f32 - 128.0;
+            let px = [
+                l + 1.596027 * v,
+                l - 0.391762 * u - 0.812968 * v,
+                l + 2.017232 * u,
+            ];
+            for k in 0..3 {
+                rgb[3 * (y * w + x) + k] = (px[k] + 0.5).clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
 }
 
 /// Start offsets of the NAL units of an Annex B stream (after their start codes), with the

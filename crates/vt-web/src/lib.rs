@@ -45,16 +45,19 @@ pub const Q_STEPS: usize = 64;
 /// Default JPEG quality of the object frames ([`Media::Jpeg`]).
 pub const DEFAULT_QUALITY: u8 = 92;
 
-/// Default constant rate factor of the object video ([`Media::H264`]).
-pub const DEFAULT_CRF: u8 = 12;
+/// What the object video keeps by default ([`Media::H264`] without a fixed CRF): per view, the
+/// largest constant rate factor (in steps of 2) whose decoded frames are this close to the
+/// scene's over the object pixels, dB.
+pub const TARGET_DB: f64 = 42.0;
 
 /// How the object frames travel to the browser.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Media {
     /// One H.264 stream per view (the default), decoded by the browser's WebCodecs.
     H264 {
-        /// libx264's constant rate factor, 0..=51 (lower: better and larger).
-        crf: u8,
+        /// libx264's constant rate factor, 0..=51 (lower: better and larger); None: per view
+        /// the largest that keeps [`TARGET_DB`].
+        crf: Option<u8>,
     },
     /// One JPEG per frame (any browser with WebGL2).
     Jpeg {
@@ -65,7 +68,7 @@ pub enum Media {
 
 impl Default for Media {
     fn default() -> Self {
-        Media::H264 { crf: DEFAULT_CRF }
+        Media::H264 { crf: None }
     }
 }
 
@@ -73,7 +76,12 @@ impl Media {
     /// Checks the setting's range.
     pub fn check(&self) -> Result<()> {
         let (name, value, ok, why) = match *self {
-            Media::H264 { crf } => ("crf", crf, crf <= 51, "a constant rate factor from 0 to 51"),
+            Media::H264 { crf } => (
+                "crf",
+                crf.unwrap_or(0),
+                crf.is_none_or(|c| c <= 51),
+                "a constant rate factor from 0 to 51",
+            ),
             Media::Jpeg { quality } => (
                 "quality",
                 quality,
@@ -157,7 +165,7 @@ impl Default for ExportOptions {
 }
 
 /// What an export wrote.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ExportSummary {
     /// Bytes of the folder (every file).
     pub bytes: u64,
@@ -167,6 +175,8 @@ pub struct ExportSummary {
     pub object_bytes: u64,
     /// Object frames exported.
     pub frames: usize,
+    /// The H.264 constant rate factor of each view with moving pixels (empty for JPEG).
+    pub crfs: Vec<u8>,
 }
 
 /// Progress of an export: `(done, total)` object frames.
@@ -212,6 +222,7 @@ pub fn export(
     let total: usize = render.views.iter().map(|v| v.to_next.len()).sum();
     let mut done = 0;
     let mut frames_per_view = Vec::with_capacity(m);
+    let mut crfs = Vec::new();
     for (p, view) in render.views.iter().enumerate() {
         let png = encode_png_rgb(&view.background, &format!("background of view {p}"))?;
         written.script(
@@ -234,10 +245,14 @@ pub fn export(
                 done += 1;
                 progress(done, total)
             })?,
-            Media::H264 { crf } => objects_h264(scene, p, n, crf, &mut |_| {
-                done += 1;
-                progress(done, total)
-            })?,
+            Media::H264 { crf } => {
+                let (text, used) = objects_h264(scene, p, n, crf, &mut |_| {
+                    done += 1;
+                    progress(done, total)
+                })?;
+                crfs.extend(used);
+                text
+            }
         };
         written.object_bytes += text.len() as u64;
         written.script(&data, &format!("objects_{p:03}.js"), &text)?;
@@ -347,6 +362,7 @@ pub fn export(
         files: written.files,
         object_bytes: written.object_bytes,
         frames: total,
+        crfs,
     })
 }
 
@@ -446,9 +462,9 @@ fn objects_h264(
     scene: &LoadedScene,
     p: usize,
     n: usize,
-    crf: u8,
+    crf: Option<u8>,
     tick: &mut dyn FnMut(usize),
-) -> Result<String> {
+) -> Result<(String, Option<u8>)> {
     let background = &scene.render.views[p].background;
     // Pass 1: boxes, masks and their union.
     let mut boxes = Vec::with_capacity(n);
@@ -466,41 +482,73 @@ fn objects_h264(
     let masks = base64(&deflate(&masks));
     if hi[0] <= lo[0] || hi[1] <= lo[1] {
         (0..n).for_each(&mut *tick);
-        return Ok(format!(
-            "vtPayload('objects',{p},{{boxes:{},masks:'{masks}',video:null}});",
-            serde_json::json!(boxes)
+        return Ok((
+            format!(
+                "vtPayload('objects',{p},{{boxes:{},masks:'{masks}',video:null}});",
+                serde_json::json!(boxes)
+            ),
+            None,
         ));
     }
     // Pass 2: each frame over the union box, the background where it has no object pixel.
+    // From even coordinates: the store's 4:2:0 chroma blocks stay the video's blocks.
+    let lo = [lo[0] & !1, lo[1] & !1];
     let (ux, uy, uw, uh) = (lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]);
     let mut crop = Vec::with_capacity(uw as usize * uh as usize * 3);
     for y in uy..uy + uh {
         let row = (y * background.width() + ux) as usize * 3;
         crop.extend_from_slice(&background.as_raw()[row..row + uw as usize * 3]);
     }
+    let what = format!("object frames of view {p}");
     let mut patch = ObjectPatch::default();
-    let stream = h264::encode(
-        uw,
-        uh,
-        crf,
-        n,
-        &format!("object frames of view {p}"),
-        &mut |i, buf| {
-            scene.objects.decode_into(p, i, &mut patch)?;
-            buf.extend_from_slice(&crop);
-            for y in 0..patch.height {
-                for x in 0..patch.width {
-                    let k = (y * patch.width + x) as usize;
-                    if patch.mask[k] != 0 {
-                        let o = ((patch.y0 + y - uy) * uw + (patch.x0 + x - ux)) as usize * 3;
-                        buf[o..o + 3].copy_from_slice(&patch.rgb[3 * k..3 * k + 3]);
-                    }
+    // The view's frames over the union box, from the store.
+    let mut framer = |i: usize, buf: &mut Vec<u8>| -> Result<()> {
+        scene.objects.decode_into(p, i, &mut patch)?;
+        buf.extend_from_slice(&crop);
+        for y in 0..patch.height {
+            for x in 0..patch.width {
+                let k = (y * patch.width + x) as usize;
+                if patch.mask[k] != 0 {
+                    let o = ((patch.y0 + y - uy) * uw + (patch.x0 + x - ux)) as usize * 3;
+                    buf[o..o + 3].copy_from_slice(&patch.rgb[3 * k..3 * k + 3]);
                 }
             }
-            tick(i);
-            Ok(())
-        },
-    )?;
+        }
+        Ok(())
+    };
+    let mut encode = |crf: u8| h264::encode(uw, uh, crf, n, &what, &mut |i, buf| framer(i, buf));
+    let chosen;
+    let stream = match crf {
+        Some(c) => {
+            chosen = c;
+            encode(c)?
+        }
+        None => {
+            // From CRF 12 up while the target holds, or down until it does.
+            let mut crf = 12u8;
+            let mut best: Option<(u8, h264::Stream)> = None;
+            loop {
+                let s = encode(crf)?;
+                let db = object_psnr(scene, p, &s, [ux, uy, uw, uh], &what)?;
+                if db >= TARGET_DB {
+                    best = Some((crf, s));
+                    if !(12..30).contains(&crf) {
+                        break;
+                    }
+                    crf += 2;
+                } else if best.is_some() || crf <= 4 {
+                    best = best.or(Some((crf, s)));
+                    break;
+                } else {
+                    crf -= 2;
+                }
+            }
+            let (c, s) = best.expect("the loop ends with a stream");
+            chosen = c;
+            s
+        }
+    };
+    (0..n).for_each(&mut *tick);
     let mut text = format!(
         "vtPayload('objects',{p},{{boxes:{},masks:'{masks}',video:{{codec:'{}',x0:{ux},y0:{uy},width:{},height:{},key:{},units:[",
         serde_json::json!(boxes),
@@ -518,7 +566,43 @@ fn objects_h264(
         text.push('\'');
     }
     text.push_str("]}});");
-    Ok(text)
+    Ok((text, Some(chosen)))
+}
+
+/// PSNR of the stream's decoded frames against the store's over every object pixel, dB.
+fn object_psnr(
+    scene: &LoadedScene,
+    p: usize,
+    stream: &h264::Stream,
+    [ux, uy, uw, uh]: [u32; 4],
+    what: &str,
+) -> Result<f64> {
+    let bytes: Vec<u8> = stream.units.concat();
+    let (pw, ph) = (uw + uw % 2, uh + uh % 2);
+    let mut patch = ObjectPatch::default();
+    let (mut sse, mut count) = (0f64, 0u64);
+    h264::decode(&bytes, pw, ph, what, &mut |i, rgb| {
+        scene.objects.decode_into(p, i, &mut patch)?;
+        for y in 0..patch.height {
+            for x in 0..patch.width {
+                let k = (y * patch.width + x) as usize;
+                if patch.mask[k] == 0 {
+                    continue;
+                }
+                let o = ((patch.y0 + y - uy) * pw + (patch.x0 + x - ux)) as usize * 3;
+                for c in 0..3 {
+                    let d = rgb[o + c] as f64 - patch.rgb[3 * k + c] as f64;
+                    sse += d * d;
+                }
+                count += 3;
+            }
+        }
+        Ok(())
+    })?;
+    if sse == 0.0 || count == 0 {
+        return Ok(f64::INFINITY);
+    }
+    Ok(10.0 * (255.0f64 * 255.0 / (sse / count as f64)).log10())
 }
 
 /// `H_(p,q)^-1` (row-major, scaled so its last entry is 1 where it is not near 0) for every view
