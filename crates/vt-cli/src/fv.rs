@@ -413,9 +413,10 @@ fn model_for(
     let Some(f) = &from.file else {
         let (model, s) = build(d, None, m)?;
         let line = format!(
-            "model: built, {} surface voxels ({} passes) in {:.2} s",
+            "model: built, {} surface voxels ({} passes, {}) in {:.2} s",
             s.surface_voxels,
             s.photo_hull_passes,
+            unseen_words(&model),
             s.visual_hull_secs + s.photo_hull_secs
         );
         return Ok((model, None, line));
@@ -423,13 +424,23 @@ fn model_for(
     let t = Instant::now();
     let (model, h) = read_model(f, d)?;
     let line = format!(
-        "model: read from {} in {:.2} s ({} surface voxels; building it took {:.2} s)",
+        "model: read from {} in {:.2} s ({} surface voxels, {}; building it took {:.2} s)",
         f.display(),
         t.elapsed().as_secs_f64(),
         model.surface.len(),
+        unseen_words(&model),
         h.build_secs
     );
     Ok((model, Some(h), line))
+}
+
+/// The share of a model's surface seen by no camera, in words.
+fn unseen_words(model: &VoxelModel) -> String {
+    let unseen = model.surface.iter().filter(|v| v.seen_by == 0).count();
+    format!(
+        "{:.1} % seen by no camera",
+        100.0 * unseen as f64 / model.surface.len().max(1) as f64
+    )
 }
 
 /// Refuses a model built without a view where every view is needed (render, orbit).

@@ -1834,8 +1834,10 @@ impl std::fmt::Display for BuildSummary {
         )?;
         write!(
             f,
-            "({} surface voxels seen by no camera took the nearest seen colour)",
-            s.surface_unseen
+            "{:.1} % of the surface ({} of {} voxels) is seen by no camera; those took the nearest seen colour",
+            100.0 * s.surface_unseen as f64 / s.surface_voxels.max(1) as f64,
+            s.surface_unseen,
+            s.surface_voxels
         )
     }
 }
