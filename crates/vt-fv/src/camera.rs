@@ -416,17 +416,9 @@ pub const MAX_CAMERAS: usize = 10_000;
 /// Largest deviation of a par file's R from a rotation: `max |R^T R - I|` and `|det R - 1|`.
 pub const ROTATION_TOLERANCE: f64 = 1e-3;
 
-/// A user's value shortened for a message (at most 40 characters).
-pub(crate) fn shorten(s: &str) -> String {
-    let n = s.chars().count();
-    if n <= 40 {
-        return s.to_string();
-    }
-    format!(
-        "{}... ({n} characters)",
-        s.chars().take(32).collect::<String>()
-    )
-}
+/// A user's value shortened for a message (at most 40 characters): vt-io's rule, for every
+/// message of every command.
+pub(crate) use vt_io::output::shorten;
 
 /// Checks one par-file camera: its image name stays inside the data folder (relative, no `..`)
 /// and its R is a rotation (orthonormal, determinant +1, within [`ROTATION_TOLERANCE`]).
