@@ -21,12 +21,14 @@
 //! Backgrounds and dynamic-region alphas as vt's PNGs; masks bit-packed per frame box, all frames
 //! of a view deflated together; parallax fields as their per-pixel displacement (`i16`, 1/32 px),
 //! deflated. Object pixels ([`Media`]): by default one H.264 stream per view over the union of
-//! its boxes ([`h264`]), decoded by the browser's WebCodecs into I420 planes that the shader
-//! converts (BT.601 limited range, as signalled: browsers' own conversions differ, one cost
-//! 4.7 dB); or one JPEG per frame box. Either way the pixels outside the object are filled from
-//! the background, so the edge costs no bits. Measured on the tree.avi 5-view scene: H.264 at
-//! CRF 12 is 41.3-43.8 dB against vt's frames at 0.72x the compact scene's size (8.3 MB); JPEG
-//! quality 92 was 43.4-46.0 dB at 2.6x another compact scene of it (14.8 MB).
+//! its boxes ([`h264`]) at, per view, the largest CRF whose decoded object pixels keep
+//! [`TARGET_DB`] against the scene's, decoded by the browser's WebCodecs into I420 planes that
+//! the shader converts (BT.601 limited range, each chroma sample for its 2x2 block, as vt's own
+//! 4:2:0 conversion: the browser's conversion cost 4.7 dB at CRF 10, bilinear chroma 6 dB on a
+//! tree frame); or one JPEG per frame box. Either way the pixels outside the object are filled
+//! from the background, so the edge costs no bits. Measured against vt's frames (the README has
+//! the table): tree.avi 5 views 45.5-47.9 dB at 1.02x its scene; a fixed CRF 12 with bilinear
+//! chroma was 41.3-43.8 dB at 0.72x, JPEG quality 92 43.4-46.0 dB at 2.6x.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
