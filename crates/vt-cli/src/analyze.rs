@@ -197,6 +197,13 @@ pub const MAX_CACHE_MB: usize = 1 << 20;
 
 /// Runs `vt analyze`; returns the scene written (for the demo's truth check).
 pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
+    let shown = args.out.clone();
+    run_as(args, &shown)
+}
+
+/// [`run`], naming the scene `shown` in what it prints (`vt demo` writes inside its own
+/// temporary folder, which the user never sees).
+pub fn run_as(args: AnalyzeArgs, shown: &Path) -> Result<SceneFile> {
     let params = args.params()?;
     let m = args.views.len();
     let mut sources: Vec<ViewSource> = args
@@ -227,6 +234,13 @@ pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
         (vt_core::Error::DegeneratePoints(_) | vt_core::Error::NonFinite(_), Some(p)) => {
             anyhow::anyhow!("{}: {e}", p.display())
         }
+        // The way out, in the flag's words: a shorter minimum loop.
+        (vt_core::Error::TooFewFrames { got, .. }, _) if *got > params.loops.window => {
+            anyhow::anyhow!(
+                "{e}; for a clip this short pass --min-length {} or less",
+                got - params.loops.window
+            )
+        }
         _ => e.into(),
     })?;
     observer.finish_objects()?;
@@ -244,6 +258,6 @@ pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
             total_secs
         }
     );
-    println!("scene: {}", args.out.display());
+    println!("scene: {}", shown.display());
     Ok(scene)
 }

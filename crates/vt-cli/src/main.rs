@@ -211,7 +211,7 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     args.extend(["--out".into(), scene.clone().into()]);
     args.extend(["--min-length", &min_length, "--alternatives", "2"].map(OsString::from));
     let args = parse_args::<analyze::AnalyzeArgs>("analyze", args)?;
-    let result = analyze::run(args)?;
+    let result = analyze::run_as(args, &out.join("scene"))?;
     let report = vt_synth::files::check_scene(&data.join("truth.json"), &result)?;
     println!("{report}");
     // A sweep across all views; mp4 when ffmpeg is there, PNG frames otherwise.
@@ -226,9 +226,11 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
     );
     let mut args: Vec<OsString> = vec![scene.into(), "--out".into(), root.join(video_name).into()];
     args.extend(["--path", "sweep:0.5", "--fps", "30"].map(OsString::from));
-    render::run(parse_args::<render::RenderArgs>("render", args)?)?;
+    render::run_as(
+        parse_args::<render::RenderArgs>("render", args)?,
+        &out.join(video_name),
+    )?;
     output.commit()?;
-    println!("scene: {}", out.join("scene").display());
     println!("video: {}", out.join(video_name).display());
     Ok(())
 }

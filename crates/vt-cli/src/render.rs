@@ -98,6 +98,13 @@ impl RenderOptions {
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
+    let shown = args.out.clone();
+    run_as(args, &shown)
+}
+
+/// [`run`], naming the output `shown` in what it prints (`vt demo` writes inside its own
+/// temporary folder, which the user never sees).
+pub fn run_as(args: RenderArgs, shown: &Path) -> Result<()> {
     args.options.check()?;
     let enc = vt_io::writer::EncodeParams { crf: args.crf };
     enc.check().map_err(anyhow::Error::msg)?;
@@ -135,7 +142,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     println!(
         "rendered {} frames to {} ({} loop wraps, {} view switches, {seam})",
         played.frames,
-        args.out.display(),
+        shown.display(),
         played.wraps,
         played.switches,
     );

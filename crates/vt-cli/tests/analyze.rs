@@ -336,6 +336,12 @@ fn real_tree_video_gives_its_68_frames_and_a_loop() {
     let tmp = tempfile::tempdir().unwrap();
     let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
     let out = tmp.path().join("tree");
+    // 68 frames are too few for the default 100-frame loop: the message says what to pass.
+    vt_err(
+        &["analyze", s(&tree), "--out", s(&out)],
+        &["68 frames", "need at least 103", "--min-length 65 or less"],
+    );
+    assert!(!out.exists());
     let stdout = vt_ok(&["analyze", s(&tree), "--out", s(&out), "--min-length", "20"]);
     let scene = read_json(&out.join("scene.json"));
     let v = &scene["views"][0];
@@ -539,4 +545,22 @@ fn bad_input_gives_one_clear_line_and_leaves_no_scene() {
         &["nan.txt:2"],
     );
     assert_eq!(std::fs::read(out.join("scene.json")).unwrap(), before);
+}
+
+/// `vt demo` builds everything inside a temporary folder and moves it into place at the end:
+/// what it prints names the final paths, never the temporary ones.
+#[test]
+fn demo_prints_the_paths_it_leaves() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("demo");
+    let stdout = vt_ok(&["demo", "--out", s(&out), "--frames", "40"]);
+    assert!(
+        !stdout.contains(".vt-tmp-"),
+        "temporary path printed:\n{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!("scene: {}", out.join("scene").display())),
+        "{stdout}"
+    );
+    assert!(out.join("scene/scene.json").exists());
 }
