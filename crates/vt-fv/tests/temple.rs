@@ -242,13 +242,19 @@ fn temple_leave_one_out_small() {
         blur.ssim
     );
     let synth = GuidedParams::fast_for(7);
+    // The paper's colours too (as `ModelParams::paper_carving` gives them): vt's default
+    // colours partly seen voxels from their pixels, a better guide (rough SSIM 0.331 -> 0.353
+    // here) that synthesis at patch 7 improves less (0.335 -> 0.347).
     let (p, _) = leave_one_out(
         &cams,
         &imgs,
         &mm,
         k,
         &hull,
-        &PhotoParams::default(),
+        &PhotoParams {
+            colour_partly_seen: false,
+            ..Default::default()
+        },
         &ViewParams::paper(synth),
     )
     .unwrap();
