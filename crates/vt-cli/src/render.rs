@@ -130,14 +130,14 @@ pub fn run_as(args: RenderArgs, shown: &Path) -> Result<()> {
     })?;
     pb.finish_and_clear();
     sink.finish()?;
-    let jumps = played.wraps + played.switches;
+    // The same seam score as `vt analyze` prints: a jump's rendered step over the median
+    // ordinary step (vt_core::seam), here over this render's own frames.
     let seam = match played.mean_seam {
         Some(m) => format!(
-            "mean seam score {m:.3} over {} of {jumps} jumps",
+            "seam score {m:.3} over {} jumps (1 = one ordinary frame step)",
             played.measured
         ),
-        None if jumps == 0 => "no jumps".into(),
-        None => "seams not measurable by masks: nothing moves outside the dynamic regions".into(),
+        None => "no jumps".into(),
     };
     println!(
         "rendered {} frames to {} ({} loop wraps, {} view switches, {seam})",

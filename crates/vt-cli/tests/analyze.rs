@@ -359,6 +359,30 @@ fn real_tree_video_gives_its_68_frames_and_a_loop() {
         "summary table printed:\n{stdout}"
     );
     assert!(scene["model"].is_null(), "one view, no model");
+    // One seam score, one meaning: a render held at the view wraps with the seam the analysis
+    // reported (both are the rendered wrap step over the median ordinary rendered step).
+    let analysed = v["loop_seam"].as_f64().unwrap();
+    let held = tmp.path().join("held");
+    let rendered = vt_ok(&[
+        "render",
+        s(&out),
+        "--path",
+        "0s:0",
+        "--duration",
+        "30",
+        "--out",
+        s(&held),
+    ]);
+    let score: f64 = rendered
+        .split("seam score ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no seam score in: {rendered}"));
+    assert!(
+        analysed > 1.0 && (score - analysed).abs() <= 0.05 * analysed,
+        "vt analyze's loop seam {analysed:.3} vs vt render's {score:.3}"
+    );
     // Without the frame cache the video is decoded twice (median, then masks): same scene.
     let streamed = tmp.path().join("streamed");
     vt_ok(&[

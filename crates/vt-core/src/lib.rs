@@ -28,6 +28,7 @@ pub mod parallax;
 pub mod register;
 pub mod render;
 pub mod rng;
+pub mod seam;
 mod simd;
 pub mod transition;
 pub mod warp;

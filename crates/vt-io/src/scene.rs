@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use vt_core::analysis::{AnalyzeParams, SceneAnalysis};
 use vt_core::model::MotionModel;
-use vt_core::{Homography, Mask, Point};
+use vt_core::{Homography, Point};
 
 use crate::{Error, Result};
 
@@ -45,8 +45,9 @@ pub struct SceneFile {
     pub params: AnalyzeParams,
     /// The geometric model of the scene (absent for a single view).
     pub model: Option<ModelEntry>,
-    /// Mean seam score over every loop wrap and view switch of the scene (see
-    /// `vt_core::transition::seam_score`: 0 invisible, 1 = one ordinary frame step).
+    /// Mean seam score over every loop wrap and view switch of the scene ([`vt_core::seam`]: a
+    /// jump's rendered step over the median ordinary rendered step; 1 = as large as one
+    /// ordinary frame step, as an exact loop's wrap), as `vt render` measures it.
     #[serde(default)]
     pub seam_score: f64,
     /// The source videos' frame rate (median real frame interval, median over the views;
@@ -83,10 +84,11 @@ pub struct ViewEntry {
     pub objects: String,
     /// Mean fraction of pixels in the moving-object mask.
     pub moving_fraction: f64,
-    /// Mean XOR between consecutive masks (pixels): the unit of seam scores.
+    /// Mean XOR between consecutive masks (pixels): the unit of the loop and transition costs
+    /// the analysis chooses by (the printed seam scores are measured on rendered frames).
     #[serde(default)]
     pub mean_step: f64,
-    /// Seam score of the loop wrap.
+    /// Seam score of the loop wrap, rendered at the view ([`record_seams`]).
     #[serde(default)]
     pub loop_seam: f64,
     /// `(m_p, n_p)` and its eq. (1) cost.
@@ -148,7 +150,8 @@ pub struct LinkEntry {
     pub homography: [[f64; 3]; 3],
     /// RMS transfer error of the points, pixels.
     pub rms: f64,
-    /// Mean seam score of switching between the two views (both directions).
+    /// Mean seam score of switching between the two views (both directions), rendered at the
+    /// tie between them ([`record_seams`]).
     #[serde(default)]
     pub seam: f64,
     /// The homography fitted to the marked points, when `homography` is the refined one.
@@ -411,7 +414,46 @@ pub fn write_analysis(
     let mut scene = SceneFile::from_analysis(a, params);
     scene.fps = fps;
     scene.write(dir)?;
+    // The seams as a render shows them, now that there is a scene to render.
+    record_seams(dir, &mut scene)?;
+    scene.write(dir)?;
     Ok(scene)
+}
+
+/// Most ordinary steps and switches per view rendered to measure its seams.
+pub const SEAM_SAMPLES: usize = 32;
+
+/// Measures the scene in `dir` ([`vt_core::seam::measure_seams`] on frames its renderer makes
+/// with default settings) and records the seams in `scene`: each view's `loop_seam`, each link's
+/// `seam` (the mean of its two directions, 0 when neither has a transition) and `seam_score`
+/// (the mean over wraps and links), the one seam score `vt render` also prints.
+pub fn record_seams(dir: &Path, scene: &mut SceneFile) -> Result<()> {
+    let loaded = LoadedScene::open(dir)?;
+    let seams = vt_core::seam::measure_seams(
+        &loaded.render,
+        &loaded.objects,
+        vt_core::render::RenderParams::default(),
+        SEAM_SAMPLES,
+    )?;
+    let mut all = Vec::new();
+    for (p, v) in seams.iter().enumerate() {
+        let wrap = v.wrap.unwrap_or(0.0);
+        scene.views[p].loop_seam = wrap;
+        all.push(wrap);
+        if p + 1 < seams.len() {
+            let both: Vec<f64> = v.to_next.into_iter().chain(seams[p + 1].to_prev).collect();
+            let link = both.iter().sum::<f64>() / both.len().max(1) as f64;
+            if let Some(l) = scene.views[p].to_next.as_mut() {
+                l.seam = link;
+            }
+            if let Some(l) = scene.views[p + 1].to_prev.as_mut() {
+                l.seam = link;
+            }
+            all.push(link);
+        }
+    }
+    scene.seam_score = all.iter().sum::<f64>() / all.len().max(1) as f64;
+    Ok(())
 }
 
 /// Writes the dynamic-region alpha images of an analysis into a scene directory.
@@ -691,87 +733,6 @@ pub struct LoadedScene {
 }
 
 impl LoadedScene {
-    /// Per view, the mean mask change between consecutive frames inside its loop, from the masks
-    /// in the object stores: the unit of [`LoadedScene::jump_seam`]. (scene.json's `mean_step`
-    /// also carries the appearance term, so it is not the unit of a mask-only difference.)
-    pub fn mask_steps(&self) -> Vec<f64> {
-        self.file
-            .views
-            .iter()
-            .zip(&self.objects.stores)
-            .map(|(v, store)| {
-                let (a, b) = (v.loop_.start + 1, v.loop_.end);
-                if b <= a {
-                    return 0.0;
-                }
-                let mut prev = store.mask(a);
-                let mut total = 0u64;
-                for f in a + 1..=b {
-                    let m = store.mask(f);
-                    total += vt_core::mask::xor_count(&prev, &m);
-                    prev = m;
-                }
-                total as f64 / (b - a) as f64
-            })
-            .collect()
-    }
-
-    /// Seam score of one jump, from the masks in the object stores: how far the new frame's mask is
-    /// from the one ordinary playback would have shown, in units of the target view's mean mask
-    /// step inside its loop (`steps`, from [`LoadedScene::mask_steps`]). None when the masks
-    /// cannot tell: no link, or no mask change outside the dynamic region inside the loop.
-    ///
-    /// Only pixels outside both views' dynamic regions count: a store's mask holds its view's
-    /// whole dynamic region in every frame (the region is shown from the source frames), so
-    /// within a view the region never changes and the unit excludes it; across views, the two
-    /// regions differ by their outlines, which no frame choice can change.
-    pub fn jump_seam(&self, choice: &vt_core::render::FrameChoice, steps: &[f64]) -> Option<f64> {
-        let (cv, cj) = choice.continuation?;
-        let (v, j) = (choice.view, choice.frame);
-        let stores = &self.objects.stores;
-        let support = |p: usize| {
-            self.render.views[p].dynamic.as_deref().map(|a| {
-                let raw = a.as_raw();
-                Mask::from_index_fn(a.width(), a.height(), |i| raw[i] > 0)
-            })
-        };
-        let mut cont = stores[cv].mask(cj);
-        let mut cont_support = support(cv);
-        // Carry the continuation's mask (and its region) view by view into the new view.
-        let mut p = cv;
-        while p != v {
-            let (link, np) = if v > p {
-                (&self.file.views[p].to_next, p + 1)
-            } else {
-                (&self.file.views[p].to_prev, p - 1)
-            };
-            let h: Homography = link.as_ref()?.homography().ok()?;
-            let warp = |m: &Mask| vt_core::warp::warp_mask(m, &h, m.width(), m.height());
-            cont = warp(&cont);
-            cont_support = cont_support.as_ref().map(warp);
-            p = np;
-        }
-        let mut new = stores[v].mask(j);
-        let excluded = match (support(v), cont_support) {
-            (Some(a), Some(b)) => Some(a.union(&b)),
-            (a, b) => a.or(b),
-        };
-        if let Some(x) = excluded {
-            cont = cont.difference(&x);
-            new = new.difference(&x);
-        }
-        // No mask change outside the regions within the loop: masks cannot measure this jump.
-        let step = *steps.get(v)?;
-        if step <= 0.0 {
-            return None;
-        }
-        Some(vt_core::transition::seam_score(
-            vt_core::mask::xor_count(&cont, &new),
-            1,
-            step,
-        ))
-    }
-
     /// The frame rate to play at: the source's (scene.json's `fps`) when it is known and at most
     /// `max`, else 30.
     pub fn source_fps(&self, max: f64) -> f64 {
@@ -782,29 +743,27 @@ impl LoadedScene {
     }
 
     /// Plays the viewpoint path `qs` (one viewpoint per output frame) with a renderer of
-    /// `params`, handing every frame to `sink`, and scores each jump's seam
-    /// ([`LoadedScene::jump_seam`]). Frames are `file.width x file.height`.
+    /// `params`, handing every frame to `sink`, and scores the seams of its jumps on the frames
+    /// it rendered ([`vt_core::seam::SeamMeter`]: each jump's step over the median ordinary
+    /// step of this render). Frames are `file.width x file.height`.
     pub fn play(
         &self,
         qs: &[f64],
         params: vt_core::render::RenderParams,
         sink: &mut (dyn FnMut(&image::RgbImage) -> Result<()> + Send),
     ) -> Result<Playback> {
-        use vt_core::render::{Player, Renderer, Step};
+        use vt_core::render::{Player, Renderer};
         let mut renderer = Renderer::new(self.render.clone(), params)?;
         let (w, h) = renderer.size();
         let mut player = Player::new();
         let mut frame = image::RgbImage::new(w, h);
-        let mut seams = Vec::new();
-        let mask_steps = self.mask_steps();
+        let mut meter = vt_core::seam::SeamMeter::new();
         // On a rayon worker, the renderer's parallel passes queue locally: no allocation per frame.
         rayon::scope(|_| -> Result<()> {
             for &q in qs {
                 let choice = player.advance(&self.render, q)?;
-                if matches!(choice.step, Step::Wrap | Step::Switch { .. }) {
-                    seams.extend(self.jump_seam(&choice, &mask_steps));
-                }
                 renderer.render_into(&self.objects, q, &choice, &mut frame)?;
+                meter.push(&frame, choice.step);
                 sink(&frame)?;
             }
             Ok(())
@@ -813,8 +772,8 @@ impl LoadedScene {
             frames: qs.len(),
             wraps: player.wraps,
             switches: player.switches,
-            measured: seams.len(),
-            mean_seam: (!seams.is_empty()).then(|| seams.iter().sum::<f64>() / seams.len() as f64),
+            measured: meter.jumps(),
+            mean_seam: meter.score(),
         })
     }
 
@@ -963,9 +922,10 @@ pub struct Playback {
     pub wraps: u64,
     /// View switches of the player.
     pub switches: u64,
-    /// Wraps and switches whose seam the masks could measure ([`LoadedScene::jump_seam`]).
+    /// Wraps and switches measured (all of them).
     pub measured: usize,
-    /// Their mean seam score (None when none could be measured).
+    /// Their seam score, [`vt_core::seam`]'s: the mean jump step over the median ordinary step
+    /// (None without jumps).
     pub mean_seam: Option<f64>,
 }
 
@@ -1018,7 +978,7 @@ impl std::fmt::Display for AnalysisSummary<'_> {
                 format!("({}, {})", v.best_loop.start, v.best_loop.end),
                 v.best_loop.len(),
                 v.best_loop.cost,
-                v.loop_seam,
+                scene.views[p].loop_seam,
                 switch,
                 100.0 * v.moving_fraction,
                 if p + 1 < a.views.len() { model } else { "-" },
@@ -1026,7 +986,7 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             )?;
         }
         writeln!(f,
-        "seam score (mean over wraps and switches; 0 = invisible, 1 = one ordinary frame step): {:.3}",
+        "seam score (mean over wraps and switches, on rendered frames as vt render measures them; 1 = as large as an ordinary frame step, above 1 shows): {:.3}",
         scene.seam_score
     )?;
         let kept: Vec<String> = a
