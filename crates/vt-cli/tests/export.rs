@@ -12,12 +12,9 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::Duration;
 
-use common::cdp::{Kill, Page};
+use common::cdp::{chromium_webgl, Page};
 use common::*;
 use image::RgbImage;
 use vt_core::render::{Player, RenderParams, Step};
@@ -25,45 +22,6 @@ use vt_io::scene::LoadedScene;
 
 fn verbose() -> bool {
     std::env::var_os("VT_TEST_VERBOSE").is_some()
-}
-
-/// Headless Chromium with software WebGL2; None when it is not installed.
-fn chromium_webgl(profile: &Path) -> Option<(Kill, String)> {
-    let spawned = Command::new("chromium")
-        .args([
-            "--headless=new",
-            "--no-sandbox",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--remote-debugging-port=0",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .arg("about:blank")
-        .stderr(Stdio::piped())
-        .stdout(Stdio::null())
-        .spawn();
-    let mut child = match spawned {
-        Ok(c) => Kill(c),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
-        Err(e) => panic!("cannot start chromium: {e}"),
-    };
-    let stderr = BufReader::new(child.0.stderr.take().unwrap());
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for l in stderr.lines().map_while(Result::ok) {
-            if let Some(i) = l.find("ws://") {
-                let _ = tx.send(l[i..].trim().to_string());
-            }
-        }
-    });
-    let ws = rx
-        .recv_timeout(Duration::from_secs(30))
-        .expect("chromium printed its DevTools URL");
-    Some((child, ws))
 }
 
 fn tree() -> PathBuf {
@@ -363,7 +321,7 @@ fn check_frames(page: &mut Page, scene_dir: &Path, params: RenderParams, n: usiz
 fn export_plays_from_disk_and_matches_vt() {
     let tmp = tempfile::tempdir().unwrap();
     let profile = tmp.path().join("profile");
-    let Some((_browser, ws)) = chromium_webgl(&profile) else {
+    let Some(browser) = chromium_webgl(&profile) else {
         eprintln!("skipped: chromium is not installed");
         return;
     };
@@ -406,7 +364,7 @@ fn export_plays_from_disk_and_matches_vt() {
             "{stdout}"
         );
         let (bytes, scene_bytes) = (folder_bytes(&web), folder_bytes(&scene_dir));
-        let mut page = open_export(&ws, &web);
+        let mut page = open_export(&browser.ws, &web);
         let views = LoadedScene::open(&scene_dir).unwrap().render.views.len();
         if flags.is_empty() && views > 1 {
             check_controls(&mut page, views);

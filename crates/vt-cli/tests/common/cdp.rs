@@ -50,12 +50,28 @@ pub struct Chromium {
 /// Starts headless Chromium with its profile in `profile`; None when `chromium` is not
 /// installed.
 pub fn chromium(profile: &Path) -> Option<Chromium> {
+    chromium_with(profile, &["--headless", "--disable-gpu", "--disable-quic"])
+}
+
+/// Headless Chromium with software WebGL2 (SwiftShader), for pages that draw with WebGL.
+pub fn chromium_webgl(profile: &Path) -> Option<Chromium> {
+    chromium_with(
+        profile,
+        &[
+            "--headless=new",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+        ],
+    )
+}
+
+/// Starts Chromium with `flags` beside the ones every test uses (no sandbox, first run,
+/// background networking, updates or sync; DevTools on a free port).
+fn chromium_with(profile: &Path, flags: &[&str]) -> Option<Chromium> {
     let spawned = Command::new("chromium")
+        .args(flags)
         .args([
-            "--headless",
             "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
             "--no-first-run",
             "--disable-background-networking",
             "--disable-component-update",
