@@ -503,7 +503,7 @@ fn circle_centre(
     }
     let eig = a.symmetric_eigen();
     let (lo, hi) = (eig.eigenvalues.min(), eig.eigenvalues.max());
-    if !(spread > 0.0) || lo <= 1e-9 * hi {
+    if spread.is_nan() || spread <= 0.0 || lo <= 1e-9 * hi {
         return None;
     }
     let sol = a.try_inverse()? * b;

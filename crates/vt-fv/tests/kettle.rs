@@ -53,7 +53,10 @@ fn project(v: &View, p: &Vector3<f64>, lens: bool) -> Option<(f64, f64)> {
 }
 
 /// Tracks as (point id, [(view index, x, y)]) with at least 3 views.
-fn tracks(imgs: &[ColmapImage]) -> Vec<(u64, Vec<(usize, f64, f64)>)> {
+/// A 3D point's id and its observations: (view, x, y).
+type Track = (u64, Vec<(usize, f64, f64)>);
+
+fn tracks(imgs: &[ColmapImage]) -> Vec<Track> {
     let mut t: std::collections::BTreeMap<u64, Vec<(usize, f64, f64)>> = Default::default();
     for (i, m) in imgs.iter().enumerate() {
         for p in &m.points {
@@ -90,7 +93,7 @@ fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
 }
 
 /// Reprojection errors (pixels, recorded size) of every observation of every track.
-fn reprojection(views: &[View], tr: &[(u64, Vec<(usize, f64, f64)>)], lens: bool) -> Vec<f64> {
+fn reprojection(views: &[View], tr: &[Track], lens: bool) -> Vec<f64> {
     let mut e = Vec::new();
     for (_, obs) in tr {
         let p = triangulate(views, obs, lens);
