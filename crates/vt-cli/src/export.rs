@@ -23,7 +23,7 @@ pub struct ExportArgs {
     #[arg(long, default_value = "h264", value_parser = ["h264", "jpeg"])]
     media: String,
     /// H.264 constant rate factor with --media h264, 0-51 (lower: better and larger). Default:
-    /// per view, the largest that keeps the moving pixels within 43 dB of the scene's.
+    /// per view, the largest that keeps the moving pixels at 42 dB or more against the scene's.
     #[arg(long)]
     crf: Option<u8>,
     /// JPEG quality with --media jpeg, 1-100.
@@ -35,6 +35,19 @@ pub struct ExportArgs {
 
 pub fn run(args: ExportArgs) -> Result<()> {
     args.options.check()?;
+    let media = match args.media.as_str() {
+        "jpeg" => vt_web::Media::Jpeg {
+            quality: args.quality,
+        },
+        _ => vt_web::Media::H264 { crf: args.crf },
+    };
+    // Checked before any work, named as the flag that sets it.
+    media.check().map_err(|e| match e {
+        vt_web::Error::InvalidParameter { name, value, why } => {
+            anyhow::anyhow!("--{name} {value}: {why}")
+        }
+        e => e.into(),
+    })?;
     let scene = LoadedScene::open(&args.scene)?;
     let title = args
         .scene
@@ -43,12 +56,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         .unwrap_or_else(|| "scene".into());
     let opts = vt_web::ExportOptions {
         params: args.options.params(),
-        media: match args.media.as_str() {
-            "jpeg" => vt_web::Media::Jpeg {
-                quality: args.quality,
-            },
-            _ => vt_web::Media::H264 { crf: args.crf },
-        },
+        media,
         title,
     };
     let pb = bar(0, "export");
