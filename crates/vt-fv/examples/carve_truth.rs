@@ -39,7 +39,9 @@ fn ray_visible(g: &VoxelGrid, i: usize, cams: &[Camera], w: u32, h: u32) -> u32 
     let me = g.coords(i);
     let mut n = 0;
     for cam in cams {
-        let Some((u, v, _)) = cam.project(&c) else { continue };
+        let Some((u, v, _)) = cam.project(&c) else {
+            continue;
+        };
         if u < -0.5 || v < -0.5 || u >= w as f64 - 0.5 || v >= h as f64 - 0.5 {
             continue;
         }
@@ -149,10 +151,18 @@ fn main() {
         let (w0, h0) = d.photos[0].dimensions();
         let vis: Vec<u32> = {
             use rayon::prelude::*;
-            m.surface.par_iter().map(|v| ray_visible(&m.grid, v.index, &d.cameras, w0, h0)).collect()
+            m.surface
+                .par_iter()
+                .map(|v| ray_visible(&m.grid, v.index, &d.cameras, w0, h0))
+                .collect()
         };
         let geo_unseen = vis.iter().filter(|&&n| n == 0).count();
-        let both = m.surface.iter().zip(&vis).filter(|(v, &n)| v.seen_by == 0 && n > 0).count();
+        let both = m
+            .surface
+            .iter()
+            .zip(&vis)
+            .filter(|(v, &n)| v.seen_by == 0 && n > 0)
+            .count();
         let seen_sum: u64 = m.surface.iter().map(|v| v.seen_by as u64).sum();
         let vis_sum: u64 = vis.iter().map(|&n| n as u64).sum();
         println!(

@@ -33,8 +33,7 @@ pub mod render;
 pub mod rng;
 
 pub use photo::{
-    photo_hull, photo_hull_keeping, Consistency, PhotoParams, SurfaceVoxel, Visibility,
-    VoxelModel,
+    photo_hull, photo_hull_keeping, Consistency, PhotoParams, SurfaceVoxel, Visibility, VoxelModel,
 };
 pub use render::{render_rough, Rendered};
 
