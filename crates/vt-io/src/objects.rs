@@ -115,8 +115,15 @@ fn padded_size(width: u32, height: u32) -> (usize, usize) {
     )
 }
 
-/// The mask bits of `bbox` as words, row-major, LSB first (reusing `words`).
-fn pack_box(mask: &Mask, bbox: (u32, u32, u32, u32), words: &mut Vec<u64>) {
+/// The mask bits of `bbox` as words, row-major, LSB first (reusing `words`), handing each run of
+/// up to 64 bits to `each` with the image index of its first bit (version 1 copies the set
+/// pixels' RGB from there).
+fn pack_box(
+    mask: &Mask,
+    bbox: (u32, u32, u32, u32),
+    words: &mut Vec<u64>,
+    mut each: impl FnMut(usize, u64),
+) {
     let (x0, y0, x1, y1) = bbox;
     let (w, bw) = (mask.width() as usize, (x1 - x0) as usize);
     let n_bits = bw * (y1 - y0) as usize;
@@ -136,6 +143,7 @@ fn pack_box(mask: &Mask, bbox: (u32, u32, u32, u32), words: &mut Vec<u64>) {
             if off > 0 && n > 64 - off {
                 words[at + 1] |= bits >> (64 - off);
             }
+            each(row + c, bits);
         }
         i += bw;
     }
@@ -365,38 +373,20 @@ impl ObjectWriter {
             rec.extend_from_slice(&v.to_le_bytes());
         }
         rec.resize(16 + nb, 0);
-        box_words.clear();
-        box_words.resize(n_bits.div_ceil(64), 0);
         // 64 mask bits at a time: bits copied as words, pixels as runs.
-        let (words, px) = (mask.words(), raw.as_raw());
-        let (w, bw) = (self.width as usize, (x1 - x0) as usize);
-        let mut i = 0;
-        for y in y0 as usize..y1 as usize {
-            let row = y * w + x0 as usize;
-            for c in (0..bw).step_by(64) {
-                let n = (bw - c).min(64);
-                let mut bits = bits_at(words, row + c);
-                if n < 64 {
-                    bits &= (1u64 << n) - 1;
-                }
-                let (at, off) = ((i + c) / 64, (i + c) % 64);
-                box_words[at] |= bits << off;
-                if off > 0 && n > 64 - off {
-                    box_words[at + 1] |= bits >> (64 - off);
-                }
-                let mut k = 0;
-                while bits != 0 {
-                    let skip = bits.trailing_zeros() as usize;
-                    bits >>= skip;
-                    let len = bits.trailing_ones() as usize;
-                    bits = if len == 64 { 0 } else { bits >> len };
-                    let start = row + c + k + skip;
-                    rec.extend_from_slice(&px[3 * start..3 * (start + len)]);
-                    k += skip + len;
-                }
+        let px = raw.as_raw();
+        pack_box(mask, (x0, y0, x1, y1), box_words, |start, mut bits| {
+            let mut k = 0;
+            while bits != 0 {
+                let skip = bits.trailing_zeros() as usize;
+                bits >>= skip;
+                let len = bits.trailing_ones() as usize;
+                bits = if len == 64 { 0 } else { bits >> len };
+                let at = start + k + skip;
+                rec.extend_from_slice(&px[3 * at..3 * (at + len)]);
+                k += skip + len;
             }
-            i += bw;
-        }
+        });
         for (dst, src) in rec[16..16 + nb]
             .iter_mut()
             .zip(box_words.iter().flat_map(|w| w.to_le_bytes()))
@@ -415,7 +405,7 @@ impl ObjectWriter {
     fn push_h264(&mut self, mask: &Mask, raw: &RgbImage) -> Result<()> {
         let bbox = mask.bounding_box().unwrap_or((0, 0, 0, 0));
         let n_bits = ((bbox.2 - bbox.0) * (bbox.3 - bbox.1)) as usize;
-        pack_box(mask, bbox, &mut self.box_words);
+        pack_box(mask, bbox, &mut self.box_words, |_, _| {});
         let bytes: Vec<u8> = self
             .box_words
             .iter()
