@@ -102,6 +102,18 @@ impl Media {
     }
 }
 
+/// Appends `'b64','b64',...` (each item base64-encoded and quoted) to a payload's JS text.
+fn push_base64_list<'a>(text: &mut String, items: impl Iterator<Item = &'a Vec<u8>>) {
+    for (i, item) in items.enumerate() {
+        if i > 0 {
+            text.push(',');
+        }
+        text.push('\'');
+        text.push_str(&base64(item));
+        text.push('\'');
+    }
+}
+
 const PAGE: &str = include_str!("index.html");
 const PLAYER: &str = include_str!("player.js");
 const VERTEX: &str = include_str!("quad.vert");
@@ -446,14 +458,7 @@ fn objects_jpeg(
         serde_json::json!(boxes),
         base64(&deflate(&masks))
     );
-    for (i, j) in jpegs.iter().enumerate() {
-        if i > 0 {
-            text.push(',');
-        }
-        text.push('\'');
-        text.push_str(&base64(j));
-        text.push('\'');
-    }
+    push_base64_list(&mut text, jpegs.iter());
     text.push_str("]});");
     Ok(text)
 }
@@ -559,14 +564,7 @@ fn objects_h264(
         uh + uh % 2,
         serde_json::json!(stream.key),
     );
-    for (i, u) in stream.units.iter().enumerate() {
-        if i > 0 {
-            text.push(',');
-        }
-        text.push('\'');
-        text.push_str(&base64(u));
-        text.push('\'');
-    }
+    push_base64_list(&mut text, stream.units.iter());
     text.push_str("]}});");
     Ok((text, Some(chosen)))
 }
