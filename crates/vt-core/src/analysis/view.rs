@@ -1,0 +1,396 @@
+//! One view: pass 1 (median background, noise model, frame cache), pass 2 (masks, loop).
+
+use super::*;
+
+/// Pass 1's consumers of frames that do not stay in the cache.
+pub(super) struct Streamed {
+    /// The noise model's sample.
+    noise: Option<FrameSample>,
+    /// The median's sample (None: every frame).
+    median: Option<FrameSample>,
+    /// The every-frame median, once frames stream.
+    all: Option<MedianAccumulator>,
+    every_frame: bool,
+    /// Conversion buffer.
+    rgb: RgbImage,
+}
+
+impl Streamed {
+    /// Frame `i`, in order; converted to RGB only if something keeps it.
+    fn take(&mut self, i: usize, frame: FrameRef<'_>) -> Result<()> {
+        let wanted = self.noise.as_ref().is_some_and(|s| s.wants(i))
+            || self.median.as_ref().is_some_and(|s| s.wants(i));
+        if !(wanted || self.every_frame) {
+            return Ok(());
+        }
+        let rgb = frame.rgb(&mut self.rgb);
+        for s in [&mut self.noise, &mut self.median].into_iter().flatten() {
+            s.offer(i, rgb);
+        }
+        if self.every_frame {
+            let (w, h) = rgb.dimensions();
+            self.all
+                .get_or_insert_with(|| MedianAccumulator::new(w, h))
+                .push(rgb)?;
+        }
+        Ok(())
+    }
+}
+
+pub(super) fn analyze_view(
+    p: usize,
+    src: &mut dyn FrameSource,
+    params: &AnalyzeParams,
+    size: &mut Option<(u32, u32)>,
+    observer: &mut dyn Observer,
+    timings: &mut Timings,
+) -> Result<ViewResult> {
+    let name = src.name().to_string();
+    let label = |extra: &str| format!("view {p} ({name}){extra}");
+
+    // Pass 1: keep frames (in the source's form: 4:2:0 video frames take half the bytes of RGB)
+    // while they fit the cache budget. Past it, frames stream: the ones held so far and every
+    // later one go to the samples (and, for an every-frame median, a histogram median), and the
+    // second pass decodes again. Cached frames are sampled only once the pass is over.
+    observer.start(Stage::Background, Some(p), None);
+    let every_frame = params.median_frames == 0;
+    let mut cache: Option<Vec<Frame>> = Some(Vec::new());
+    let mut cached_bytes = 0usize;
+    let mut streamed = Streamed {
+        noise: params
+            .noise
+            .enabled()
+            .then(|| FrameSample::new(params.noise.sample_frames)),
+        median: (!every_frame).then(|| FrameSample::new(params.median_frames)),
+        all: None,
+        every_frame,
+        rgb: RgbImage::new(0, 0),
+    };
+    let mut inside = Duration::ZERO;
+    let t_pass = Instant::now();
+    let too_many = |e: Error| match e {
+        Error::TooManyFrames { got, max, .. } => Error::TooManyFrames {
+            what: label(""),
+            got,
+            max,
+        },
+        other => other,
+    };
+    let n1 = src.for_each_native(&mut |i, frame| {
+        let t = Instant::now();
+        let dims = frame.dimensions();
+        if dims.0 == 0 || dims.1 == 0 {
+            return Err(Error::EmptyImage {
+                what: label(&format!(" frame {i}")),
+                w: dims.0,
+                h: dims.1,
+            });
+        }
+        match size {
+            None => *size = Some(dims),
+            Some(s) if *s != dims && i == 0 => {
+                return Err(Error::ViewSizes {
+                    first: *s,
+                    view: label(""),
+                    size: dims,
+                })
+            }
+            Some(s) if *s != dims => return Err(size_err(label(&format!(" frame {i}")), *s, dims)),
+            _ => {}
+        }
+        cached_bytes += frame.byte_len();
+        match cache.as_mut() {
+            Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.to_owned()),
+            _ => {
+                for (j, f) in cache.take().unwrap_or_default().iter().enumerate() {
+                    streamed.take(j, f.as_ref()).map_err(too_many)?;
+                }
+                streamed.take(i, frame).map_err(too_many)?;
+            }
+        }
+        observer.tick();
+        inside += t.elapsed();
+        Ok(())
+    })?;
+    timings.decode += t_pass.elapsed().saturating_sub(inside);
+    observer.finish();
+    let need = params.loops.window + params.loops.min_length;
+    if n1 < need {
+        return Err(Error::TooFewFrames {
+            what: label(""),
+            got: n1,
+            need,
+            why: format!(
+                "a loop needs w + k = {} + {} frames",
+                params.loops.window, params.loops.min_length
+            ),
+        });
+    }
+    let t = Instant::now();
+    let (background, sample) = match &cache {
+        // Cached: the median from exactly evenly spaced frames (the middle of each of K equal
+        // spans, which a stream of unknown length cannot pick), the noise sample as streamed.
+        Some(frames) => {
+            let refs: Vec<FrameRef<'_>> = median_frame_indices(frames.len(), params.median_frames)
+                .into_iter()
+                .map(|i| frames[i].as_ref())
+                .collect();
+            let background = temporal_median_frames(&refs).map_err(too_many)?;
+            streamed.median = None;
+            streamed.every_frame = false;
+            for (j, f) in frames.iter().enumerate() {
+                streamed.take(j, f.as_ref())?;
+            }
+            (background, streamed.noise)
+        }
+        None => {
+            let background = match (streamed.median, streamed.all) {
+                (Some(s), _) => temporal_median(s.frames()).map_err(too_many)?,
+                (None, Some(acc)) => acc.median()?,
+                (None, None) => unreachable!("streamed frames go to a sample or the accumulator"),
+            };
+            (background, streamed.noise)
+        }
+    };
+    let bg_blur = gaussian_blur(&background, &params.blur)?;
+    timings.median += t.elapsed() + inside;
+    // The noise model and dynamic region, from the evenly spaced sample.
+    let model: Option<NoiseModel> = match sample {
+        Some(s) => {
+            let t = Instant::now();
+            let blurred: Vec<RgbImage> = s
+                .into_frames()
+                .par_iter()
+                .map(|f| gaussian_blur(f, &params.blur))
+                .collect::<Result<_>>()?;
+            let m = noise_model(&bg_blur, &blurred, &params.noise)?;
+            timings.masks += t.elapsed();
+            Some(m)
+        }
+        None => None,
+    };
+    let thresholds = model
+        .as_ref()
+        .filter(|_| params.noise.k > 0.0)
+        .map(|m| m.thresholds.as_slice());
+    let alpha = model.as_ref().and_then(|m| m.alpha.as_ref());
+    // What the object store keeps per frame: the mask, plus the dynamic region's alpha support.
+    let support = alpha.map(|a| {
+        let raw = a.as_raw();
+        Mask::from_index_fn(a.width(), a.height(), |i| raw[i] > 0)
+    });
+    let shown = |m: &Mask| -> Mask {
+        match &support {
+            Some(s) => m.union(s),
+            None => m.clone(),
+        }
+    };
+    let mask_of = |blurred: &RgbImage| -> Result<Mask> {
+        match thresholds {
+            Some(t) => Ok(noise_mask(blurred, &bg_blur, t)?
+                .open(params.mask.open_radius)
+                .close(params.mask.close_radius)),
+            None => foreground_mask(blurred, &bg_blur, &params.mask),
+        }
+    };
+    let mut kept = MotionKept::new();
+    let with_thumbs = params.appearance > 0.0;
+    let factor = thumb_factor(bg_blur.width(), bg_blur.height());
+    let mut thumbs: Vec<Thumb> = Vec::new();
+
+    // Pass 2: masks.
+    observer.start(Stage::Masks, Some(p), Some(n1 as u64));
+    let t = Instant::now();
+    let mut masks = Vec::with_capacity(n1);
+    let mut inside = Duration::ZERO;
+    if let Some(frames) = cache {
+        // Frames in chunks: each chunk's frames converted, blurred and masked in parallel (one
+        // frame per thread, buffers reused) while the previous chunk goes to the observer in
+        // order (object store writes, the motion tally) on this thread. The cache shrinks as it
+        // goes: a chunk's frames are dropped once converted.
+        let blur = GaussianBlur::new(&params.blur)?;
+        let (w, h) = bg_blur.dimensions();
+        let chunk = (4 * rayon::current_num_threads()).max(8);
+        let buffers = || -> Vec<RgbImage> {
+            (0..chunk.min(frames.len()))
+                .map(|_| RgbImage::new(w, h))
+                .collect()
+        };
+        let (mut ready, mut spare) = (buffers(), buffers());
+        // Blur buffers, one per frame of a chunk (one chunk is computed at a time).
+        let mut blurs: Vec<(BlurScratch, RgbImage)> = (0..ready.len())
+            .map(|_| (BlurScratch::default(), RgbImage::new(w, h)))
+            .collect();
+        // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
+        // with `prev`, the previous chunk's last frame and mask.
+        type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
+        let compute = |part: Vec<Frame>,
+                       rgb: &mut Vec<RgbImage>,
+                       blurs: &mut Vec<(BlurScratch, RgbImage)>,
+                       prev: Option<(&RgbImage, &Mask)>|
+         -> Result<Computed> {
+            let masks: Vec<(Mask, Option<Thumb>)> = part
+                .into_par_iter()
+                .zip(rgb.par_iter_mut())
+                .zip(blurs.par_iter_mut())
+                .map(|((f, out), (scratch, blurred))| {
+                    f.as_ref().to_rgb_into(out);
+                    drop(f);
+                    blur.apply_into(out, blurred, scratch)?;
+                    let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
+                    Ok((mask_of(blurred)?, thumb))
+                })
+                .collect::<Result<_>>()?;
+            let rgb: &[RgbImage] = rgb;
+            let change = (0..masks.len())
+                .into_par_iter()
+                .map(|k| {
+                    let before = match k {
+                        0 => prev,
+                        _ => Some((&rgb[k - 1], &masks[k - 1].0)),
+                    };
+                    before.map_or((0, 0), |(f0, m0)| {
+                        pair_change(f0, m0, &rgb[k], &masks[k].0, &background, alpha)
+                    })
+                })
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+            Ok((masks, change))
+        };
+        let mut frames = frames.into_iter();
+        let (mut pending, change) = compute(
+            frames.by_ref().take(chunk).collect(),
+            &mut ready,
+            &mut blurs,
+            None,
+        )?;
+        kept.add(change);
+        let mut i = 0;
+        while !pending.is_empty() {
+            let part: Vec<Frame> = frames.by_ref().take(chunk).collect();
+            let last_mask = pending.last().map(|(m, _)| m.clone());
+            let prev = pending
+                .len()
+                .checked_sub(1)
+                .map(|k| &ready[k])
+                .zip(last_mask.as_ref());
+            let (next, flushed) = std::thread::scope(|scope| {
+                let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
+                let mut flush = || -> Result<()> {
+                    for ((m, thumb), f) in pending.drain(..).zip(&ready) {
+                        observer.object_frame(p, i, &shown(&m), f)?;
+                        masks.push(m);
+                        thumbs.extend(thumb);
+                        observer.tick();
+                        i += 1;
+                    }
+                    Ok(())
+                };
+                let flushed = flush();
+                (worker.join(), flushed)
+            });
+            flushed?;
+            let (next, change) = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+            kept.add(change);
+            pending = next;
+            std::mem::swap(&mut ready, &mut spare);
+        }
+        timings.masks += t.elapsed();
+    } else {
+        let mut blurred = RgbImage::new(bg_blur.width(), bg_blur.height());
+        let t_pass = Instant::now();
+        let n2 = src.for_each_frame(&mut |i, frame| {
+            let t = Instant::now();
+            if frame.dimensions() != bg_blur.dimensions() {
+                return Err(size_err(
+                    label(&format!(" frame {i}")),
+                    bg_blur.dimensions(),
+                    frame.dimensions(),
+                ));
+            }
+            gaussian_blur_into(frame, &params.blur, &mut blurred)?;
+            let m = mask_of(&blurred)?;
+            if with_thumbs {
+                thumbs.push(change_thumb(&blurred, &bg_blur, factor));
+            }
+            observer.object_frame(p, i, &shown(&m), frame)?;
+            kept.push(frame, &m, &background, alpha);
+            masks.push(m);
+            observer.tick();
+            inside += t.elapsed();
+            Ok(())
+        })?;
+        if n2 != n1 {
+            return Err(Error::Source {
+                view: label(""),
+                message: format!("gave {n1} frames on the first read and {n2} on the second"),
+            });
+        }
+        timings.decode += t_pass.elapsed().saturating_sub(inside);
+        timings.masks += inside;
+    }
+    observer.finish();
+
+    let t = Instant::now();
+    observer.start(Stage::Loop, Some(p), None);
+    // Eq. (1), with the appearance term in the unit of the masks' ordinary step.
+    check_loop_input(masks.len(), &params.loops, &label(""))?;
+    crate::mask::check_same_size(&masks, &label(""))?;
+    let xor_steps: Vec<u64> = masks
+        .par_windows(2)
+        .map(|w| crate::mask::xor_count(&w[0], &w[1]))
+        .collect();
+    let app_steps: Vec<u64> = thumbs
+        .par_windows(2)
+        .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
+        .collect();
+    let mean = |v: &[u64]| v.iter().sum::<u64>() as f64 / v.len().max(1) as f64;
+    let kappa = appearance::kappa(params.appearance as f64, mean(&xor_steps), mean(&app_steps));
+    let mut d = pair_costs(&masks, params.loops.min_length);
+    if kappa > 0.0 {
+        let app = appearance::loop_pair_costs(&thumbs, params.loops.min_length);
+        appearance::combine(&mut d, &app, kappa);
+    }
+    let mut loops = loops_from_pair_costs(
+        &d,
+        masks.len(),
+        &params.loops,
+        1 + params.alternative_loops,
+        params.loops.window,
+    );
+    let alternatives = loops.split_off(1);
+    let best_loop = loops[0];
+    observer.finish();
+    timings.loops += t.elapsed();
+    let total_px = masks.len() as f64 * masks[0].len() as f64;
+    let moving_fraction = masks.iter().map(|m| m.count_ones() as f64).sum::<f64>() / total_px;
+    // The seam unit: an ordinary step of the frames playback shows (the loop m+1..=n).
+    let step = {
+        let range = best_loop.start + 1..best_loop.end;
+        let n = range.len().max(1) as f64;
+        range
+            .map(|s| xor_steps[s] as f64 + kappa * app_steps.get(s).copied().unwrap_or(0) as f64)
+            .sum::<f64>()
+            / n
+    };
+    let loop_seam = seam_score(best_loop.cost, params.loops.window, step);
+    Ok(ViewResult {
+        name,
+        n_frames: n1,
+        background,
+        masks,
+        best_loop,
+        alternatives,
+        moving_fraction,
+        mean_step: step,
+        kappa,
+        thumbs,
+        thumb_factor: factor,
+        loop_seam,
+        noise_sigma: model.as_ref().map(|m| m.sigma0),
+        dynamic_fraction: support
+            .as_ref()
+            .map_or(0.0, |s| s.count_ones() as f64 / s.len() as f64),
+        dynamic_alpha: model.and_then(|m| m.alpha),
+        motion_kept: kept.share(),
+    })
+}
