@@ -1,19 +1,18 @@
 //! `vt analyze`: videos (or frame folders) + points -> scene directory.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, Result};
 use clap::Args;
-use vt_core::analysis::{analyze, AnalyzeParams, MaskParams};
+use vt_app::analyze::{AnalysisSummary, AnalyzeJob};
+use vt_core::analysis::{AnalyzeParams, MaskParams, MAX_CACHE_BYTES};
 use vt_core::blur::GaussianParams;
 use vt_core::loops::LoopParams;
 use vt_core::model::{ModelParams, MotionModel};
-use vt_io::frames::ViewSource;
-use vt_io::output::{Output, OutputKind};
-use vt_io::scene::{write_analysis, AnalysisSummary, SceneFile};
+use vt_io::scene::SceneFile;
 
-use crate::progress::AnalysisObserver;
+use crate::flags::flagged;
+use crate::progress::Bars;
 
 #[derive(Args)]
 pub struct AnalyzeArgs {
@@ -96,38 +95,14 @@ pub struct AnalyzeArgs {
 }
 
 impl AnalyzeArgs {
-    fn params(&self) -> Result<AnalyzeParams> {
+    /// The job these flags describe (parsing only: the rules are `AnalyzeJob::check`'s).
+    fn job(&self) -> Result<AnalyzeJob> {
         let force = match self.model.as_str() {
             "auto" => None,
             m => Some(m.parse::<MotionModel>().map_err(|_| {
-                anyhow::anyhow!(
-                    "--model '{m}' is not auto, translation, similarity, affine or homography"
-                )
+                anyhow!("--model '{m}' is not auto, translation, similarity, affine or homography")
             })?),
         };
-        // The flags the library does not see as such: frame counts and MiB.
-        if self.window == 0 || self.min_length == 0 {
-            bail!(
-                "--window ({}) and --min-length ({}) must be at least 1",
-                self.window,
-                self.min_length
-            );
-        }
-        if self.min_length > vt_io::limits::MAX_FRAMES {
-            let max = vt_io::limits::MAX_FRAMES;
-            bail!("--min-length {} is more than {max} frames", self.min_length);
-        }
-        if let Some(fps) = self.fps {
-            if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
-                bail!("--fps {fps}: a frame rate above 0 and at most 1000 frames per second");
-            }
-        }
-        if self.cache_mb > MAX_CACHE_MB {
-            bail!(
-                "--cache-mb {} is more than {MAX_CACHE_MB} (1 TiB)",
-                self.cache_mb
-            );
-        }
         let params = AnalyzeParams {
             blur: GaussianParams {
                 ksize: self.blur_size,
@@ -148,7 +123,7 @@ impl AnalyzeArgs {
             },
             alternative_loops: self.alternatives,
             median_frames: self.median_frames,
-            cache_bytes: self.cache_mb << 20,
+            cache_bytes: self.cache_mb.saturating_mul(1 << 20),
             appearance: self.appearance,
             refine: self.refine == "on",
             noise: vt_core::noise::NoiseParams {
@@ -158,42 +133,22 @@ impl AnalyzeArgs {
             },
             register: Default::default(),
             background: self.background.parse().map_err(|_| {
-                anyhow::anyhow!(
+                anyhow!(
                     "--background '{}' is not plane, morph or auto",
                     self.background
                 )
             })?,
         };
-        params.check().map_err(|e| match e {
-            vt_core::Error::InvalidParameter { name, value, why } => match flag_of(name) {
-                Some(flag) => anyhow::anyhow!("{flag} {value}: {why}"),
-                None => vt_core::Error::InvalidParameter { name, value, why }.into(),
-            },
-            e => e.into(),
-        })?;
-        Ok(params)
+        Ok(AnalyzeJob {
+            views: self.views.clone(),
+            points: self.points.clone(),
+            out: self.out.clone(),
+            params,
+            fps: self.fps,
+            store: self.store_quality,
+        })
     }
 }
-
-/// The flag that sets an analysis parameter, by vt-core's name of it
-/// ([`AnalyzeParams::check`]).
-fn flag_of(name: &str) -> Option<&'static str> {
-    Some(match name {
-        "blur.ksize" => "--blur-size",
-        "blur.sigma" => "--blur-sigma",
-        "loops.window" => "--window",
-        "mask.open_radius" => "--open",
-        "mask.close_radius" => "--close",
-        "alternative_loops" => "--alternatives",
-        "model.sigma" => "--point-sigma",
-        "appearance" => "--appearance",
-        "median_frames" => "--median-frames",
-        _ => return None,
-    })
-}
-
-/// Largest `--cache-mb` (1 TiB).
-pub const MAX_CACHE_MB: usize = 1 << 20;
 
 /// Runs `vt analyze`; returns the scene written (for the demo's truth check).
 pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
@@ -204,60 +159,27 @@ pub fn run(args: AnalyzeArgs) -> Result<SceneFile> {
 /// [`run`], naming the scene `shown` in what it prints (`vt demo` writes inside its own
 /// temporary folder, which the user never sees).
 pub fn run_as(args: AnalyzeArgs, shown: &Path) -> Result<SceneFile> {
-    let params = args.params()?;
-    let m = args.views.len();
-    let mut sources: Vec<ViewSource> = args
-        .views
-        .iter()
-        .enumerate()
-        .map(|(p, path)| ViewSource::open(path).with_context(|| format!("view {p}")))
-        .collect::<Result<_>>()?;
-    // Sizes are known before decoding: refuse mismatched views before any work.
-    let first = vt_io::frames::common_size(&args.views, &sources)?;
-    let points = match &args.points {
-        Some(path) => vt_io::points::read_for_views(path, m, first)?,
-        None => Vec::new(),
-    };
-    if m > vt_io::limits::MAX_VIEWS {
-        bail!("{m} views is more than {}", vt_io::limits::MAX_VIEWS);
-    }
-    let started = Instant::now();
-    let mut inputs: Vec<&Path> = args.views.iter().map(PathBuf::as_path).collect();
-    inputs.extend(args.points.as_deref());
-    let dir = Output::dir(&args.out, OutputKind::Scene, &inputs)?;
-    let mut observer = AnalysisObserver::new(dir.path().to_path_buf(), args.store_quality);
-    let mut refs: Vec<&mut dyn vt_core::analysis::FrameSource> =
-        sources.iter_mut().map(|s| s.as_source()).collect();
-    let analysis = analyze(&mut refs, &points, &params, &mut observer);
-    vt_core::analysis::Observer::finish(&mut observer);
-    let analysis = analysis.map_err(|e| match (&e, &args.points) {
-        (vt_core::Error::DegeneratePoints(_) | vt_core::Error::NonFinite(_), Some(p)) => {
-            anyhow::anyhow!("{}: {e}", p.display())
-        }
-        // The way out, in the flag's words: a shorter minimum loop.
-        (vt_core::Error::TooFewFrames { got, .. }, _) if *got > params.loops.window => {
-            anyhow::anyhow!(
-                "{e}; for a clip this short pass --min-length {} or less",
-                got - params.loops.window
-            )
-        }
-        _ => e.into(),
+    let job = args.job()?;
+    let done = vt_app::analyze::analyze(&job, &mut Bars::default()).map_err(|e| match e {
+        // The flag counts MiB.
+        vt_app::Error::Core(vt_core::Error::InvalidParameter {
+            name: "cache_bytes",
+            ..
+        }) => anyhow!(
+            "--cache-mb {}: at most {} MiB (1 TiB)",
+            args.cache_mb,
+            MAX_CACHE_BYTES >> 20
+        ),
+        e => flagged(e),
     })?;
-    observer.finish_objects()?;
-    let fps = args
-        .fps
-        .or_else(|| vt_io::video::views_frame_rate(&args.views));
-    let scene = write_analysis(dir.path(), &analysis, &params, fps)?;
-    dir.commit()?;
-    let total_secs = started.elapsed().as_secs_f64();
     print!(
         "{}",
         AnalysisSummary {
-            analysis: &analysis,
-            scene: &scene,
-            total_secs
+            analysis: &done.analysis,
+            scene: &done.scene,
+            total_secs: done.total_secs,
         }
     );
     println!("scene: {}", shown.display());
-    Ok(scene)
+    Ok(done.scene)
 }

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
-use vt_io::scene::LoadedScene;
 
-use crate::progress::bar;
+use crate::flags::flagged;
+use crate::progress::Bars;
 use crate::render::RenderOptions;
 
 #[derive(Args)]
@@ -34,38 +34,20 @@ pub struct ExportArgs {
 }
 
 pub fn run(args: ExportArgs) -> Result<()> {
-    args.options.check()?;
     let media = match args.media.as_str() {
         "jpeg" => vt_web::Media::Jpeg {
             quality: args.quality,
         },
         _ => vt_web::Media::H264 { crf: args.crf },
     };
-    // Checked before any work, named as the flag that sets it.
-    media.check().map_err(|e| match e {
-        vt_web::Error::InvalidParameter { name, value, why } => {
-            anyhow::anyhow!("--{name} {value}: {why}")
-        }
-        e => e.into(),
-    })?;
-    let scene = LoadedScene::open(&args.scene)?;
-    let title = args
-        .scene
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "scene".into());
-    let opts = vt_web::ExportOptions {
-        params: args.options.params(),
+    let job = vt_app::export::ExportJob {
+        scene: args.scene,
+        out: args.out,
         media,
-        title,
+        params: args.options.params(),
     };
-    let pb = bar(0, "export");
-    let summary = vt_web::export(&scene, &args.scene, &args.out, &opts, &mut |done, total| {
-        pb.set_length(total as u64);
-        pb.set_position(done as u64);
-    })?;
-    pb.finish_and_clear();
-    let scene_bytes = vt_web::folder_bytes(&args.scene)?;
+    let done = vt_app::export::export(&job, &mut Bars::default()).map_err(flagged)?;
+    let (summary, scene_bytes) = (&done.summary, done.scene_bytes);
     let mb = |b: u64| b as f64 / 1e6;
     let media = if summary.crfs.is_empty() {
         "JPEG".to_string()
@@ -77,8 +59,8 @@ pub fn run(args: ExportArgs) -> Result<()> {
         "exported {} frames of {} views to {} ({} files, {:.2} MB, {:.2} MB of it object frames \
          ({media}); the scene is {:.2} MB, {:.2}x)",
         summary.frames,
-        scene.render.views.len(),
-        args.out.join("index.html").display(),
+        done.views,
+        job.out.join("index.html").display(),
         summary.files,
         mb(summary.bytes),
         mb(summary.object_bytes),

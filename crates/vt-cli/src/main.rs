@@ -3,6 +3,7 @@
 
 mod analyze;
 mod export;
+mod flags;
 mod fv;
 mod mark;
 mod progress;

@@ -1,13 +1,7 @@
-//! Progress bars (to stderr, hidden when stderr is not a terminal) and the analysis observer
-//! that also streams each view's moving-object store to disk.
+//! Progress bars (to stderr, hidden when stderr is not a terminal): vt-app's [`vt_app::Progress`]
+//! as bars, and bars for vt-fv's `progress(stage, done, total)` callbacks.
 
-use std::path::PathBuf;
-
-use image::RgbImage;
 use indicatif::{ProgressBar, ProgressStyle};
-use vt_core::analysis::{Observer, Stage};
-use vt_core::Mask;
-use vt_io::objects::StoreWriter;
 
 /// A bar with a message, or a spinner when the total is unknown.
 pub fn bar(total: u64, msg: &str) -> ProgressBar {
@@ -33,42 +27,28 @@ fn spinner(msg: &str) -> ProgressBar {
     pb
 }
 
-/// Progress bars per stage, and object stores written as masks arrive (vt-io's [`StoreWriter`]).
-pub struct AnalysisObserver {
+/// Progress bars for vt-app's use cases: one bar per stage (a spinner while the total is
+/// unknown), cleared when the stage ends.
+#[derive(Default)]
+pub struct Bars {
     current: Option<ProgressBar>,
-    stores: StoreWriter,
 }
 
-impl AnalysisObserver {
-    /// Writes object stores at `quality` into `dir` (the scene's temporary directory).
-    pub fn new(dir: PathBuf, quality: vt_io::objects::StoreQuality) -> Self {
-        Self {
-            current: None,
-            stores: StoreWriter::with_quality(dir, quality),
-        }
-    }
-
-    /// Closes the last object store.
-    pub fn finish_objects(&mut self) -> vt_core::Result<()> {
-        self.stores.finish()
-    }
-}
-
-impl Observer for AnalysisObserver {
-    fn start(&mut self, stage: Stage, view: Option<usize>, total: Option<u64>) {
-        let msg = match view {
-            Some(p) => format!("view {p}: {stage}"),
-            None => stage.to_string(),
-        };
+impl vt_app::Progress for Bars {
+    fn start(&mut self, stage: &str, total: Option<u64>) {
+        self.finish();
         self.current = Some(match total {
-            Some(t) => bar(t, &msg),
-            None => spinner(&msg),
+            Some(t) => bar(t, stage),
+            None => spinner(stage),
         });
     }
 
-    fn tick(&mut self) {
+    fn at(&mut self, done: u64, total: Option<u64>) {
         if let Some(pb) = &self.current {
-            pb.inc(1);
+            if let Some(t) = total {
+                pb.set_length(t);
+            }
+            pb.set_position(done);
         }
     }
 
@@ -76,16 +56,6 @@ impl Observer for AnalysisObserver {
         if let Some(pb) = self.current.take() {
             pb.finish_and_clear();
         }
-    }
-
-    fn object_frame(
-        &mut self,
-        view: usize,
-        frame: usize,
-        mask: &Mask,
-        raw: &RgbImage,
-    ) -> vt_core::Result<()> {
-        self.stores.object_frame(view, frame, mask, raw)
     }
 }
 

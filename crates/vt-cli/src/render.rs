@@ -2,14 +2,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::Args;
+use vt_app::render::RenderJob;
 use vt_core::render::RenderParams;
 use vt_core::warp::Interpolation;
-use vt_io::scene::LoadedScene;
-use vt_io::writer::FrameWriter;
 
-use crate::progress::bar;
+use crate::flags::flagged;
+use crate::progress::Bars;
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -67,20 +67,8 @@ pub struct RenderOptions {
     no_gain_compensation: bool,
 }
 
-/// Longest `--crossfade` and `--dissolve`, frames (the renderer's own limit).
-pub const MAX_CROSSFADE: usize = vt_core::render::MAX_CROSSFADE;
-
 impl RenderOptions {
-    /// Checks the options against their limits.
-    pub fn check(&self) -> Result<()> {
-        for (flag, n) in [("crossfade", self.crossfade), ("dissolve", self.dissolve)] {
-            if n > MAX_CROSSFADE {
-                bail!("--{flag} {n} is more than {MAX_CROSSFADE} frames");
-            }
-        }
-        Ok(())
-    }
-
+    /// The renderer's parameters these flags describe (checked by `RenderParams::check`).
     pub fn params(&self) -> RenderParams {
         RenderParams {
             interpolation: if self.nearest {
@@ -105,31 +93,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
 /// [`run`], naming the output `shown` in what it prints (`vt demo` writes inside its own
 /// temporary folder, which the user never sees).
 pub fn run_as(args: RenderArgs, shown: &Path) -> Result<()> {
-    args.options.check()?;
-    let enc = vt_io::writer::EncodeParams { crf: args.crf };
-    enc.check().map_err(anyhow::Error::msg)?;
-    let scene = LoadedScene::open(&args.scene)?;
-    let fps = args.fps.unwrap_or_else(|| scene.source_fps(1000.0));
-    let qs = vt_io::path::viewpoints(
-        &args.path,
-        scene.render.views.len(),
-        fps,
-        args.duration,
-        args.long,
-    )?;
-    let (w, h) = (scene.file.width, scene.file.height);
-    let mut inputs: Vec<&Path> = vec![args.scene.as_path()];
-    if let Some(f) = args.path.strip_prefix('@') {
-        inputs.push(Path::new(f));
-    }
-    let mut sink = FrameWriter::create_with(&args.out, &inputs, w, h, fps, &enc)?;
-    let pb = bar(qs.len() as u64, "render");
-    let played = scene.play(&qs, args.options.params(), &mut |frame| {
-        pb.inc(1);
-        sink.write(frame)
-    })?;
-    pb.finish_and_clear();
-    sink.finish()?;
+    let job = RenderJob {
+        scene: args.scene,
+        path: args.path,
+        out: args.out,
+        fps: args.fps,
+        duration: args.duration,
+        long: args.long,
+        params: args.options.params(),
+        encode: vt_io::writer::EncodeParams { crf: args.crf },
+    };
+    let done = vt_app::render::render(&job, &mut Bars::default()).map_err(flagged)?;
+    let played = done.playback;
     // The same seam score as `vt analyze` prints: a jump's rendered step over the median
     // ordinary step (vt_core::seam), here over this render's own frames.
     let seam = match played.mean_seam {

@@ -4,11 +4,10 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{anyhow, Result};
+use anyhow::Result;
 use clap::Args;
-use vt_io::scene::LoadedScene;
-use vt_view::{Viewer, ViewerParams, MAX_FPS};
 
+use crate::flags::flagged;
 use crate::render::RenderOptions;
 
 #[derive(Args)]
@@ -32,26 +31,17 @@ pub struct ViewArgs {
 }
 
 pub fn run(args: ViewArgs) -> Result<()> {
-    args.options.check()?;
-    let scene = LoadedScene::open(&args.scene)?;
-    let params = ViewerParams {
+    let job = vt_app::view::ViewJob {
         port: args.port,
-        fps: args.fps.unwrap_or_else(|| scene.source_fps(MAX_FPS)),
+        fps: args.fps,
         q: args.q,
         quality: args.quality,
-        render: args.options.params(),
+        params: args.options.params(),
     };
-    let name = args.scene.display().to_string();
-    // The viewer checks its parameters; they are this command's flags of the same names.
-    let viewer = Viewer::bind(scene, &name, &params).map_err(|e| match e {
-        vt_view::Error::Param { name, value, why } => anyhow!("--{name} {value} {why}"),
-        vt_view::Error::Listen { port, cause } => {
-            anyhow!("--port {port}: cannot listen on 127.0.0.1: {cause}")
-        }
-        e => e.into(),
-    })?;
+    let viewer = vt_app::view::open(&args.scene, &job).map_err(flagged)?;
     println!(
-        "vt view: serving {name} at http://127.0.0.1:{}/ (Ctrl-C to stop)",
+        "vt view: serving {} at http://127.0.0.1:{}/ (Ctrl-C to stop)",
+        args.scene.display(),
         viewer.port()
     );
     std::io::stdout().flush().ok();

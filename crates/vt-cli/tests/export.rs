@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use common::cdp::{chromium_webgl, Page};
 use common::*;
 use image::RgbImage;
-use vt_core::render::{Player, RenderParams, Step};
+use vt_core::render::{RenderParams, Step};
 use vt_io::scene::LoadedScene;
 
 fn verbose() -> bool {
@@ -125,18 +125,13 @@ fn vt_frames(
     qs: &[f64],
     params: RenderParams,
 ) -> (Vec<RgbImage>, Vec<vt_core::render::FrameChoice>) {
-    let mut frames = Vec::new();
-    scene
-        .play(qs, params, &mut |f| {
-            frames.push(f.clone());
-            Ok(())
-        })
-        .unwrap();
-    let mut player = Player::new();
-    let choices = qs
-        .iter()
-        .map(|&q| player.advance(&scene.render, q).unwrap())
-        .collect();
+    let (mut frames, mut choices) = (Vec::new(), Vec::new());
+    vt_app::play::play(scene, qs, params, &mut |f, c| -> vt_app::Result<()> {
+        frames.push(f.clone());
+        choices.push(*c);
+        Ok(())
+    })
+    .unwrap();
     (frames, choices)
 }
 

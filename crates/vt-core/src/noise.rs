@@ -78,7 +78,7 @@ impl NoiseParams {
         };
         if !(self.k.is_finite() && self.k >= 0.0 && self.k <= 100.0) {
             return bad(
-                "noise k",
+                "noise.k",
                 self.k.to_string(),
                 "must be in 0..=100 (0 = off)",
             );

@@ -386,7 +386,8 @@ pub fn dynamic_name(p: usize) -> String {
 /// [`crate::objects::StoreWriter`] wrote as the masks arrived): each view's median background,
 /// its dynamic-region alpha, each link's fit picture (the next view's background warped onto
 /// this one in a checkerboard, the points drawn: [`fit_name`]), and scene.json with the views'
-/// source frame rate `fps`.
+/// source frame rate `fps`. The seams (`loop_seam`, each link's `seam`, `seam_score`) are left at
+/// 0: they are measured on rendered frames once the scene exists (`vt_app::analyze`).
 pub fn write_analysis(
     dir: &Path,
     a: &SceneAnalysis,
@@ -414,46 +415,7 @@ pub fn write_analysis(
     let mut scene = SceneFile::from_analysis(a, params);
     scene.fps = fps;
     scene.write(dir)?;
-    // The seams as a render shows them, now that there is a scene to render.
-    record_seams(dir, &mut scene)?;
-    scene.write(dir)?;
     Ok(scene)
-}
-
-/// Most ordinary steps and switches per view rendered to measure its seams.
-pub const SEAM_SAMPLES: usize = 32;
-
-/// Measures the scene in `dir` ([`vt_core::seam::measure_seams`] on frames its renderer makes
-/// with default settings) and records the seams in `scene`: each view's `loop_seam`, each link's
-/// `seam` (the mean of its two directions, 0 when neither has a transition) and `seam_score`
-/// (the mean over wraps and links), the one seam score `vt render` also prints.
-pub fn record_seams(dir: &Path, scene: &mut SceneFile) -> Result<()> {
-    let loaded = LoadedScene::open(dir)?;
-    let seams = vt_core::seam::measure_seams(
-        &loaded.render,
-        &loaded.objects,
-        vt_core::render::RenderParams::default(),
-        SEAM_SAMPLES,
-    )?;
-    let mut all = Vec::new();
-    for (p, v) in seams.iter().enumerate() {
-        let wrap = v.wrap.unwrap_or(0.0);
-        scene.views[p].loop_seam = wrap;
-        all.push(wrap);
-        if p + 1 < seams.len() {
-            let both: Vec<f64> = v.to_next.into_iter().chain(seams[p + 1].to_prev).collect();
-            let link = both.iter().sum::<f64>() / both.len().max(1) as f64;
-            if let Some(l) = scene.views[p].to_next.as_mut() {
-                l.seam = link;
-            }
-            if let Some(l) = scene.views[p + 1].to_prev.as_mut() {
-                l.seam = link;
-            }
-            all.push(link);
-        }
-    }
-    scene.seam_score = all.iter().sum::<f64>() / all.len().max(1) as f64;
-    Ok(())
 }
 
 /// Writes the dynamic-region alpha images of an analysis into a scene directory.
@@ -742,41 +704,6 @@ impl LoadedScene {
             .unwrap_or(30.0)
     }
 
-    /// Plays the viewpoint path `qs` (one viewpoint per output frame) with a renderer of
-    /// `params`, handing every frame to `sink`, and scores the seams of its jumps on the frames
-    /// it rendered ([`vt_core::seam::SeamMeter`]: each jump's step over the median ordinary
-    /// step of this render). Frames are `file.width x file.height`.
-    pub fn play(
-        &self,
-        qs: &[f64],
-        params: vt_core::render::RenderParams,
-        sink: &mut (dyn FnMut(&image::RgbImage) -> Result<()> + Send),
-    ) -> Result<Playback> {
-        use vt_core::render::{Player, Renderer};
-        let mut renderer = Renderer::new(self.render.clone(), params)?;
-        let (w, h) = renderer.size();
-        let mut player = Player::new();
-        let mut frame = image::RgbImage::new(w, h);
-        let mut meter = vt_core::seam::SeamMeter::new();
-        // On a rayon worker, the renderer's parallel passes queue locally: no allocation per frame.
-        rayon::scope(|_| -> Result<()> {
-            for &q in qs {
-                let choice = player.advance(&self.render, q)?;
-                renderer.render_into(&self.objects, q, &choice, &mut frame)?;
-                meter.push(&frame, choice.step);
-                sink(&frame)?;
-            }
-            Ok(())
-        })?;
-        Ok(Playback {
-            frames: qs.len(),
-            wraps: player.wraps,
-            switches: player.switches,
-            measured: meter.jumps(),
-            mean_seam: meter.score(),
-        })
-    }
-
     /// Loads and cross-checks every part of a scene directory.
     pub fn open(dir: &Path) -> Result<Self> {
         if !dir.is_dir() {
@@ -910,186 +837,5 @@ impl LoadedScene {
             }),
             objects: crate::objects::SceneObjects { stores },
         })
-    }
-}
-
-/// What [`LoadedScene::play`] played.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Playback {
-    /// Frames rendered.
-    pub frames: usize,
-    /// Loop wraps of the player.
-    pub wraps: u64,
-    /// View switches of the player.
-    pub switches: u64,
-    /// Wraps and switches measured (all of them).
-    pub measured: usize,
-    /// Their seam score, [`vt_core::seam`]'s: the mean jump step over the median ordinary step
-    /// (None without jumps).
-    pub mean_seam: Option<f64>,
-}
-
-/// `vt analyze`'s summary of an analysis: one table row per view (frames, loop, cost, seams,
-/// moving share, model, point rms), the seam score, motion kept, the model selection and the
-/// time per stage.
-pub struct AnalysisSummary<'a> {
-    /// The analysis.
-    pub analysis: &'a vt_core::analysis::SceneAnalysis,
-    /// Its scene.json (seams and point residuals of the links).
-    pub scene: &'a SceneFile,
-    /// Wall time of the whole run, seconds.
-    pub total_secs: f64,
-}
-
-impl std::fmt::Display for AnalysisSummary<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let (a, scene, total_s) = (self.analysis, self.scene, self.total_secs);
-        writeln!(
-            f,
-            "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>9}  {:>11}  {:>7}  {:>9}  {:>8}",
-            "view",
-            "frames",
-            "loop (m, n)",
-            "length",
-            "cost",
-            "loop seam",
-            "switch seam",
-            "moving",
-            "model",
-            "rms px"
-        )?;
-        let model = a.model().map(|m| m.name()).unwrap_or("-");
-        for (p, v) in a.views.iter().enumerate() {
-            let rms = scene.views[p]
-                .to_next
-                .as_ref()
-                .map(|l| format!("{:.3}", l.rms))
-                .unwrap_or_else(|| "-".into());
-            let switch = scene.views[p]
-                .to_next
-                .as_ref()
-                .map(|l| format!("{:.3}", l.seam))
-                .unwrap_or_else(|| "-".into());
-            writeln!(
-                f,
-                "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>9.3}  {:>11}  {:>6.1}%  {:>9}  {:>8}",
-                p,
-                v.n_frames,
-                format!("({}, {})", v.best_loop.start, v.best_loop.end),
-                v.best_loop.len(),
-                v.best_loop.cost,
-                scene.views[p].loop_seam,
-                switch,
-                100.0 * v.moving_fraction,
-                if p + 1 < a.views.len() { model } else { "-" },
-                rms
-            )?;
-        }
-        writeln!(f,
-        "seam score (mean over wraps and switches, on rendered frames as vt render measures them; 1 = as large as an ordinary frame step, above 1 shows): {:.3}",
-        scene.seam_score
-    )?;
-        let kept: Vec<String> = a
-            .views
-            .iter()
-            .map(|v| format!("{:.1}%", 100.0 * v.motion_kept))
-            .collect();
-        let dynamic: Vec<String> = a
-            .views
-            .iter()
-            .map(|v| format!("{:.1}%", 100.0 * v.dynamic_fraction))
-            .collect();
-        writeln!(f,
-        "motion kept (share of the real frame-to-frame change shown at each view): {}; dynamic region: {} of the image",
-        kept.join(" "),
-        dynamic.join(" ")
-    )?;
-        if let Some(sel) = &a.selection {
-            let scores: Vec<String> = sel
-                .scores
-                .iter()
-                .map(|(m, s)| format!("{m} {s:.1}"))
-                .collect();
-            writeln!(
-                f,
-                "model: {}{} (GRIC: {})",
-                sel.model,
-                if sel.forced { ", forced" } else { "" },
-                scores.join(", ")
-            )?;
-        }
-        for (p, r) in a.registration.iter().enumerate() {
-            let rest = if r.rest_inliers.1 > 0 {
-                format!(
-                    "; the rest of the background fits it at {} of {} matches ({:.0}%)",
-                    r.rest_inliers.0,
-                    r.rest_inliers.1,
-                    100.0 * r.rest_inliers.0 as f64 / r.rest_inliers.1 as f64
-                )
-            } else {
-                String::new()
-            };
-            let object = match a.object_planes.get(p).copied().flatten() {
-                Some(o) if o.kept => format!(
-                    "; plane used: the moving object's own ({}, its silhouettes' error {:.2} -> {:.2})",
-                    o.model, o.error_before, o.error_after
-                ),
-                Some(o) => format!(
-                    "; plane used: the background's (the moving object's silhouettes agree: {:.2}, own plane {:.2})",
-                    o.error_before, o.error_after
-                ),
-                None => "; plane used: the background's (nothing moves)".into(),
-            };
-            writeln!(
-                f,
-                "registered {p}->{}: background plane {}, {} inliers of {} matches in {} of 64 cells, residual {:.2} px{rest}{object}; see {}",
-                p + 1,
-                r.plane,
-                r.inliers.len(),
-                r.matches,
-                r.cells,
-                r.rms,
-                fit_name(p)
-            )?;
-        }
-        for (p, l) in a.links.iter().enumerate() {
-            if let Some(fig) = &l.parallax_figures {
-                let how = if fig.morph {
-                    format!(
-                        "morph along the dense parallax ({:.0}% of the pixels confirmed by both views; {})",
-                        100.0 * fig.confirmed,
-                        parallax_name(p, 0)
-                    )
-                } else {
-                    "the plane (the rest lies on it)".into()
-                };
-                writeln!(
-                    f,
-                    "background {p}->{}: parallax off the plane {:.1} px (90th percentile of the matches); {how}",
-                    p + 1,
-                    fig.residual_px
-                )?;
-            }
-        }
-        let vt_core::analysis::Timings {
-            decode,
-            median,
-            masks,
-            loops,
-            homographies,
-            transitions,
-            parallax,
-        } = a.timings;
-        writeln!(f,
-        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2}, parallax {:.2})",
-        decode.as_secs_f64(),
-        median.as_secs_f64(),
-        masks.as_secs_f64(),
-        loops.as_secs_f64(),
-        homographies.as_secs_f64(),
-        transitions.as_secs_f64(),
-        parallax.as_secs_f64()
-    )?;
-        Ok(())
     }
 }

@@ -8,16 +8,17 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use image::RgbImage;
-use vt_core::analysis::{analyze, AnalyzeParams, MemorySource, SceneAnalysis};
+use vt_core::analysis::{AnalyzeParams, MemorySource, SceneAnalysis};
 use vt_core::{Mask, Point};
-use vt_io::objects::StoreWriter;
 use vt_io::scene::LoadedScene;
 use vt_synth::{TextureParams, TextureScene};
 
 use super::Ctx;
 
-/// Analyses in-memory views into a scene directory `dir` (created) exactly as `vt analyze` would
-/// write it, and loads it back for rendering. Returns the analysis, its seconds and the scene.
+/// Analyses in-memory views into a scene directory `dir` (created) through `vt analyze`'s own
+/// sequence ([`vt_app::analyze::analyze_into`]: object stores at the default quality, the scene's
+/// files, the seams), and loads it back for rendering. Returns the analysis, the seconds of
+/// vt-core's analysis and the scene.
 pub fn build_scene(
     frames: &[Vec<RgbImage>],
     points: &[Vec<Point>],
@@ -37,14 +38,17 @@ pub fn build_scene(
         .iter_mut()
         .map(|s| s as &mut dyn vt_core::analysis::FrameSource)
         .collect();
-    let mut store = StoreWriter::new(dir);
-    let t = Instant::now();
-    let analysis = analyze(&mut refs, points, params, &mut store)?;
-    let secs = t.elapsed().as_secs_f64();
-    store.finish()?;
-    vt_io::scene::write_analysis(dir, &analysis, params, None)?;
+    let done = vt_app::analyze::analyze_into(
+        dir,
+        &mut refs,
+        points,
+        params,
+        Default::default(),
+        None,
+        &mut vt_app::Silent,
+    )?;
     let loaded = LoadedScene::open(dir)?;
-    Ok((analysis, secs, loaded))
+    Ok((done.analysis, done.analysis_secs, loaded))
 }
 
 /// System A's synthetic scene with truth.

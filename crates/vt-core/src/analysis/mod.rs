@@ -272,6 +272,8 @@ pub const MAX_BLUR_SIZE: usize = 255;
 pub const MAX_BLUR_SIGMA: f64 = 1000.0;
 /// Largest window w of eq. (1) and (2).
 pub const MAX_WINDOW: usize = 1000;
+/// Largest [`AnalyzeParams::cache_bytes`] (1 TiB).
+pub const MAX_CACHE_BYTES: usize = 1 << 40;
 /// Largest mask opening or closing radius, pixels.
 pub const MAX_RADIUS: u32 = 255;
 /// Most alternative loops per view.
@@ -294,6 +296,28 @@ impl AnalyzeParams {
         if !(sigma.is_finite() && sigma <= MAX_BLUR_SIGMA) {
             let why = format!("a finite number of pixels, at most {MAX_BLUR_SIGMA} (<= 0: derived from the kernel size)");
             return bad("blur.sigma", sigma.to_string(), why);
+        }
+        for (name, n) in [
+            ("loops.window", self.loops.window),
+            ("loops.min_length", self.loops.min_length),
+        ] {
+            if n == 0 {
+                return bad(name, "0".into(), "at least 1 frame".into());
+            }
+        }
+        if self.loops.min_length > MAX_FRAMES_PER_VIEW {
+            return bad(
+                "loops.min_length",
+                self.loops.min_length.to_string(),
+                format!("at most {MAX_FRAMES_PER_VIEW} frames, the longest view"),
+            );
+        }
+        if self.cache_bytes > MAX_CACHE_BYTES {
+            return bad(
+                "cache_bytes",
+                self.cache_bytes.to_string(),
+                format!("at most {MAX_CACHE_BYTES} bytes (1 TiB)"),
+            );
         }
         if self.loops.window > MAX_WINDOW {
             return bad(

@@ -84,6 +84,42 @@ pub struct RenderParams {
 /// visibly lags the objects.
 pub const MAX_BACKGROUND_REUSE_PX: f64 = 4.0;
 
+impl RenderParams {
+    /// Checks the values: crossfade and dissolve at most [`MAX_CROSSFADE`] frames and not both,
+    /// background reuse within `0..=`[`MAX_BACKGROUND_REUSE_PX`]. [`Renderer::new`] calls it;
+    /// callers that do work before making a renderer call it first.
+    pub fn check(&self) -> Result<()> {
+        for (name, n) in [("crossfade", self.crossfade), ("dissolve", self.dissolve)] {
+            if n > MAX_CROSSFADE {
+                return Err(Error::InvalidParameter {
+                    name,
+                    value: n.to_string(),
+                    why: format!("at most {MAX_CROSSFADE} frames"),
+                });
+            }
+        }
+        let reuse = self.background_reuse_px;
+        if !(reuse.is_finite() && (0.0..=MAX_BACKGROUND_REUSE_PX).contains(&reuse)) {
+            return Err(Error::InvalidParameter {
+                name: "background_reuse_px",
+                value: reuse.to_string(),
+                why: format!("a displacement from 0 (off) to {MAX_BACKGROUND_REUSE_PX} pixels"),
+            });
+        }
+        if self.crossfade > 0 && self.dissolve > 0 {
+            return Err(Error::InvalidParameter {
+                name: "dissolve",
+                value: self.dissolve.to_string(),
+                why: format!(
+                    "a wrap is either crossfaded or dissolved, not both (crossfade {})",
+                    self.crossfade
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for RenderParams {
     fn default() -> Self {
         Self {
@@ -180,36 +216,7 @@ impl Renderer {
         params: RenderParams,
     ) -> Result<Self> {
         let scene: std::sync::Arc<RenderScene> = scene.into();
-        for (name, n) in [
-            ("crossfade", params.crossfade),
-            ("dissolve", params.dissolve),
-        ] {
-            if n > MAX_CROSSFADE {
-                return Err(Error::InvalidParameter {
-                    name,
-                    value: n.to_string(),
-                    why: format!("at most {MAX_CROSSFADE} frames"),
-                });
-            }
-        }
-        let reuse = params.background_reuse_px;
-        if !(reuse.is_finite() && (0.0..=MAX_BACKGROUND_REUSE_PX).contains(&reuse)) {
-            return Err(Error::InvalidParameter {
-                name: "background_reuse_px",
-                value: reuse.to_string(),
-                why: format!("a displacement from 0 (off) to {MAX_BACKGROUND_REUSE_PX} pixels"),
-            });
-        }
-        if params.crossfade > 0 && params.dissolve > 0 {
-            return Err(Error::InvalidParameter {
-                name: "dissolve",
-                value: params.dissolve.to_string(),
-                why: format!(
-                    "a wrap is either crossfaded or dissolved, not both (crossfade {})",
-                    params.crossfade
-                ),
-            });
-        }
+        params.check()?;
         let first = scene.views.first().ok_or_else(|| Error::InvalidParameter {
             name: "views",
             value: "0".into(),

@@ -434,14 +434,20 @@ fn render_figures(
         total += psnr(&out, &truth, None)?;
     }
     let q_max = scene.render.q_max();
-    let mut player = Player::new();
-    let (secs, r) = timed(1, || -> Result<()> {
-        for i in 0..sweep {
-            let q = q_max * (0.5 - 0.5 * (i as f64 / sweep as f64 * std::f64::consts::TAU).cos());
-            let c = player.advance(&scene.render, q)?;
-            renderer.render_into(&scene.objects, q, &c, &mut out)?;
-        }
-        Ok(())
+    let sweep_qs: Vec<f64> = (0..sweep)
+        .map(|i| q_max * (0.5 - 0.5 * (i as f64 / sweep as f64 * std::f64::consts::TAU).cos()))
+        .collect();
+    // Timed through `vt render`'s driver (vt_app::play), frames thrown away.
+    let (secs, r) = timed(1, || {
+        vt_app::play::play(
+            scene,
+            &sweep_qs,
+            params,
+            &mut |f, _| -> vt_app::Result<()> {
+                std::hint::black_box(f);
+                Ok(())
+            },
+        )
     });
     r?;
     Ok((total / qs.len() as f64, sweep as f64 / secs))
@@ -531,22 +537,20 @@ fn crossfade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         settings.push((format!("dissolve {len}"), params, len));
     }
     let mut pts = Vec::new();
+    // A slow sweep back and forth: switches at every half view, wraps in between.
+    let qs: Vec<f64> = (0..n_frames)
+        .map(|i| q_max * (0.5 - 0.5 * (i as f64 / 150.0 * std::f64::consts::TAU).cos()))
+        .collect();
     for (label, params, len) in settings {
-        let mut renderer = Renderer::new(scene.render.clone(), params)?;
-        let (w, h) = renderer.size();
-        let (mut prev, mut out) = (RgbImage::new(w, h), RgbImage::new(w, h));
-        let mut player = Player::new();
+        let mut prev: Option<RgbImage> = None;
         let (mut ordinary, mut jumps) = (Vec::new(), Vec::new());
         let mut since_jump: Option<usize> = None;
         let mut worst = 0.0f64;
         let t = std::time::Instant::now();
-        for i in 0..n_frames {
-            // A slow sweep back and forth: switches at every half view, wraps in between.
-            let q = q_max * (0.5 - 0.5 * (i as f64 / 150.0 * std::f64::consts::TAU).cos());
-            let c = player.advance(&scene.render, q)?;
-            renderer.render_into(&scene.objects, q, &c, &mut out)?;
-            if i > 0 {
-                let d = mean_abs_diff(&out, &prev, None)?;
+        // `vt render`'s driver (vt_app::play); each frame's step measured as it comes.
+        vt_app::play::play(scene, &qs, params, &mut |out, c| -> Result<()> {
+            if let Some(prev) = &prev {
+                let d = mean_abs_diff(out, prev, None)?;
                 let jump = matches!(c.step, Step::Wrap | Step::Switch { .. });
                 if jump {
                     if since_jump.is_some() {
@@ -569,8 +573,12 @@ fn crossfade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                     ordinary.push(d);
                 }
             }
-            std::mem::swap(&mut prev, &mut out);
-        }
+            match &mut prev {
+                Some(p) => p.copy_from_slice(out.as_raw()),
+                None => prev = Some(out.clone()),
+            }
+            Ok(())
+        })?;
         if since_jump.is_some() {
             jumps.push(worst);
         }

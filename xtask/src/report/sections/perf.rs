@@ -6,9 +6,9 @@
 use anyhow::Result;
 use image::RgbImage;
 use serde_json::json;
-use vt_core::analysis::{analyze, threshold_mask, AnalyzeParams, MemorySource, Quiet};
+use vt_core::analysis::{threshold_mask, AnalyzeParams};
 use vt_core::blur::GaussianParams;
-use vt_core::render::{Player, RenderParams, Renderer};
+use vt_core::render::RenderParams;
 use vt_core::warp::Interpolation;
 use vt_core::{Homography, Point};
 use vt_fv::eval::psnr as fv_psnr;
@@ -22,22 +22,23 @@ fn analysis_table(ctx: &mut Ctx) -> Result<Table> {
     let tr = tree(ctx)?;
     let mut params = AnalyzeParams::default();
     params.loops.min_length = 20;
-    let mut src = MemorySource {
-        name: "tree.avi".into(),
-        frames: tr.frames.clone(),
-    };
+    // `vt analyze`'s own sequence (vt_app), into a fresh scene folder each time.
+    let dir = ctx.work.path().join("perf-analysis");
     let (secs, a) = timed(ctx.pick(1, 3), || {
-        analyze(&mut [&mut src], &[], &params, &mut Quiet)
+        std::fs::remove_dir_all(&dir).ok();
+        build_scene(std::slice::from_ref(&tr.frames), &[], &params, &dir)
     });
-    let a = a?;
+    let (a, analysis_secs, _) = a?;
+    std::fs::remove_dir_all(&dir).ok();
     let tm = a.timings;
     let mut t = Table::new(
         "perf-analysis",
         "Analysis against plain decoding (tree.avi)",
         format!(
             "tree.avi ({} frames of {}x{}): decoding every frame with ffmpeg through vt-io, against \
-             the whole single-view analysis (median, masks, loop) of the decoded frames held in \
-             memory. A ratio below 1 means the analysis costs less than reading the video once. \
+             the whole single-view analysis as `vt analyze` runs it (vt_app: median, masks, loop, \
+             object store, scene files, seams measured on rendered frames) of the decoded frames \
+             held in memory. A ratio below 1 means the analysis costs less than reading the video once. \
              Thesis scale (15 views x 500 frames x 640x360) is measured by `cargo xtask bench`.",
             tr.frames.len(),
             tr.frames[0].width(),
@@ -48,10 +49,12 @@ fn analysis_table(ctx: &mut Ctx) -> Result<Table> {
     let d = tr.decode_secs;
     for (what, s) in [
         ("decode (ffmpeg)", d),
-        ("analysis, all stages", secs),
+        ("analysis, all stages (vt analyze's sequence)", secs),
+        ("  vt-core's analysis", analysis_secs),
         ("  median", tm.median.as_secs_f64()),
         ("  blur + masks", tm.masks.as_secs_f64()),
         ("  loop search", tm.loops.as_secs_f64()),
+        ("  object store, scene files, seams", secs - analysis_secs),
     ] {
         t.row(vec![json!(what), json!(s), json!(s / d)]);
     }
@@ -86,9 +89,9 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
         "Analysis of a real video at 768x576 against decoding it",
         format!(
             "tree.avi's hand-free frames upscaled to {w}x{h} and looped to {n} frames, H.264: \
-             the whole single-view analysis at default settings, end to end from the file \
-             (decode, median of {} evenly spaced frames, noise-model masks, dynamic region, \
-             appearance, loop), against decoding the file alone (ffmpeg through vt-io, frames \
+             `vt analyze` at default settings (vt_app::analyze), end to end from the file to \
+             the scene folder (decode, median of {} evenly spaced frames, noise-model masks, \
+             dynamic region, appearance, loop, object store, seams), against decoding the file alone (ffmpeg through vt-io, frames \
              thrown away). The every-frame median row is the same analysis with \
              --median-frames 0; its background error column is the default's distance from it.",
             vt_core::analysis::DEFAULT_MEDIAN_FRAMES
@@ -106,13 +109,23 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
         json!(1.0),
         json!("-"),
     ]);
-    let mut run = |median_frames: usize| -> Result<(f64, vt_core::analysis::SceneAnalysis)> {
-        let params = AnalyzeParams {
-            median_frames,
-            ..Default::default()
+    // `vt analyze` itself (vt_app::analyze::analyze): from the file into a scene folder.
+    let out = ctx.work.path().join("perf-analysis-real");
+    let run = |median_frames: usize| -> Result<(f64, vt_core::analysis::SceneAnalysis)> {
+        let job = vt_app::analyze::AnalyzeJob {
+            views: vec![path.clone()],
+            points: None,
+            out: out.clone(),
+            params: AnalyzeParams {
+                median_frames,
+                ..Default::default()
+            },
+            fps: None,
+            store: Default::default(),
         };
-        let (secs, a) = timed(1, || analyze(&mut [&mut src], &[], &params, &mut Quiet));
-        Ok((secs, a?))
+        let (secs, a) = timed(1, || vt_app::analyze::analyze(&job, &mut vt_app::Silent));
+        std::fs::remove_dir_all(&out).ok();
+        Ok((secs, a?.analysis))
     };
     let (fast, a) = run(vt_core::analysis::DEFAULT_MEDIAN_FRAMES)?;
     let (exact, b) = run(0)?;
@@ -147,7 +160,8 @@ fn render_table(ctx: &mut Ctx) -> Result<Table> {
             "The demo scene's first {frames_per_view} frames per view scaled up (bilinear) to each \
              size, analysed and written as a scene, then rendered over a {sweep}-frame sweep across \
              all views (the viewpoint moves every frame, so the background blend is recomputed \
-             each time): frames per second, one renderer, this machine's cores. Ratio: nearest's \
+             each time) by `vt render`'s driver (vt_app::play, seams scored, no encoding): \
+             frames per second, this machine's cores. Ratio: nearest's \
              speed over bilinear's."
         ),
         &["size", "bilinear fps", "nearest fps", "nearest / bilinear", "bilinear ms per frame"],
@@ -181,24 +195,20 @@ fn render_table(ctx: &mut Ctx) -> Result<Table> {
         let (_, _, scene) = build_scene(&frames, &points, &params, &dir)?;
         let q_max = scene.render.q_max();
         let mut fps = Vec::new();
+        let qs: Vec<f64> = (0..sweep)
+            .map(|i| q_max * (0.5 - 0.5 * (i as f64 / sweep as f64 * std::f64::consts::TAU).cos()))
+            .collect();
         for interpolation in [Interpolation::Bilinear, Interpolation::Nearest] {
-            let mut r = Renderer::new(
-                scene.render.clone(),
-                RenderParams {
-                    interpolation,
-                    ..Default::default()
-                },
-            )?;
-            let mut out = RgbImage::new(w, h);
-            let mut player = Player::new();
-            let (secs, res) = timed(1, || -> Result<()> {
-                for i in 0..sweep {
-                    let q = q_max
-                        * (0.5 - 0.5 * (i as f64 / sweep as f64 * std::f64::consts::TAU).cos());
-                    let c = player.advance(&scene.render, q)?;
-                    r.render_into(&scene.objects, q, &c, &mut out)?;
-                }
-                Ok(())
+            let params = RenderParams {
+                interpolation,
+                ..Default::default()
+            };
+            // `vt render`'s driver (vt_app::play) with the frames thrown away.
+            let (secs, res) = timed(1, || {
+                vt_app::play::play(&scene, &qs, params, &mut |f, _| -> vt_app::Result<()> {
+                    std::hint::black_box(f);
+                    Ok(())
+                })
             });
             res?;
             fps.push(sweep as f64 / secs);

@@ -1,0 +1,64 @@
+//! The one error type of vt-app: the libraries' errors as they are, plus what a use case itself
+//! refuses.
+
+use std::path::PathBuf;
+
+/// Result alias for vt-app.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What can go wrong in a use case.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// An algorithm's error (a parameter out of range is vt-core's `InvalidParameter`, naming
+    /// the parameter).
+    #[error(transparent)]
+    Core(#[from] vt_core::Error),
+    /// A file's error (each names its file).
+    #[error(transparent)]
+    Io(#[from] vt_io::Error),
+    /// The web export's error.
+    #[error(transparent)]
+    Web(#[from] vt_web::Error),
+    /// The live viewer's error.
+    #[error(transparent)]
+    View(#[from] vt_view::Error),
+    /// A job's parameter out of its range, by the job's name of it (`fps`, `crf`, ...).
+    #[error("{name} {value}: {why}")]
+    Param {
+        /// The parameter's name in the job struct.
+        name: &'static str,
+        /// The value given.
+        value: String,
+        /// What it must be.
+        why: String,
+    },
+    /// An error about one input file (the points file of degenerate points, a view that cannot
+    /// be opened): the file, then what is wrong.
+    #[error("{}: {cause}", path.display())]
+    Input {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        cause: Box<Error>,
+    },
+    /// A view that cannot be opened: its place in the camera order, then vt-io's error (which
+    /// names the file).
+    #[error("view {view}: {cause}")]
+    OpenView {
+        /// The view's index.
+        view: usize,
+        /// What is wrong.
+        cause: vt_io::Error,
+    },
+    /// A clip too short for the minimum loop length, with the way out: a minimum loop length of
+    /// `max_min_length` or less.
+    #[error(
+        "{cause}; for a clip this short use a minimum loop length of {max_min_length} or less"
+    )]
+    TooShort {
+        /// vt-core's error (frames found and needed).
+        cause: vt_core::Error,
+        /// The longest minimum loop length the clip allows.
+        max_min_length: usize,
+    },
+}

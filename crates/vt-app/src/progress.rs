@@ -1,0 +1,18 @@
+//! How a use case reports progress: stages with a step count, each followed to its end.
+
+/// Progress of a long use case. Every method has an empty default. `Send`: the render driver
+/// reports from the thread that renders.
+pub trait Progress: Send {
+    /// A stage begins: its name (`"view 0: median"`, `"render"`) and its steps when known.
+    fn start(&mut self, _stage: &str, _total: Option<u64>) {}
+    /// `done` steps of the current stage are done (`total` when it became known only now).
+    fn at(&mut self, _done: u64, _total: Option<u64>) {}
+    /// The current stage ended.
+    fn finish(&mut self) {}
+}
+
+/// Reports nothing.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Silent;
+
+impl Progress for Silent {}

@@ -1,0 +1,57 @@
+//! The libraries' errors in the user's words: a parameter named by the flag that sets it.
+
+use anyhow::anyhow;
+
+/// The flag that sets a parameter, by the libraries' name of it (vt-core's `InvalidParameter`,
+/// vt-app's `Param`, vt-web's and vt-view's parameter errors).
+pub fn flag_of(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "blur.ksize" => "--blur-size",
+        "blur.sigma" => "--blur-sigma",
+        "loops.window" => "--window",
+        "loops.min_length" => "--min-length",
+        "mask.open_radius" => "--open",
+        "mask.close_radius" => "--close",
+        "alternative_loops" => "--alternatives",
+        "model.sigma" => "--point-sigma",
+        "appearance" => "--appearance",
+        "median_frames" => "--median-frames",
+        "noise.k" => "--noise-k",
+        "fps" => "--fps",
+        "crossfade" => "--crossfade",
+        "dissolve" => "--dissolve",
+        "crf" => "--crf",
+        "quality" => "--quality",
+        "port" => "--port",
+        "q" => "--q",
+        _ => return None,
+    })
+}
+
+/// `name value: why`, with the flag for the name when there is one.
+fn param(name: &str, value: &str, why: &str) -> anyhow::Error {
+    match flag_of(name) {
+        Some(flag) => anyhow!("{flag} {value}: {why}"),
+        None => anyhow!("{name} {value}: {why}"),
+    }
+}
+
+/// A vt-app error as one line in the flags' words.
+pub fn flagged(e: vt_app::Error) -> anyhow::Error {
+    use vt_app::Error as E;
+    match e {
+        E::Core(vt_core::Error::InvalidParameter { name, value, why }) => param(name, &value, &why),
+        E::Param { name, value, why } => param(name, &value, &why),
+        E::Web(vt_web::Error::InvalidParameter { name, value, why }) => param(name, &value, &why),
+        E::View(vt_view::Error::Param { name, value, why }) => param(name, &value, &why),
+        E::View(vt_view::Error::Listen { port, cause }) => {
+            anyhow!("--port {port}: cannot listen on 127.0.0.1: {cause}")
+        }
+        // The way out, in the flag's words: a shorter minimum loop.
+        E::TooShort {
+            cause,
+            max_min_length,
+        } => anyhow!("{cause}; for a clip this short pass --min-length {max_min_length} or less"),
+        e => e.into(),
+    }
+}
