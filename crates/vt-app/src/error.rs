@@ -19,6 +19,12 @@ pub enum Error {
     /// The web export's error.
     #[error(transparent)]
     Web(#[from] vt_web::Error),
+    /// System B's error (a camera, a silhouette, the volume, a parameter).
+    #[error(transparent)]
+    Fv(#[from] vt_fv::Error),
+    /// A System B data folder's error (each names its file).
+    #[error(transparent)]
+    FvData(#[from] vt_fv::dataset::DataError),
     /// The live viewer's error.
     #[error(transparent)]
     View(#[from] vt_view::Error),
@@ -49,6 +55,22 @@ pub enum Error {
         view: usize,
         /// What is wrong.
         cause: vt_io::Error,
+    },
+    /// An error in a step of a use case, said with the step (`silhouette check: ...`).
+    #[error("{what}: {cause}")]
+    In {
+        /// The step, or the thing it was about.
+        what: String,
+        /// What went wrong.
+        cause: Box<Error>,
+    },
+    /// An error about the value of a job's field (`camera`, `method`), said after its name.
+    #[error("{name} {cause}")]
+    Field {
+        /// The field.
+        name: &'static str,
+        /// What is wrong with its value.
+        cause: Box<Error>,
     },
     /// A clip too short for the minimum loop length, with the way out: a minimum loop length of
     /// `max_min_length` or less.

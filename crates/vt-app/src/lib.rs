@@ -10,6 +10,8 @@
 //! | a viewpoint path rendered into a file | [`render::render`] | `vt render` |
 //! | a scene as a web page | [`export::export`] | `vt export` |
 //! | a scene served live | [`view::open`] | `vt view` |
+//! | photos into a voxel model | [`fv::hull`] | `vt fv hull` |
+//! | a new view, an orbit, withheld views scored | [`fv::render`], [`fv::orbit`], [`fv::eval`] | `vt fv render`, `orbit`, `eval` |
 //!
 //! Rules about parameters live with the parameter types (`AnalyzeParams::check`,
 //! `RenderParams::check`, `EncodeParams::check`, ...) and each job's own `check`; every error
@@ -19,6 +21,7 @@
 pub mod analyze;
 mod error;
 pub mod export;
+pub mod fv;
 pub mod play;
 mod progress;
 pub mod render;

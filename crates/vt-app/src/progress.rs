@@ -9,6 +9,8 @@ pub trait Progress: Send {
     fn at(&mut self, _done: u64, _total: Option<u64>) {}
     /// The current stage ended.
     fn finish(&mut self) {}
+    /// A line the user should read now (e.g. "photos rescaled to the cameras' size").
+    fn note(&mut self, _line: &str) {}
 }
 
 /// Reports nothing.

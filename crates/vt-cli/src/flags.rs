@@ -24,15 +24,27 @@ pub fn flag_of(name: &str) -> Option<&'static str> {
         "quality" => "--quality",
         "port" => "--port",
         "q" => "--q",
+        "frames" => "--frames",
+        "out" => "--out",
+        "save" => "--save",
+        "model" => "--model",
+        "masks" => "--masks",
+        "camera" => "--camera",
+        "method" => "--method",
         _ => return None,
     })
 }
 
-/// `name value: why`, with the flag for the name when there is one.
+/// `flag value: why` (`flag: why` without a value); a name with no flag in the table is
+/// vt-fv's, whose flags are its names with dashes.
 fn param(name: &str, value: &str, why: &str) -> anyhow::Error {
-    match flag_of(name) {
-        Some(flag) => anyhow!("{flag} {value}: {why}"),
-        None => anyhow!("{name} {value}: {why}"),
+    let flag = flag_of(name)
+        .map(str::to_string)
+        .unwrap_or_else(|| format!("--{}", name.replace('_', "-")));
+    if value.is_empty() {
+        anyhow!("{flag}: {why}")
+    } else {
+        anyhow!("{flag} {value}: {why}")
     }
 }
 
@@ -44,6 +56,12 @@ pub fn flagged(e: vt_app::Error) -> anyhow::Error {
         E::Param { name, value, why } => param(name, &value, &why),
         E::Web(vt_web::Error::InvalidParameter { name, value, why }) => param(name, &value, &why),
         E::View(vt_view::Error::Param { name, value, why }) => param(name, &value, &why),
+        E::Fv(vt_fv::Error::BadParam { name, value, why }) => param(&name, &value, &why),
+        E::Field { name, cause } => {
+            let flag = flag_of(name).unwrap_or(name);
+            anyhow!("{flag} {}", crate::error_line(&flagged(*cause)))
+        }
+        E::In { what, cause } => anyhow!("{what}: {}", crate::error_line(&flagged(*cause))),
         E::View(vt_view::Error::Listen { port, cause }) => {
             anyhow!("--port {port}: cannot listen on 127.0.0.1: {cause}")
         }

@@ -9,24 +9,17 @@
 //! `masks/` folder inside the data folder when there is one (as `vt synth object` writes it),
 //! else from thresholding the photos (the Middlebury recipe).
 
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::PathBuf;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::{Args, Subcommand};
-use vt_fv::camera::Ring;
-use vt_fv::dataset::{
-    parse_bounds, read_model, write_eval_images, write_hull, write_json, BuildSummary, DataOptions,
-    Dataset, EvalSummary, ModelParams,
-};
+use vt_app::fv::FvData;
+use vt_fv::dataset::{parse_bounds, DataOptions, ModelParams};
 use vt_fv::hull::Aabb;
-use vt_fv::modelfile::ModelHeader;
-use vt_fv::pipeline::{novel_view_in, Method, ViewOptions, ViewParams};
-use vt_fv::texture::model_centre;
-use vt_fv::VoxelModel;
-use vt_io::output::{Output, OutputKind};
+use vt_fv::pipeline::{Method, ViewOptions};
 
-use crate::progress::{bar, StageBars};
+use crate::flags::flagged;
+use crate::progress::Bars;
 
 /// Free-viewpoint commands.
 #[derive(Subcommand)]
@@ -281,86 +274,53 @@ pub fn run(cmd: FvCommand) -> Result<()> {
         FvCommand::Orbit(a) => orbit(a),
         FvCommand::Eval(a) => eval(a),
     }
-}
-
-/// A parameter error as the flag's: `--carve-dilate 200: at most 100 pixels`.
-fn flag(e: vt_fv::Error) -> anyhow::Error {
-    match e {
-        vt_fv::Error::BadParam { name, value, why } => {
-            let value = if value.is_empty() {
-                value
-            } else {
-                format!(" {value}")
-            };
-            anyhow!("--{}{value}: {why}", name.replace('_', "-"))
-        }
-        e => e.into(),
-    }
+    .map_err(|e| match e.downcast::<vt_app::Error>() {
+        Ok(e) => flagged(e),
+        Err(e) => e,
+    })
 }
 
 impl DataArgs {
-    /// The run's inputs, which no output may replace: the data folder and the masks folder.
-    fn inputs(&self) -> Vec<&Path> {
-        [Some(self.data.as_path()), self.masks.as_deref()]
-            .into_iter()
-            .flatten()
-            .collect()
-    }
-
-    /// Checks the flags, then loads the data folder.
-    fn load(&self) -> Result<Dataset> {
-        let opt = DataOptions {
-            masks: self.masks.clone(),
-            threshold: self.threshold,
-            carve_dilate: self.carve_dilate,
-            carve_erode: self.carve_erode,
-            scale: self.scale,
-            fit: match self.photo_fit {
-                PhotoFitArg::Scale => vt_fv::dataset::PhotoFit::Scale,
-                PhotoFitArg::Crop => vt_fv::dataset::PhotoFit::Crop,
+    /// The data folder, how to load it and how to build the model, as vt-app takes them.
+    fn data(&self, model: &ModelArgs, from: Option<&ModelFileArgs>) -> FvData {
+        FvData {
+            data: self.data.clone(),
+            options: DataOptions {
+                masks: self.masks.clone(),
+                threshold: self.threshold,
+                carve_dilate: self.carve_dilate,
+                carve_erode: self.carve_erode,
+                scale: self.scale,
+                fit: match self.photo_fit {
+                    PhotoFitArg::Scale => vt_fv::dataset::PhotoFit::Scale,
+                    PhotoFitArg::Crop => vt_fv::dataset::PhotoFit::Crop,
+                },
+                score: vt_fv::silhouette::SilhouetteParams {
+                    threshold: self.score_threshold,
+                    dilate: self.score_dilate,
+                    erode: self.score_erode,
+                },
+                silhouettes: match self.silhouettes {
+                    SilhouettesArg::Auto => vt_fv::dataset::SilhouetteMode::Auto,
+                    SilhouettesArg::Threshold => vt_fv::dataset::SilhouetteMode::Threshold,
+                    SilhouettesArg::Backdrop => vt_fv::dataset::SilhouetteMode::Backdrop,
+                },
+                backdrop: Default::default(),
             },
-            score: vt_fv::silhouette::SilhouetteParams {
-                threshold: self.score_threshold,
-                dilate: self.score_dilate,
-                erode: self.score_erode,
+            model: ModelParams {
+                grid: model.grid,
+                bounds: model.bounds,
+                photo_threshold: model.photo_threshold,
+                paper_carving: model.paper_carving,
             },
-            silhouettes: match self.silhouettes {
-                SilhouettesArg::Auto => vt_fv::dataset::SilhouetteMode::Auto,
-                SilhouettesArg::Threshold => vt_fv::dataset::SilhouetteMode::Threshold,
-                SilhouettesArg::Backdrop => vt_fv::dataset::SilhouetteMode::Backdrop,
-            },
-            backdrop: Default::default(),
-        };
-        opt.check().map_err(flag)?;
-        if let Some(d) = self.masks.as_ref().filter(|d| !d.is_dir()) {
-            bail!("--masks {}: not a folder", d.display());
+            model_file: from.and_then(|f| f.file.clone()),
         }
-        let d = Dataset::load(&self.data, &opt)?;
-        // On stderr, so that `eval --json` prints exactly one JSON object on stdout.
-        for n in &d.notes {
-            eprintln!("{n}");
-        }
-        Ok(d)
-    }
-}
-
-impl ModelArgs {
-    /// The checked settings (a grid too large is refused before anything is loaded).
-    fn params(&self) -> Result<ModelParams> {
-        let p = ModelParams {
-            grid: self.grid,
-            bounds: self.bounds,
-            photo_threshold: self.photo_threshold,
-            paper_carving: self.paper_carving,
-        };
-        p.check().map_err(flag)?;
-        Ok(p)
     }
 }
 
 impl ViewArgs {
-    /// The checked new-view settings for `w x h` photos.
-    fn params(&self, w: u32, h: u32) -> Result<ViewParams> {
+    /// The new-view settings (checked against the photos' size once they are loaded).
+    fn options(&self) -> Result<ViewOptions> {
         let method = match self.method {
             MethodArg::Paper => Method::Paper,
             MethodArg::Textured => Method::Textured,
@@ -374,112 +334,24 @@ impl ViewArgs {
         }
         let (patch, exact, refine, references) =
             (self.patch, self.exact, self.refine, self.references);
-        let o = ViewOptions {
+        Ok(ViewOptions {
             method,
             patch,
             exact,
             refine,
             references,
-        };
-        o.params(w, h).map_err(flag)
+        })
     }
-}
-
-/// The model from all views, or all but `withheld`, with progress bars (the volume from the
-/// silhouettes of the views it is built from unless `--bounds` is given).
-fn build(
-    d: &Dataset,
-    withheld: Option<usize>,
-    m: &ModelParams,
-) -> Result<(VoxelModel, BuildSummary)> {
-    let mut bars = StageBars::default();
-    let r = d.build_without(withheld, m, &mut |s, i, n| bars.update(s, i, n));
-    bars.finish();
-    r.with_context(|| {
-        format!(
-            "{}",
-            d.cameras_file.parent().unwrap_or(&d.cameras_file).display()
-        )
-    })
-}
-
-/// A model: read from `--model` (checked against the data folder) or built from every view.
-/// Returns it with one line saying where it came from and how long that took.
-fn model_for(
-    d: &Dataset,
-    m: &ModelParams,
-    from: &ModelFileArgs,
-) -> Result<(VoxelModel, Option<ModelHeader>, String)> {
-    let Some(f) = &from.file else {
-        let (model, s) = build(d, None, m)?;
-        let line = format!(
-            "model: built, {} surface voxels ({} passes, {}) in {:.2} s",
-            s.surface_voxels,
-            s.photo_hull_passes,
-            unseen_words(&model),
-            s.visual_hull_secs + s.photo_hull_secs
-        );
-        return Ok((model, None, line));
-    };
-    let t = Instant::now();
-    let (model, h) = read_model(f, d)?;
-    let line = format!(
-        "model: read from {} in {:.2} s ({} surface voxels, {}; building it took {:.2} s)",
-        f.display(),
-        t.elapsed().as_secs_f64(),
-        model.surface.len(),
-        unseen_words(&model),
-        h.build_secs
-    );
-    Ok((model, Some(h), line))
-}
-
-/// The share of a model's surface seen by no camera, in words.
-fn unseen_words(model: &VoxelModel) -> String {
-    let unseen = model.surface.iter().filter(|v| v.seen_by == 0).count();
-    format!(
-        "{:.1} % seen by no camera",
-        100.0 * unseen as f64 / model.surface.len().max(1) as f64
-    )
-}
-
-/// Refuses a model built without a view where every view is needed (render, orbit).
-fn whole(h: Option<&ModelHeader>, from: &ModelFileArgs) -> Result<()> {
-    if let (Some(k), Some(f)) = (h.and_then(|h| h.withheld), &from.file) {
-        bail!(
-            "--model {}: built without view {k} (for `vt fv eval --leave-out {k}`); render and orbit take a model of every view",
-            f.display()
-        );
-    }
-    Ok(())
-}
-
-/// The run's inputs with the model file.
-fn inputs_with<'a>(data: &'a DataArgs, from: &'a ModelFileArgs) -> Vec<&'a Path> {
-    let mut v = data.inputs();
-    v.extend(from.file.as_deref());
-    v
 }
 
 fn hull(a: HullArgs) -> Result<()> {
-    let m = a.model.params()?;
-    // The output is checked before any work: never the data folder, never a foreign path.
-    let dir = Output::dir(&a.out, OutputKind::Hull, &a.data.inputs())?;
-    let d = a.data.load()?;
-    if let Some(k) = a.leave_out {
-        d.check_withheld(&[k]).map_err(flag)?;
-    }
-    let (model, s) = build(&d, a.leave_out, &m)?;
-    let bounds = Aabb::new(s.bounds_min.into(), s.bounds_max.into());
-    // Fewer than 3 views leave nothing to check against.
-    let check = if d.cams.len() >= 3 {
-        Some(d.check_silhouettes(bounds).context("silhouette check")?)
-    } else {
-        None
+    let job = vt_app::fv::HullJob {
+        data: a.data.data(&a.model, None),
+        leave_out: a.leave_out,
+        out: a.out.clone(),
     };
-    let header = d.model_header(a.leave_out, &m, &s);
-    write_hull(dir.path(), &d, &model, &header, &s, check.as_ref())?;
-    dir.commit()?;
+    let done = vt_app::fv::hull(&job, &mut Bars::default())?;
+    let (d, s) = (&done.dataset, &done.summary);
     let (w, h) = d.size();
     let [gx, gy, gz] = s.grid;
     let without = a
@@ -492,7 +364,7 @@ fn hull(a: HullArgs) -> Result<()> {
         d.silhouettes
     );
     println!("{s}");
-    if let Some(c) = &check {
+    if let Some(c) = &done.check {
         println!("{c}");
     }
     println!(
@@ -503,207 +375,80 @@ fn hull(a: HullArgs) -> Result<()> {
 }
 
 fn render(a: RenderArgs) -> Result<()> {
-    let m = a.model.params()?;
-    if !matches!(
-        image::ImageFormat::from_path(&a.out),
-        Ok(image::ImageFormat::Png | image::ImageFormat::Jpeg)
-    ) {
-        bail!("--out {}: use a .png or .jpg file name", a.out.display());
-    }
-    let inputs = inputs_with(&a.data, &a.from);
-    // Checked before any work (nothing is created yet).
-    drop(Output::file(&a.out, OutputKind::Image, &inputs)?);
-    let d = a.data.load()?;
-    let (w, h) = d.size();
-    let view = a.view.params(w, h)?;
-    let camera = |target: nalgebra::Vector3<f64>, bounds: &Aabb| {
-        d.camera(&a.camera, a.data.scale, &target, bounds)
-            .map_err(|e| anyhow!("--camera {e}"))
+    let data = a.data.data(&a.model, Some(&a.from));
+    let job = vt_app::fv::FvRenderJob {
+        data,
+        view: a.view.options()?,
+        camera: a.camera,
+        out: a.out.clone(),
     };
-    let (model, model_line) = if a.from.file.is_some() {
-        let (model, header, line) = model_for(&d, &m, &a.from)?;
-        whole(header.as_ref(), &a.from)?;
-        (model, line)
-    } else {
-        // Check the camera against the volume before the expensive model build.
-        let bounds = d
-            .volume(m.bounds)
-            .context("volume bounds from the silhouettes")?;
-        camera(bounds.centre(), &bounds)?;
-        let (model, _, line) = model_for(&d, &m, &a.from)?;
-        (model, line)
-    };
-    // Ring cameras look at the model's centre.
-    let cam = camera(model_centre(&model), &model.grid.bounds())?;
-    let t = Instant::now();
-    let pb = bar(1, view.name());
-    // What eval scores: the model's render trimmed to the reference silhouettes, then the
-    // method's image.
-    let v = novel_view_in(
-        &model,
-        &d.cams,
-        &d.images,
-        Some(&d.masks),
-        &cam,
-        w,
-        h,
-        &view,
-    )
-    .with_context(|| format!("--method {}", view.name()))?;
-    pb.finish_and_clear();
-    let what = v.describe(&d.cams, &view);
-    let (img, coverage) = (v.guided, v.rough.coverage.count_ones());
-    if coverage == 0 {
-        bail!("--camera {}: camera sees none of the model", cam.name);
-    }
-    let render_secs = t.elapsed().as_secs_f64();
-    vt_io::writer::write_image(&a.out, &inputs, &img)?;
-    println!("{model_line}; view in {render_secs:.2} s, {what}");
+    let done = vt_app::fv::render(&job, &mut Bars::default())?;
+    let (w, h) = done.size;
+    println!(
+        "{}; view in {:.2} s, {}",
+        done.model_line, done.view_secs, done.what
+    );
     println!("wrote {} ({w}x{h})", a.out.display());
     Ok(())
 }
 
 fn orbit(a: OrbitArgs) -> Result<()> {
-    let m = a.model.params()?;
-    let ext = a.out.extension().and_then(|e| e.to_str());
-    if !matches!(
-        ext.map(str::to_ascii_lowercase).as_deref(),
-        Some("mp4" | "gif")
-    ) {
-        bail!("--out {}: use a .mp4 or .gif file name", a.out.display());
-    }
-    if a.frames == 0 || a.frames > 10_000 {
-        bail!("--frames {} must be in 1..=10000", a.frames);
-    }
-    if a.fps == 0 || a.fps > 240 {
-        bail!("--fps {} must be in 1..=240", a.fps);
-    }
-    let inputs = inputs_with(&a.data, &a.from);
-    // Checked before any work (nothing is created yet).
-    drop(Output::file(&a.out, OutputKind::Video, &inputs)?);
-    let d = a.data.load()?;
-    let (w, h) = d.size();
-    let view = a.view.params(w, h)?;
-    let ring = Ring::fit(&d.cams).context("orbit: the cameras' ring")?;
-    // One model for every frame.
-    let (model, header, model_line) = model_for(&d, &m, &a.from)?;
-    whole(header.as_ref(), &a.from)?;
-    let target = model_centre(&model);
-    // vt-io's one video writer: H.264 at CRF 18 (or GIF), marked as vt's, atomic.
-    let mut video = vt_io::writer::VideoWriter::create(&a.out, &inputs, w, h, a.fps as f64)?;
-    let pb = bar(a.frames as u64, "orbit frames");
-    let t = Instant::now();
-    let steady = vt_fv::orbit::orbit::<anyhow::Error>(
-        &model,
-        &d.cams,
-        &d.images,
-        Some(&d.masks),
-        &ring,
-        &target,
-        a.frames,
-        (w, h),
-        &view,
-        &mut |i, angle, v| {
-            video
-                .write(&v.guided)
-                .with_context(|| format!("frame {i} (angle {angle:.1})"))?;
-            pb.inc(1);
-            Ok(())
-        },
-    )?;
-    let secs = t.elapsed().as_secs_f64();
-    pb.finish_and_clear();
-    video.finish()?;
-    println!("{model_line}");
+    let data = a.data.data(&a.model, Some(&a.from));
+    let job = vt_app::fv::OrbitJob {
+        data,
+        view: a.view.options()?,
+        frames: a.frames,
+        fps: a.fps,
+        out: a.out.clone(),
+    };
+    let done = vt_app::fv::orbit(&job, &mut Bars::default())?;
+    let (w, h) = done.size;
+    println!("{}", done.model_line);
     println!(
-        "wrote {} ({} frames, {w}x{h}, {} fps) in {secs:.2} s ({:.3} s a frame); each frame {}",
+        "wrote {} ({} frames, {w}x{h}, {} fps) in {:.2} s ({:.3} s a frame); each frame {}",
         a.out.display(),
         a.frames,
         a.fps,
-        secs / a.frames as f64,
-        view.describe()
+        done.secs,
+        done.secs / a.frames as f64,
+        done.describe
     );
-    println!("{steady}");
+    println!("{}", done.steadiness);
     Ok(())
 }
 
 fn eval(a: EvalArgs) -> Result<()> {
-    let m = a.model.params()?;
-    let inputs = inputs_with(&a.data, &a.from);
-    let save = match &a.save {
-        Some(dir) if dir.exists() && !dir.is_dir() => {
-            bail!("--save {}: exists and is not a folder", dir.display())
-        }
-        Some(dir) => Some(Output::dir(dir, OutputKind::Folder, &inputs)?),
-        None => None,
+    let data = a.data.data(&a.model, Some(&a.from));
+    let job = vt_app::fv::EvalJob {
+        data,
+        view: a.view.options()?,
+        leave_out: a.leave_out.clone(),
+        save: a.save.clone(),
     };
-    if a.from.file.is_some() && a.leave_out.len() != 1 {
-        bail!("--model: a model is built without one view; give that one view to --leave-out");
-    }
-    let d = a.data.load()?;
-    d.check_withheld(&a.leave_out).map_err(flag)?;
-    let (w, h) = d.size();
-    let view = a.view.params(w, h)?;
-    let read = match &a.from.file {
-        Some(f) => {
-            let t = Instant::now();
-            let (model, header) = read_model(f, &d)?;
-            let line = format!(
-                "model: read from {} in {:.2} s ({} surface voxels; building it took {:.2} s)",
-                f.display(),
-                t.elapsed().as_secs_f64(),
-                model.surface.len(),
-                header.build_secs
-            );
-            Some((f, model, header, line))
-        }
-        None => None,
-    };
-    let pb = bar(a.leave_out.len() as u64, "leave one out");
-    let mut reports = Vec::new();
-    for &k in &a.leave_out {
-        let (r, imgs) = match &read {
-            Some((f, model, header, _)) => d.leave_one_out_with(k, model, header, f, &view)?,
-            None => d
-                .leave_one_out(k, &m, &view)
-                .with_context(|| format!("leaving out view {k} ({})", d.cams[k].name))?,
-        };
-        if let Some(dir) = &save {
-            let sub = dir.path().join(format!("view_{k:02}"));
-            std::fs::create_dir(&sub).with_context(|| sub.display().to_string())?;
-            write_eval_images(&sub, &imgs, &d.score_masks[k])?;
-        }
-        reports.push(r);
-        pb.inc(1);
-    }
-    pb.finish_and_clear();
+    let done = vt_app::fv::eval(&job, &mut Bars::default())?;
     // On stderr, so that --json prints exactly one JSON object on stdout.
-    if let Some((.., line)) = &read {
+    if let Some(line) = &done.model_line {
         eprintln!("{line}");
     }
-    let summary = EvalSummary::new(view.name(), &reports, &d.cams);
-    if let Some(dir) = save {
-        write_json(&dir.path().join("eval.json"), &summary.views)?;
-        dir.commit()?;
-    }
     if a.json {
-        println!("{}", serde_json::to_string(&summary)?);
+        println!("{}", serde_json::to_string(&done.summary)?);
         return Ok(());
     }
-    println!("new views by {}", view.describe());
-    for r in &reports {
+    let d = &done.dataset;
+    println!("new views by {}", done.describe);
+    for r in &done.reports {
         println!(
             "withheld view {} ({}); nearest photo view {} ({}); method {}",
             r.withheld,
             d.cams[r.withheld].name,
             r.reference,
             d.cams[r.reference].name,
-            summary.method
+            done.summary.method
         );
         println!("{r}\n");
     }
-    if reports.len() > 1 {
-        println!("{summary}");
+    if done.reports.len() > 1 {
+        println!("{}", done.summary);
     }
     Ok(())
 }

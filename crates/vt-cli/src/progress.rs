@@ -1,5 +1,5 @@
 //! Progress bars (to stderr, hidden when stderr is not a terminal): vt-app's [`vt_app::Progress`]
-//! as bars, and bars for vt-fv's `progress(stage, done, total)` callbacks.
+//! as bars, its notes as lines on stderr.
 
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -57,31 +57,12 @@ impl vt_app::Progress for Bars {
             pb.finish_and_clear();
         }
     }
-}
 
-/// One bar per stage for library calls that report `progress(stage, done, total)`: a new bar
-/// when the stage changes, cleared by [`StageBars::finish`].
-#[derive(Default)]
-pub struct StageBars {
-    current: Option<(String, ProgressBar)>,
-}
-
-impl StageBars {
-    /// The progress callback.
-    pub fn update(&mut self, stage: &str, done: u64, total: u64) {
-        if self.current.as_ref().is_none_or(|(s, _)| s != stage) {
-            self.finish();
-            self.current = Some((stage.to_string(), bar(total, stage)));
-        }
-        if let Some((_, pb)) = &self.current {
-            pb.set_position(done);
-        }
-    }
-
-    /// Clears the last bar.
-    pub fn finish(&mut self) {
-        if let Some((_, pb)) = self.current.take() {
-            pb.finish_and_clear();
+    /// On stderr, so that `vt fv eval --json` prints exactly one JSON object on stdout.
+    fn note(&mut self, line: &str) {
+        match &self.current {
+            Some(pb) => pb.suspend(|| eprintln!("{line}")),
+            None => eprintln!("{line}"),
         }
     }
 }

@@ -1,0 +1,547 @@
+//! System B's use cases (`vt fv hull|render|orbit|eval`): calibrated photos into a voxel model,
+//! new views from it, an orbit video, and withheld views scored. Each loads the data folder,
+//! builds the model once (or reads `vt fv hull`'s model file) and makes its views by the same
+//! default method.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use vt_fv::camera::Ring;
+use vt_fv::dataset::{
+    read_model, write_eval_images, write_hull, write_json, BuildSummary, DataOptions, Dataset,
+    EvalSummary, ModelParams, SilhouetteCheck,
+};
+use vt_fv::hull::Aabb;
+use vt_fv::modelfile::ModelHeader;
+use vt_fv::orbit::Steadiness;
+use vt_fv::pipeline::EvalReport;
+use vt_fv::pipeline::{novel_view_in, ViewOptions};
+use vt_fv::texture::model_centre;
+use vt_fv::VoxelModel;
+use vt_io::output::{Output, OutputKind};
+
+use crate::{Error, Progress, Result};
+
+/// Where the photos, cameras and silhouettes come from, and how the model is made.
+#[derive(Debug, Clone)]
+pub struct FvData {
+    /// The data folder (photos and their cameras).
+    pub data: PathBuf,
+    /// How it is loaded (masks, silhouettes, scale, photo fit, scoring silhouettes).
+    pub options: DataOptions,
+    /// How the model is built (unless `model_file` is given).
+    pub model: ModelParams,
+    /// `vt fv hull`'s model file to use instead of building one.
+    pub model_file: Option<PathBuf>,
+}
+
+impl FvData {
+    /// The run's inputs, which no output may replace: the data folder, the masks folder, the
+    /// model file.
+    pub fn inputs(&self) -> Vec<&Path> {
+        [
+            Some(self.data.as_path()),
+            self.options.masks.as_deref(),
+            self.model_file.as_deref(),
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
+    /// Checks the options (before anything is read).
+    pub fn check(&self) -> Result<()> {
+        self.model.check()?;
+        self.options.check()?;
+        if let Some(d) = self.options.masks.as_ref().filter(|d| !d.is_dir()) {
+            return Err(Error::Param {
+                name: "masks",
+                value: d.display().to_string(),
+                why: "not a folder".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Loads the data folder; its notes (e.g. photos rescaled) go to `progress` as they come.
+    pub fn load(&self, progress: &mut dyn Progress) -> Result<Dataset> {
+        let d = Dataset::load(&self.data, &self.options)?;
+        for n in &d.notes {
+            progress.note(n);
+        }
+        Ok(d)
+    }
+}
+
+/// The model from all views, or all but `withheld`, with progress per stage.
+fn build(
+    d: &Dataset,
+    withheld: Option<usize>,
+    m: &ModelParams,
+    progress: &mut dyn Progress,
+) -> Result<(VoxelModel, BuildSummary)> {
+    let mut stage = String::new();
+    let r = d.build_without(withheld, m, &mut |s, i, n| {
+        if s != stage {
+            progress.finish();
+            progress.start(s, Some(n));
+            stage = s.to_string();
+        }
+        progress.at(i, None);
+    });
+    progress.finish();
+    r.map_err(|e| Error::In {
+        what: d
+            .cameras_file
+            .parent()
+            .unwrap_or(&d.cameras_file)
+            .display()
+            .to_string(),
+        cause: Box::new(e.into()),
+    })
+}
+
+/// The share of a model's surface seen by no camera, in words.
+pub fn unseen_words(model: &VoxelModel) -> String {
+    let unseen = model.surface.iter().filter(|v| v.seen_by == 0).count();
+    format!(
+        "{:.1} % seen by no camera",
+        100.0 * unseen as f64 / model.surface.len().max(1) as f64
+    )
+}
+
+/// The model a view is made from: built here from every view, or read from a model file (checked
+/// against the data folder), with one line saying which and how long it took.
+pub struct ModelUsed {
+    /// The model.
+    pub model: VoxelModel,
+    /// The model file's header, when read from one.
+    pub header: Option<ModelHeader>,
+    /// Where it came from, in words.
+    pub line: String,
+}
+
+fn model_for(data: &FvData, d: &Dataset, progress: &mut dyn Progress) -> Result<ModelUsed> {
+    let Some(f) = &data.model_file else {
+        let (model, s) = build(d, None, &data.model, progress)?;
+        let line = format!(
+            "model: built, {} surface voxels ({} passes, {}) in {:.2} s",
+            s.surface_voxels,
+            s.photo_hull_passes,
+            unseen_words(&model),
+            s.visual_hull_secs + s.photo_hull_secs
+        );
+        return Ok(ModelUsed {
+            model,
+            header: None,
+            line,
+        });
+    };
+    let t = Instant::now();
+    let (model, h) = read_model(f, d)?;
+    let line = format!(
+        "model: read from {} in {:.2} s ({} surface voxels, {}; building it took {:.2} s)",
+        f.display(),
+        t.elapsed().as_secs_f64(),
+        model.surface.len(),
+        unseen_words(&model),
+        h.build_secs
+    );
+    Ok(ModelUsed {
+        model,
+        header: Some(h),
+        line,
+    })
+}
+
+/// Refuses a model built without a view where every view is needed (render, orbit).
+fn whole(used: &ModelUsed, data: &FvData) -> Result<()> {
+    if let (Some(k), Some(f)) = (
+        used.header.as_ref().and_then(|h| h.withheld),
+        &data.model_file,
+    ) {
+        return Err(Error::Param {
+            name: "model",
+            value: f.display().to_string(),
+            why: format!("built without view {k} (for `vt fv eval --leave-out {k}`); render and orbit take a model of every view"),
+        });
+    }
+    Ok(())
+}
+
+/// `vt fv hull`'s job: the model of every view (or all but `leave_out`) into the folder `out`.
+#[derive(Debug, Clone)]
+pub struct HullJob {
+    /// The data and the model's settings (`model_file` is not used).
+    pub data: FvData,
+    /// Build without this view (for a leave-one-out with `--model`).
+    pub leave_out: Option<usize>,
+    /// The output folder: model.vtfv, hull.ply, summary.json.
+    pub out: PathBuf,
+}
+
+/// What [`hull`] built.
+pub struct HullDone {
+    /// The data folder as loaded.
+    pub dataset: Dataset,
+    /// The build's figures.
+    pub summary: BuildSummary,
+    /// Each silhouette against the hull of the others (3 views or more).
+    pub check: Option<SilhouetteCheck>,
+}
+
+/// Builds the model and writes it (atomic: the folder appears only when complete).
+pub fn hull(job: &HullJob, progress: &mut dyn Progress) -> Result<HullDone> {
+    job.data.check()?;
+    // The output is checked before any work: never the data folder, never a foreign path.
+    let dir = Output::dir(&job.out, OutputKind::Hull, &job.data.inputs())?;
+    let d = job.data.load(progress)?;
+    if let Some(k) = job.leave_out {
+        d.check_withheld(&[k])?;
+    }
+    let m = &job.data.model;
+    let (model, s) = build(&d, job.leave_out, m, progress)?;
+    let bounds = Aabb::new(s.bounds_min.into(), s.bounds_max.into());
+    // Fewer than 3 views leave nothing to check against.
+    let check = if d.cams.len() >= 3 {
+        Some(d.check_silhouettes(bounds).map_err(|e| Error::In {
+            what: "silhouette check".into(),
+            cause: Box::new(e.into()),
+        })?)
+    } else {
+        None
+    };
+    let header = d.model_header(job.leave_out, m, &s);
+    write_hull(dir.path(), &d, &model, &header, &s, check.as_ref())?;
+    dir.commit()?;
+    Ok(HullDone {
+        dataset: d,
+        summary: s,
+        check,
+    })
+}
+
+/// Checks that `out` names a file of one of `exts` (lower case), else says which to use.
+fn check_extension(out: &Path, exts: &[&str]) -> Result<()> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if ext.as_deref().is_some_and(|e| exts.contains(&e)) {
+        return Ok(());
+    }
+    let names: Vec<String> = exts.iter().map(|e| format!(".{e}")).collect();
+    Err(Error::Param {
+        name: "out",
+        value: out.display().to_string(),
+        why: format!("use a {} file name", names.join(" or ")),
+    })
+}
+
+/// `vt fv render`'s job: one new view into an image file.
+#[derive(Debug, Clone)]
+pub struct FvRenderJob {
+    /// The data and the model.
+    pub data: FvData,
+    /// How the view is made.
+    pub view: ViewOptions,
+    /// The new camera: a par line, `angle:DEG` or `between:I,J,T` (`Dataset::camera`).
+    pub camera: String,
+    /// The output image (.png or .jpg).
+    pub out: PathBuf,
+}
+
+/// What [`render`] made.
+pub struct FvRendered {
+    /// Where the model came from.
+    pub model_line: String,
+    /// Seconds of the view itself.
+    pub view_secs: f64,
+    /// What the method did, in words.
+    pub what: String,
+    /// The image size.
+    pub size: (u32, u32),
+}
+
+/// Renders one new view and writes it.
+pub fn render(job: &FvRenderJob, progress: &mut dyn Progress) -> Result<FvRendered> {
+    job.data.check()?;
+    check_extension(&job.out, &["png", "jpg", "jpeg"])?;
+    let inputs = job.data.inputs();
+    // Checked before any work (nothing is created yet).
+    drop(Output::file(&job.out, OutputKind::Image, &inputs)?);
+    let d = job.data.load(progress)?;
+    let (w, h) = d.size();
+    let view = job.view.params(w, h)?;
+    let camera = |target: nalgebra::Vector3<f64>, bounds: &Aabb| {
+        d.camera(&job.camera, job.data.options.scale, &target, bounds)
+            .map_err(|e| Error::Field {
+                name: "camera",
+                cause: Box::new(e.into()),
+            })
+    };
+    let used = if job.data.model_file.is_some() {
+        let used = model_for(&job.data, &d, progress)?;
+        whole(&used, &job.data)?;
+        used
+    } else {
+        // Check the camera against the volume before the expensive model build.
+        let bounds = d.volume(job.data.model.bounds).map_err(|e| Error::In {
+            what: "volume bounds from the silhouettes".into(),
+            cause: Box::new(e.into()),
+        })?;
+        camera(bounds.centre(), &bounds)?;
+        model_for(&job.data, &d, progress)?
+    };
+    // Ring cameras look at the model's centre.
+    let cam = camera(model_centre(&used.model), &used.model.grid.bounds())?;
+    let t = Instant::now();
+    progress.start(view.name(), Some(1));
+    // What eval scores: the model's render trimmed to the reference silhouettes, then the
+    // method's image.
+    let v = novel_view_in(
+        &used.model,
+        &d.cams,
+        &d.images,
+        Some(&d.masks),
+        &cam,
+        w,
+        h,
+        &view,
+    )
+    .map_err(|e| Error::Field {
+        name: "method",
+        cause: Box::new(Error::In {
+            what: view.name().into(),
+            cause: Box::new(e.into()),
+        }),
+    })?;
+    progress.finish();
+    let what = v.describe(&d.cams, &view);
+    if v.rough.coverage.count_ones() == 0 {
+        return Err(Error::Param {
+            name: "camera",
+            value: cam.name.clone(),
+            why: "camera sees none of the model".into(),
+        });
+    }
+    let view_secs = t.elapsed().as_secs_f64();
+    vt_io::writer::write_image(&job.out, &inputs, &v.guided)?;
+    Ok(FvRendered {
+        model_line: used.line,
+        view_secs,
+        what,
+        size: (w, h),
+    })
+}
+
+/// Most frames of one orbit.
+pub const MAX_ORBIT_FRAMES: usize = 10_000;
+/// Highest orbit frame rate.
+pub const MAX_ORBIT_FPS: u32 = 240;
+
+/// `vt fv orbit`'s job: views around the cameras' ring into an mp4 or GIF.
+#[derive(Debug, Clone)]
+pub struct OrbitJob {
+    /// The data and the model.
+    pub data: FvData,
+    /// How each view is made.
+    pub view: ViewOptions,
+    /// Frames in one turn, 1..=[`MAX_ORBIT_FRAMES`].
+    pub frames: usize,
+    /// Frames per second, 1..=[`MAX_ORBIT_FPS`].
+    pub fps: u32,
+    /// The output (.mp4 or .gif).
+    pub out: PathBuf,
+}
+
+impl OrbitJob {
+    /// Checks the frame count, frame rate and output name.
+    pub fn check(&self) -> Result<()> {
+        self.data.check()?;
+        check_extension(&self.out, &["mp4", "gif"])?;
+        if self.frames == 0 || self.frames > MAX_ORBIT_FRAMES {
+            return Err(Error::Param {
+                name: "frames",
+                value: self.frames.to_string(),
+                why: format!("must be in 1..={MAX_ORBIT_FRAMES}"),
+            });
+        }
+        if self.fps == 0 || self.fps > MAX_ORBIT_FPS {
+            return Err(Error::Param {
+                name: "fps",
+                value: self.fps.to_string(),
+                why: format!("must be in 1..={MAX_ORBIT_FPS}"),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// What [`orbit`] made.
+pub struct Orbited {
+    /// Where the model came from.
+    pub model_line: String,
+    /// Seconds of the frames (model excluded).
+    pub secs: f64,
+    /// The frame size.
+    pub size: (u32, u32),
+    /// Steps between consecutive frames (the orbit's steadiness).
+    pub steadiness: Steadiness,
+    /// How each frame was made, in words.
+    pub describe: String,
+}
+
+/// Renders the orbit from one model and encodes it (vt-io's video writer: atomic, marked).
+pub fn orbit(job: &OrbitJob, progress: &mut dyn Progress) -> Result<Orbited> {
+    job.check()?;
+    let inputs = job.data.inputs();
+    // Checked before any work (nothing is created yet).
+    drop(Output::file(&job.out, OutputKind::Video, &inputs)?);
+    let d = job.data.load(progress)?;
+    let (w, h) = d.size();
+    let view = job.view.params(w, h)?;
+    let ring = Ring::fit(&d.cams).map_err(|e| Error::In {
+        what: "orbit: the cameras' ring".into(),
+        cause: Box::new(e.into()),
+    })?;
+    // One model for every frame.
+    let used = model_for(&job.data, &d, progress)?;
+    whole(&used, &job.data)?;
+    let target = model_centre(&used.model);
+    let mut video = vt_io::writer::VideoWriter::create(&job.out, &inputs, w, h, job.fps as f64)?;
+    progress.start("orbit frames", Some(job.frames as u64));
+    let t = Instant::now();
+    let steadiness = vt_fv::orbit::orbit::<Error>(
+        &used.model,
+        &d.cams,
+        &d.images,
+        Some(&d.masks),
+        &ring,
+        &target,
+        job.frames,
+        (w, h),
+        &view,
+        &mut |i, angle, v| {
+            video.write(&v.guided).map_err(|e| Error::In {
+                what: format!("frame {i} (angle {angle:.1})"),
+                cause: Box::new(e.into()),
+            })?;
+            progress.at(i as u64 + 1, None);
+            Ok(())
+        },
+    )?;
+    let secs = t.elapsed().as_secs_f64();
+    progress.finish();
+    video.finish()?;
+    Ok(Orbited {
+        model_line: used.line,
+        secs,
+        size: (w, h),
+        steadiness,
+        describe: view.describe(),
+    })
+}
+
+/// `vt fv eval`'s job: views withheld one at a time, made without them, and scored.
+#[derive(Debug, Clone)]
+pub struct EvalJob {
+    /// The data and the model (a model file must have been built without the one withheld view).
+    pub data: FvData,
+    /// How each view is made.
+    pub view: ViewOptions,
+    /// The views to withhold, 0-based.
+    pub leave_out: Vec<usize>,
+    /// A folder for each view's images and eval.json.
+    pub save: Option<PathBuf>,
+}
+
+/// What [`eval`] measured.
+pub struct Evaluated {
+    /// The data folder as loaded (camera names for the reports).
+    pub dataset: Dataset,
+    /// One report per withheld view.
+    pub reports: Vec<EvalReport>,
+    /// Their summary (means, JSON).
+    pub summary: EvalSummary,
+    /// Where the model came from when read from a file.
+    pub model_line: Option<String>,
+    /// How each view was made, in words.
+    pub describe: String,
+}
+
+/// Withholds each view in turn, makes it, scores it and the baselines; saves images when asked.
+pub fn eval(job: &EvalJob, progress: &mut dyn Progress) -> Result<Evaluated> {
+    job.data.check()?;
+    let inputs = job.data.inputs();
+    let save = match &job.save {
+        Some(dir) if dir.exists() && !dir.is_dir() => {
+            return Err(Error::Param {
+                name: "save",
+                value: dir.display().to_string(),
+                why: "exists and is not a folder".into(),
+            })
+        }
+        Some(dir) => Some(Output::dir(dir, OutputKind::Folder, &inputs)?),
+        None => None,
+    };
+    if job.data.model_file.is_some() && job.leave_out.len() != 1 {
+        return Err(Error::Param {
+            name: "model",
+            value: String::new(),
+            why: "a model is built without one view; give that one view to --leave-out".into(),
+        });
+    }
+    let d = job.data.load(progress)?;
+    d.check_withheld(&job.leave_out)?;
+    let (w, h) = d.size();
+    let view = job.view.params(w, h)?;
+    let read = match &job.data.model_file {
+        Some(f) => {
+            let t = Instant::now();
+            let (model, header) = read_model(f, &d)?;
+            let line = format!(
+                "model: read from {} in {:.2} s ({} surface voxels; building it took {:.2} s)",
+                f.display(),
+                t.elapsed().as_secs_f64(),
+                model.surface.len(),
+                header.build_secs
+            );
+            Some((f, model, header, line))
+        }
+        None => None,
+    };
+    progress.start("leave one out", Some(job.leave_out.len() as u64));
+    let mut reports = Vec::new();
+    for (i, &k) in job.leave_out.iter().enumerate() {
+        let (r, imgs) = match &read {
+            Some((f, model, header, _)) => d.leave_one_out_with(k, model, header, f, &view)?,
+            None => d
+                .leave_one_out(k, &job.data.model, &view)
+                .map_err(|e| Error::In {
+                    what: format!("leaving out view {k} ({})", d.cams[k].name),
+                    cause: Box::new(e.into()),
+                })?,
+        };
+        if let Some(dir) = &save {
+            let sub = dir.path().join(format!("view_{k:02}"));
+            std::fs::create_dir(&sub).map_err(|e| vt_io::Error::io(&sub, e))?;
+            write_eval_images(&sub, &imgs, &d.score_masks[k])?;
+        }
+        reports.push(r);
+        progress.at(i as u64 + 1, None);
+    }
+    progress.finish();
+    let summary = EvalSummary::new(view.name(), &reports, &d.cams);
+    if let Some(dir) = save {
+        write_json(&dir.path().join("eval.json"), &summary.views)?;
+        dir.commit()?;
+    }
+    Ok(Evaluated {
+        dataset: d,
+        reports,
+        summary,
+        model_line: read.map(|(.., line)| line),
+        describe: view.describe(),
+    })
+}
