@@ -77,6 +77,14 @@ pub struct ClipParams {
     /// Closing radius in pixels applied to the silhouettes first (4): thin dark grooves that
     /// one photo's threshold misses would otherwise cut slits through the object.
     pub close: u32,
+    /// Pixels the (closed) silhouettes are dilated by for the test (1): the tolerance of the
+    /// cameras' calibration and segmentation. With real photos the silhouettes' cones do not
+    /// meet exactly, their intersection projects about a pixel inside a photo's own outline, and
+    /// a render trimmed to it leaves a black rim inside the object (kettle leave-one-out, 28
+    /// views, 128^3: with 1 instead of 0, the textured result 24.10 vs 21.28 dB inside the
+    /// withheld silhouette, 22.06 vs 20.85 over that silhouette united with the image's own
+    /// coverage; templeSparseRing 21.68 vs 21.35, 20.29 vs 20.23).
+    pub slack: u32,
 }
 
 impl Default for ClipParams {
@@ -86,6 +94,7 @@ impl Default for ClipParams {
             behind: 8.0,
             step: 0.25,
             close: 4,
+            slack: 1,
         }
     }
 }
@@ -99,13 +108,20 @@ struct HullTest {
 }
 
 impl HullTest {
-    fn new(cams: &[Camera], masks: &[Mask], close: u32) -> Self {
+    fn new(cams: &[Camera], masks: &[Mask], close: u32, slack: u32) -> Self {
         use rayon::prelude::*;
         Self {
             projs: cams.iter().map(|c| c.projection()).collect(),
             masks: masks
                 .par_iter()
-                .map(|m| m.dilate(close).erode(close))
+                .map(|m| {
+                    let c = m.dilate(close).erode(close);
+                    if slack > 0 {
+                        c.dilate(slack)
+                    } else {
+                        c
+                    }
+                })
                 .collect(),
         }
     }
@@ -149,7 +165,7 @@ pub fn clip_to_silhouettes(
     };
     let a = cam.r.transpose() * kinv;
     let b = -(cam.r.transpose() * cam.t);
-    let hull = HullTest::new(cams, masks, p.close);
+    let hull = HullTest::new(cams, masks, p.close, p.slack);
     let steps = ((p.before + p.behind) / p.step.max(1e-3)).round() as i64;
     let drop: Vec<usize> = (0..(w as usize * h as usize))
         .into_par_iter()
@@ -200,7 +216,7 @@ pub fn grow_to_silhouettes(
     };
     let a = cam.r.transpose() * kinv;
     let b = -(cam.r.transpose() * cam.t);
-    let hull = HullTest::new(cams, masks, p.close);
+    let hull = HullTest::new(cams, masks, p.close, p.slack);
     let steps = ((p.before + p.behind) / p.step.max(1e-3)).round() as i64;
     let mut total = 0;
     for _ in 0..rings {
