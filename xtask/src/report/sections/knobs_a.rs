@@ -343,7 +343,9 @@ fn window(ctx: &mut Ctx) -> Result<Vec<Curve>> {
              neighbour pair, on the masks of {SCENE}, with the window w. x: search time; y: mean \
              phase error of the transitions (frames; the true motion phase of the frame shown \
              after a switch against the phase playback would have reached), over the frames on \
-             each loop. Default w = 3 (the thesis)."
+             each loop. Default w = 3 (the thesis). The synthetic motion repeats exactly, so every \
+             w finds the true phases here; the same knob on real footage has its own curve, \
+             \"Window w of eq. (1) and (2) on real footage\"."
         ),
         Axis::new("loop + transition search (ms)", Better::Lower),
         Axis::new("transition phase error (frames)", Better::Lower),
