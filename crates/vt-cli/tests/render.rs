@@ -250,6 +250,45 @@ fn render_outputs_and_bad_input() {
     }
     assert_eq!(count_pngs(&t.join("c")), 4);
 
+    // The ownership mark cannot be copied: vt's own mp4 is replaced, a copy or an ffmpeg remux
+    // of it under another name (which keeps its metadata, vt's mark included) is refused.
+    let a = t.join("a.mp4");
+    let (copy, remux) = (t.join("copy.mp4"), t.join("remux.mp4"));
+    std::fs::copy(&a, &copy).unwrap();
+    let status = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-i", s(&a), "-c", "copy", s(&remux)])
+        .status()
+        .expect("run ffmpeg");
+    assert!(status.success());
+    for other in [&copy, &remux] {
+        let before = std::fs::read(other).unwrap();
+        assert!(
+            before.windows(9).any(|w| w == b"vt-output"),
+            "{} carries vt's mark",
+            s(other)
+        );
+        vt_err(
+            &["render", d, "--path", "sweep:4", "--out", s(other)],
+            &[s(other)],
+        );
+        assert_eq!(
+            std::fs::read(other).unwrap(),
+            before,
+            "{} untouched",
+            s(other)
+        );
+    }
+    vt_ok(&[
+        "render",
+        d,
+        "--path",
+        "sweep:4",
+        "--fps",
+        "10",
+        "--out",
+        s(&a),
+    ]);
+
     let out = t.join("never.mp4");
     vt_err(
         &["render", d, "--path", "0s:0,1s:5", "--out", s(&out)],
