@@ -73,6 +73,8 @@ pub struct Analyzed {
     pub scene: SceneFile,
     /// Seconds of vt-core's analysis alone (decoding included, writing excluded).
     pub analysis_secs: f64,
+    /// Seconds of measuring the seams on rendered frames ([`record_seams`]).
+    pub seams_secs: f64,
     /// Seconds of the whole use case.
     pub total_secs: f64,
 }
@@ -163,13 +165,16 @@ pub fn analyze_into(
     let mut scene = vt_io::scene::write_analysis(dir, &analysis, params, fps)?;
     // The seams as a render shows them, now that there is a scene to render.
     observer.progress.start("seams", None);
+    let seams_started = Instant::now();
     record_seams(dir, &mut scene)?;
+    let seams_secs = seams_started.elapsed().as_secs_f64();
     observer.progress.finish();
     scene.write(dir)?;
     Ok(Analyzed {
         analysis,
         scene,
         analysis_secs,
+        seams_secs,
         total_secs: started.elapsed().as_secs_f64(),
     })
 }
@@ -257,11 +262,14 @@ pub struct AnalysisSummary<'a> {
     pub scene: &'a SceneFile,
     /// Wall time of the whole run, seconds.
     pub total_secs: f64,
+    /// Of which measuring the seams on rendered frames.
+    pub seams_secs: f64,
 }
 
 impl std::fmt::Display for AnalysisSummary<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let (a, scene, total_s) = (self.analysis, self.scene, self.total_secs);
+        let seams_s = self.seams_secs;
         writeln!(
             f,
             "{:>4}  {:>6}  {:>12}  {:>6}  {:>10}  {:>9}  {:>11}  {:>7}  {:>9}  {:>8}",
@@ -399,7 +407,7 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             parallax,
         } = a.timings;
         writeln!(f,
-        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2}, parallax {:.2})",
+        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2}, parallax {:.2}, seams {seams_s:.2})",
         decode.as_secs_f64(),
         median.as_secs_f64(),
         masks.as_secs_f64(),

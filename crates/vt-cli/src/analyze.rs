@@ -178,6 +178,7 @@ pub fn run_as(args: AnalyzeArgs, shown: &Path) -> Result<SceneFile> {
             analysis: &done.analysis,
             scene: &done.scene,
             total_secs: done.total_secs,
+            seams_secs: done.seams_secs,
         }
     );
     println!("scene: {}", shown.display());

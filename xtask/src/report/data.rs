@@ -25,6 +25,18 @@ pub fn build_scene(
     params: &AnalyzeParams,
     dir: &Path,
 ) -> Result<(SceneAnalysis, f64, LoadedScene)> {
+    let done = analyze_frames(frames, points, params, dir)?;
+    let loaded = LoadedScene::open(dir)?;
+    Ok((done.analysis, done.analysis_secs, loaded))
+}
+
+/// [`build_scene`]'s analysis, with all its figures (seconds per part).
+pub fn analyze_frames(
+    frames: &[Vec<RgbImage>],
+    points: &[Vec<Point>],
+    params: &AnalyzeParams,
+    dir: &Path,
+) -> Result<vt_app::analyze::Analyzed> {
     std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
     let mut sources: Vec<MemorySource> = frames
         .iter()
@@ -38,7 +50,7 @@ pub fn build_scene(
         .iter_mut()
         .map(|s| s as &mut dyn vt_core::analysis::FrameSource)
         .collect();
-    let done = vt_app::analyze::analyze_into(
+    Ok(vt_app::analyze::analyze_into(
         dir,
         &mut refs,
         points,
@@ -46,9 +58,7 @@ pub fn build_scene(
         Default::default(),
         None,
         &mut vt_app::Silent,
-    )?;
-    let loaded = LoadedScene::open(dir)?;
-    Ok((done.analysis, done.analysis_secs, loaded))
+    )?)
 }
 
 /// System A's synthetic scene with truth.
