@@ -72,6 +72,9 @@ pub enum Error {
         /// What is wrong with its value.
         cause: Box<Error>,
     },
+    /// A synthetic scene that could not be made or written (vt-synth's message, naming the file).
+    #[error("{0}")]
+    Synth(String),
     /// A clip too short for the minimum loop length, with the way out: a minimum loop length of
     /// `max_min_length` or less.
     #[error(

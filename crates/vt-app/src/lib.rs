@@ -10,6 +10,7 @@
 //! | a viewpoint path rendered into a file | [`render::render`] | `vt render` |
 //! | a scene as a web page | [`export::export`] | `vt export` |
 //! | a scene served live | [`view::open`] | `vt view` |
+//! | test views with truth from one real video | [`synth::real`] | `vt synth real` |
 //! | photos into a voxel model | [`fv::hull`] | `vt fv hull` |
 //! | a new view, an orbit, withheld views scored | [`fv::render`], [`fv::orbit`], [`fv::eval`] | `vt fv render`, `orbit`, `eval` |
 //!
@@ -25,6 +26,7 @@ pub mod fv;
 pub mod play;
 mod progress;
 pub mod render;
+pub mod synth;
 pub mod view;
 
 pub use error::{Error, Result};

@@ -3,13 +3,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::Args;
-use vt_io::frames::ViewSource;
-use vt_synth::files::{write_real, RealFiles};
-use vt_synth::real::{RealParams, RealScene};
+use vt_synth::real::RealParams;
 
-use crate::progress::bar;
+use crate::flags::flagged;
+use crate::progress::Bars;
 
 #[derive(Args)]
 pub struct RealArgs {
@@ -57,47 +56,36 @@ pub struct RealArgs {
 }
 
 pub fn run(a: &RealArgs) -> Result<()> {
-    let frames = ViewSource::open(&a.source)?.read_all()?;
-    let n_source = frames.len();
-    let fps = match a.fps {
-        Some(f) if f.is_finite() && f > 0.0 && f <= 1000.0 => f,
-        Some(f) => bail!("--fps {f} must be in (0, 1000]"),
-        None if a.source.is_file() => vt_io::video::median_frame_rate(&a.source)?.unwrap_or(25.0),
-        None => 25.0,
-    };
-    let params = RealParams {
-        views: a.views,
-        frames: a.frames,
-        usable: a.usable,
-        seed: a.seed,
-        slant_deg: a.slant,
-        baseline: a.baseline,
-        exposure: a.exposure,
-        points: a.points,
-        marking_noise: a.marking_noise,
-        ..Default::default()
-    };
-    let scene = RealScene::new(frames, params)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", a.source.display()))?;
-    let files = RealFiles {
-        fps,
+    let job = vt_app::synth::SynthRealJob {
+        source: a.source.clone(),
+        out: a.out.clone(),
+        params: RealParams {
+            views: a.views,
+            frames: a.frames,
+            usable: a.usable,
+            seed: a.seed,
+            slant_deg: a.slant,
+            baseline: a.baseline,
+            exposure: a.exposure,
+            points: a.points,
+            marking_noise: a.marking_noise,
+            ..Default::default()
+        },
+        fps: a.fps,
         crf: a.crf,
         png: a.png,
     };
-    let pb = bar((a.views * a.frames) as u64, "synth real views");
-    let source = a.source.display().to_string();
-    write_real(&a.out, &scene, &source, &files, &|| pb.inc(1))?;
-    pb.finish_and_clear();
-    let (w, h) = scene.size();
+    let done = vt_app::synth::real(&job, &mut Bars::default()).map_err(flagged)?;
+    let (w, h) = done.size;
     println!(
         "wrote {} views x {} frames ({}x{}, {:.3} fps, from {} source frames of {}) to {}",
         a.views,
         a.frames,
         w,
         h,
-        fps,
-        scene.usable().min(n_source),
-        source,
+        done.fps,
+        done.used,
+        a.source.display(),
         a.out.display()
     );
     Ok(())
