@@ -53,6 +53,9 @@ fn main() {
                 "tol" => t.depth_tolerance = f(),
                 "soft" => t.soften_sigma = f(),
                 "agree" => t.agree_sd = f(),
+                "reach" => t.reach_deg = f(),
+                "consensus" => t.consensus = f(),
+                "within" => t.soften_within = f() > 0.0,
                 "eps" => t.eps_deg = f(),
                 "pthr" => model.photo_threshold = f(),
                 "grow" => view.grow = f() as u32,
@@ -66,6 +69,7 @@ fn main() {
         let mut per = Vec::new();
         let (mut ulead, mut usum) = (Vec::new(), 0.0);
         let (mut iou_sum, mut uabs, mut cabs) = (0.0, 0.0, 0.0);
+        let mut ssim_sum = 0.0;
         for k in 0..n {
             let t = std::time::Instant::now();
             let (r, imgs) = data.leave_one_out(k, &model, &view).unwrap();
@@ -103,15 +107,17 @@ fn main() {
             cabs += vt_fv::eval::psnr(&comp, &imgs.truth, Some(&band)).unwrap();
             usum += ug.psnr - ub.psnr;
             uabs += ug.psnr;
-            per.push(format!("{lead:+.1}"));
+            per.push(format!("{lead:+.2}"));
             sum += r.guided.inside.psnr;
+            ssim_sum += r.guided.inside.ssim;
             base += r.rough_blur2.inside.psnr;
             min = min.min(lead);
             below += usize::from(lead < 1.0);
         }
         println!(
-            "{name:<12} result {:.2} blur2 {:.2} lead mean {:+.2} min {:+.2} below 1 dB {below}/{n} | {:.2} s/view | {}",
+            "{name:<12} result {:.2} (SSIM {:.3}) blur2 {:.2} lead mean {:+.2} min {:+.2} below 1 dB {below}/{n} | {:.2} s/view | {}",
             sum / n as f64,
+            ssim_sum / n as f64,
             base / n as f64,
             (sum - base) / n as f64,
             min,

@@ -26,7 +26,24 @@ fn main() {
         grid,
         ..Default::default()
     };
-    let view = ViewParams::default();
+    let mut view = ViewParams::default();
+    // VT_CFG=key=value,...: texturing settings as loo_data's keys (a subset).
+    if let Ok(cfg) = std::env::var("VT_CFG") {
+        for pair in cfg.split(',').filter(|p| !p.is_empty()) {
+            let (k, v) = pair.split_once('=').expect("key=value");
+            let f = || v.parse::<f64>().unwrap();
+            let t = &mut view.texture;
+            match k {
+                "refs" => t.references = f() as usize,
+                "soft" => t.soften_sigma = f(),
+                "agree" => t.agree_sd = f(),
+                "reach" => t.reach_deg = f(),
+                "eps" => t.eps_deg = f(),
+                "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
+                _ => panic!("unknown key {k}"),
+            }
+        }
+    }
     if args[4] == "masks" {
         // Every photo darkened outside its carving silhouette.
         for (k, (img, m)) in data.images.iter().zip(&data.masks).enumerate() {
