@@ -28,6 +28,8 @@ pub const FORMAT: &str = "vt-report 1";
 pub struct Ctx {
     /// `--quick`: smaller inputs, fewer settings.
     pub quick: bool,
+    /// `--only TEXT`: only the sections and knobs whose title holds TEXT (any case).
+    pub only: Option<String>,
     /// The report directory being written (temporary until the run completes).
     pub dir: PathBuf,
     /// Scratch space for scene directories; removed at the end.
@@ -37,6 +39,13 @@ pub struct Ctx {
 }
 
 impl Ctx {
+    /// Whether a section or knob titled `title` is measured in this run (`--only`).
+    pub fn wants(&self, title: &str) -> bool {
+        self.only
+            .as_ref()
+            .is_none_or(|o| title.to_lowercase().contains(&o.to_lowercase()))
+    }
+
     /// Picks the quick or the full value.
     pub fn pick<T>(&self, quick: T, full: T) -> T {
         if self.quick {
@@ -154,7 +163,7 @@ pub fn testdata() -> PathBuf {
     workspace_root().join("testdata")
 }
 
-const USAGE: &str = "cargo xtask report [--quick] [--out DIR]   (default DIR: target/report)";
+const USAGE: &str = "cargo xtask report [--quick] [--only TEXT] [--out DIR]   (default DIR: target/report; --only: just the sections and knobs whose title holds TEXT)";
 
 /// Refuses to replace anything that is not an earlier report (or an empty directory).
 fn check_replaceable(out: &Path) -> Result<()> {
@@ -185,11 +194,18 @@ fn check_replaceable(out: &Path) -> Result<()> {
 /// Runs the report.
 pub fn run(args: &[String]) -> Result<()> {
     let mut quick = false;
+    let mut only = None;
     let mut out = workspace_root().join("target/report");
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
             "--quick" => quick = true,
+            "--only" => {
+                let v = it
+                    .next()
+                    .with_context(|| format!("--only needs a title's words\nusage: {USAGE}"))?;
+                only = Some(v.clone());
+            }
             "--out" => {
                 let v = it
                     .next()
@@ -211,6 +227,7 @@ pub fn run(args: &[String]) -> Result<()> {
     }
     let mut ctx = Ctx {
         quick,
+        only,
         dir: dir.clone(),
         work: tempfile::Builder::new().prefix("vt-report-").tempdir()?,
         data: data::Cache::default(),
@@ -218,6 +235,10 @@ pub fn run(args: &[String]) -> Result<()> {
     let mut sections = Vec::new();
     let mut failed = Vec::new();
     for (id, title, intro, build) in sections::all() {
+        // The curves section filters its knobs itself.
+        if id != "curves" && !ctx.wants(title) {
+            continue;
+        }
         let t = Instant::now();
         eprintln!("report: {title}...");
         let items = match build(&mut ctx) {

@@ -53,11 +53,13 @@ fn curves(ctx: &mut Ctx) -> Result<Vec<Item>> {
             .into(),
     }];
     let mut failed = Vec::new();
-    for knob in knobs_a::knobs()
+    let knobs: Vec<Knob> = knobs_a::knobs()
         .into_iter()
         .chain(knobs_a_real::knobs())
         .chain(knobs_b::knobs())
-    {
+        .filter(|k| ctx.wants(k.title))
+        .collect();
+    for knob in knobs {
         match knob.measure {
             Ok(f) => {
                 let t = std::time::Instant::now();
