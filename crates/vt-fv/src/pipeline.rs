@@ -105,9 +105,14 @@ impl ViewParams {
                 self.guided.patch
             ),
             Method::Textured => format!(
-                "textured: the {} photo{} nearest in viewing direction (and the next one, fading in or out as the view moves) projected onto the voxel model's surface, blended per pixel and softened where they disagree{}",
+                "textured: the {} photo{} nearest in viewing direction (and the next one, fading in or out as the view moves){} projected onto the voxel model's surface, blended per pixel and softened where they disagree{}",
                 self.texture.references,
                 if self.texture.references == 1 { "" } else { "s" },
+                if self.texture.reach_deg > 0.0 {
+                    format!(", with every other within {} degrees,", self.texture.reach_deg)
+                } else {
+                    String::new()
+                },
                 if self.refine {
                     ", then refined by guided synthesis"
                 } else {
