@@ -379,12 +379,11 @@ fn window(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         Curve::new(
             "a-window-tree",
             "Window w of eq. (1) on footage that never repeats",
-            format!(
-                "The loop search with window w on tree.avi's 54 hand-free frames as one view \
-                 (a real tree in wind: no exact repeat; minimum length 20). x: loop search \
-                 time; y: the seam score `vt analyze` prints, the wrap's rendered step over the \
-                 median ordinary step (1 = as large as an ordinary step). Default w = 3."
-            ),
+            "The loop search with window w on tree.avi's 54 hand-free frames as one view \
+             (a real tree in wind: no exact repeat; minimum length 20). x: loop search time; y: \
+             the seam score `vt analyze` prints, the wrap's rendered step over the median \
+             ordinary step (1 = as large as an ordinary step). Default w = 3."
+                .to_string(),
             Axis::new("loop search (ms)", Better::Lower),
             Axis::new("seam score (rendered wrap / ordinary step)", Better::Lower),
             single,
