@@ -9,6 +9,7 @@
 //! | a viewpoint path played into frames | [`play::play`] | `vt render`, `vt export`'s checks |
 //! | a viewpoint path rendered into a file | [`render::render`] | `vt render` |
 //! | a scene as a web page | [`export::export`] | `vt export` |
+//! | the whole of System A on a built-in scene, checked | [`demo::demo`] | `vt demo` |
 //! | a scene served live | [`view::open`] | `vt view` |
 //! | test views with truth from one real video | [`synth::real`] | `vt synth real` |
 //! | photos into a voxel model | [`fv::hull`] | `vt fv hull` |
@@ -20,6 +21,7 @@
 //! binary maps to its flag.
 
 pub mod analyze;
+pub mod demo;
 mod error;
 pub mod export;
 pub mod fv;

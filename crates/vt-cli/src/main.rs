@@ -12,7 +12,6 @@ mod synth;
 mod synth_real;
 mod view;
 
-use std::ffi::OsString;
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
@@ -101,7 +100,7 @@ fn main() {
     }
     let result = match cli.command {
         Command::Synth { what } => synth::run(what),
-        Command::Analyze(args) => analyze::run(args).map(|_| ()),
+        Command::Analyze(args) => analyze::run(args),
         Command::Render(args) => render::run(args),
         Command::View(args) => view::run(args),
         Command::Export(args) => export::run(args),
@@ -168,70 +167,24 @@ fn usage_error_line(text: &str) -> String {
         .join("'")
 }
 
-/// A command's arguments from `args` as a user would type them after its name, so `vt demo`
-/// runs `analyze` and `render` with their own defaults.
-fn parse_args<T: clap::Args + clap::FromArgMatches>(
-    name: &'static str,
-    args: Vec<OsString>,
-) -> anyhow::Result<T> {
-    let cmd = T::augment_args(clap::Command::new(name));
-    let matches = cmd.try_get_matches_from(std::iter::once(OsString::from(name)).chain(args))?;
-    Ok(T::from_arg_matches(&matches)?)
-}
-
-/// `vt demo`: synthesise, analyse, and compare with the truth. The whole folder is one vt
-/// output: built under a temporary name and moved into place only when every step succeeded.
+/// `vt demo`: synthesise, analyse, check against the truth, render a sweep (vt-app's demo);
+/// prints what `vt analyze` and `vt render` would, with the final paths.
 fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
-    if !(16..=2000).contains(&frames) {
-        anyhow::bail!("--frames {frames} must be in 16..=2000");
-    }
-    let output = vt_io::output::Output::dir(&out, vt_io::output::OutputKind::Demo, &[])?;
-    let root = output.path().to_path_buf();
-    let data = root.join("textures");
-    let params = vt_synth::TextureParams {
-        views: 3,
-        frames,
-        ..Default::default()
-    };
-    eprintln!(
-        "1/3 synthesising a {}-view scene ({} frames of {}x{} each) in {}",
-        params.views,
-        frames,
-        params.width,
-        params.height,
-        out.join("textures").display()
+    let done =
+        vt_app::demo::demo(&out, frames, &mut progress::Bars::default()).map_err(flags::flagged)?;
+    let a = &done.analyzed;
+    print!(
+        "{}",
+        vt_app::analyze::AnalysisSummary {
+            analysis: &a.analysis,
+            scene: &a.scene,
+            total_secs: a.total_secs,
+            seams_secs: a.seams_secs,
+        }
     );
-    synth::write_textures(&data, &params)?;
-    let scene = root.join("scene");
-    eprintln!("2/3 analysing it into {}", out.join("scene").display());
-    let mut args: Vec<OsString> = (0..params.views)
-        .map(|p| data.join(vt_synth::files::view_dir(p)).into())
-        .collect();
-    let min_length = (frames / 2).clamp(4, 100).to_string();
-    args.extend(["--points".into(), data.join("points.txt").into()]);
-    args.extend(["--out".into(), scene.clone().into()]);
-    args.extend(["--min-length", &min_length, "--alternatives", "2"].map(OsString::from));
-    let args = parse_args::<analyze::AnalyzeArgs>("analyze", args)?;
-    let result = analyze::run_as(args, &out.join("scene"))?;
-    let report = vt_synth::files::check_scene(&data.join("truth.json"), &result)?;
-    println!("{report}");
-    // A sweep across all views; mp4 when ffmpeg is there, PNG frames otherwise.
-    let video_name = if vt_io::video::ffmpeg_available() {
-        "sweep.mp4"
-    } else {
-        "sweep_frames"
-    };
-    eprintln!(
-        "3/3 rendering a sweep across all views to {}",
-        out.join(video_name).display()
-    );
-    let mut args: Vec<OsString> = vec![scene.into(), "--out".into(), root.join(video_name).into()];
-    args.extend(["--path", "sweep:0.5", "--fps", "30"].map(OsString::from));
-    render::run_as(
-        parse_args::<render::RenderArgs>("render", args)?,
-        &out.join(video_name),
-    )?;
-    output.commit()?;
-    println!("video: {}", out.join(video_name).display());
+    println!("scene: {}", done.scene.display());
+    println!("{}", done.check);
+    render::print_rendered(&done.rendered.playback, &done.video);
+    println!("video: {}", done.video.display());
     Ok(())
 }

@@ -86,17 +86,10 @@ impl RenderOptions {
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
-    let shown = args.out.clone();
-    run_as(args, &shown)
-}
-
-/// [`run`], naming the output `shown` in what it prints (`vt demo` writes inside its own
-/// temporary folder, which the user never sees).
-pub fn run_as(args: RenderArgs, shown: &Path) -> Result<()> {
     let job = RenderJob {
         scene: args.scene,
         path: args.path,
-        out: args.out,
+        out: args.out.clone(),
         fps: args.fps,
         duration: args.duration,
         long: args.long,
@@ -104,9 +97,14 @@ pub fn run_as(args: RenderArgs, shown: &Path) -> Result<()> {
         encode: vt_io::writer::EncodeParams { crf: args.crf },
     };
     let done = vt_app::render::render(&job, &mut Bars::default()).map_err(flagged)?;
-    let played = done.playback;
-    // The same seam score as `vt analyze` prints: a jump's rendered step over the median
-    // ordinary step (vt_core::seam), here over this render's own frames.
+    print_rendered(&done.playback, &args.out);
+    Ok(())
+}
+
+/// `vt render`'s line: frames, where, jumps and their seam score (the same score as `vt
+/// analyze` prints: a jump's rendered step over the median ordinary step, over this render's own
+/// frames).
+pub fn print_rendered(played: &vt_app::play::Playback, shown: &Path) {
     let seam = match played.mean_seam {
         Some(m) => format!(
             "seam score {m:.3} over {} jumps (1 = one ordinary frame step)",
@@ -121,5 +119,4 @@ pub fn run_as(args: RenderArgs, shown: &Path) -> Result<()> {
         played.wraps,
         played.switches,
     );
-    Ok(())
 }
