@@ -131,6 +131,13 @@ fn main() {
                 "splat" => p.splat_scale = v.parse().unwrap(),
                 "partly" => p.colour_partly_seen = v == "1",
                 "agree" => p.consistency = vt_fv::Consistency::Agree(v.parse().unwrap()),
+                "agreefrom" => {
+                    let (a, b) = v.split_once('/').expect("share/min");
+                    p.consistency = vt_fv::Consistency::AgreeFrom {
+                        share: a.parse().unwrap(),
+                        min: b.parse().unwrap(),
+                    }
+                }
                 "share" => p.visibility = vt_fv::Visibility::Footprint(v.parse().unwrap()),
                 _ => panic!("unknown key {k}"),
             }

@@ -8,7 +8,7 @@
 //! `SilhouetteParams::scoring()` unless the keys `sthr`, `sdil`, `sero` say otherwise, carved
 //! from `SilhouetteParams::carving()` unless `dil`/`ero`/`thr` say otherwise); VIEWS: `1,2,3` (0-based); GRID: voxels along the longest side; CONFIG:
 //! `name:key=value,...` with keys `method` (textured|paper|refine), `refs`, `smooth`, `sweep`,
-//! `step`, `window`, `fill`, `tol`, `threshold`, `keep` (0|1), `patch`. Prints one row per view
+//! `step`, `window`, `fill`, `tol`, `threshold`, `keep` (0|1), `patch`, `cagree` (carving: `Consistency::Agree` share), `cagreemin` (its fewest cameras). Prints one row per view
 //! and configuration, then the means.
 
 use std::path::Path;
@@ -76,6 +76,17 @@ fn main() {
                 "eps" => view.texture.eps_deg = f(),
                 "threshold" => photo.threshold = f(),
                 "keep" => photo.keep_silhouettes = f() != 0.0,
+                "cagree" => photo.consistency = vt_fv::Consistency::Agree(f()),
+                "cagreemin" => {
+                    let share = match photo.consistency {
+                        vt_fv::Consistency::Agree(s) => s,
+                        _ => 0.8,
+                    };
+                    photo.consistency = vt_fv::Consistency::AgreeFrom {
+                        share,
+                        min: f() as usize,
+                    }
+                }
                 "dil" => sil.dilate = f() as u32,
                 "thr" => sil.threshold = f(),
                 "sthr" => scoring.threshold = f(),
