@@ -3,7 +3,8 @@
 //! frame and fps of the whole frame, the share spent decoding the stores (timed apart, over the
 //! same frames in the same order), and the store bytes each frame reads. The viewpoint sweeps
 //! across the views (or stays at view 0 for a single view), so loop wraps and view switches
-//! (jumps to other frames and views) are in the run.
+//! (jumps to other frames and views) are in the run. With `VT_RENDER_HASH=1` it also prints a
+//! checksum (FNV-1a) of every rendered frame, outside the timing: a speed change must keep it.
 
 use std::time::Instant;
 
@@ -36,13 +37,26 @@ fn main() -> Result<()> {
     let (w, h) = renderer.size();
     let mut out = image::RgbImage::new(w, h);
     let mut choices = Vec::with_capacity(frames);
+    let hash = std::env::var_os("VT_RENDER_HASH").is_some();
+    let mut fnv = 0xcbf2_9ce4_8422_2325u64;
+    let mut hashing = std::time::Duration::ZERO;
     let start = Instant::now();
     for i in 0..frames {
         let choice = player.advance(&scene.render, q(i))?;
         renderer.render_into(&scene.objects, q(i), &choice, &mut out)?;
         choices.push(choice);
+        if hash {
+            let t = Instant::now();
+            for &b in out.as_raw() {
+                fnv = (fnv ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+            }
+            hashing += t.elapsed();
+        }
     }
-    let render_s = start.elapsed().as_secs_f64();
+    let render_s = (start.elapsed() - hashing).as_secs_f64();
+    if hash {
+        println!("{dir}: checksum of {frames} frames {fnv:016x}");
+    }
     // The stores alone, over the shown frames in the same order, on a freshly loaded scene.
     let fresh = LoadedScene::open(std::path::Path::new(dir))?;
     let mut patch = ObjectPatch::default();

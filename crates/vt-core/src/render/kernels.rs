@@ -407,6 +407,15 @@ pub(super) fn composite(
     }
     let inv = h.raw().1;
     let row_len = ow as usize * 3;
+    // The dynamic region's alpha is read at the source pixel: the fast path needs the box
+    // inside it (always, in a scene: both are the view's size).
+    let inside = dynamic.is_none_or(|d| {
+        patch.x0 + patch.width <= d.width() && patch.y0 + patch.height <= d.height()
+    });
+    if let (Some(shift), true) = (integer_shift(inv), inside) {
+        composite_shifted(patch, shift, gain, alpha, dynamic, region, out);
+        return;
+    }
     let rows = &mut out.as_mut()[region.1 as usize * row_len..region.3 as usize * row_len];
     let ctx = CompositeCtx {
         patch,
@@ -432,6 +441,142 @@ pub(super) fn composite(
                 raw,
             })
         });
+}
+
+/// `(tx, ty)` when `inv` maps output pixel `(x, y)` to source `(x + tx, y + ty)` exactly: the
+/// identity (a single view, or q at a view whose fit is exact) or a shift by whole pixels.
+fn integer_shift(inv: &nalgebra::Matrix3<f64>) -> Option<(i64, i64)> {
+    let (tx, ty) = (inv[(0, 2)], inv[(1, 2)]);
+    let whole = |t: f64| t.fract() == 0.0 && t.abs() <= 1e9;
+    (inv[(0, 0)] == 1.0
+        && inv[(0, 1)] == 0.0
+        && inv[(1, 0)] == 0.0
+        && inv[(1, 1)] == 1.0
+        && inv[(2, 0)] == 0.0
+        && inv[(2, 1)] == 0.0
+        && inv[(2, 2)] == 1.0
+        && whole(tx)
+        && whole(ty))
+    .then_some((tx as i64, ty as i64))
+}
+
+/// [`composite`] when the mapping is a shift by whole pixels: every output pixel's source is
+/// one patch pixel, its bilinear taps have weights `(1, 0, 0, 0)` (nearest picks the same
+/// pixel), so the general path's colour is that pixel's own and its coverage its mask bit.
+/// The same arithmetic on the same values, in the same order, as [`CompositeRow`]: the same
+/// bytes, without the per-pixel projection and tap tests; only the box's pixels are visited.
+fn composite_shifted(
+    patch: &ObjectPatch,
+    (tx, ty): (i64, i64),
+    gain: [f32; 3],
+    alpha: f32,
+    dynamic: Option<&image::GrayImage>,
+    region: (u32, u32, u32, u32),
+    out: &mut RgbImage,
+) {
+    let (px0, py0) = (patch.x0 as i64, patch.y0 as i64);
+    let (pw, ph) = (patch.width as i64, patch.height as i64);
+    // Output columns and rows whose source lies in the box, within the region.
+    let xa = (px0 - tx).max(region.0 as i64);
+    let xb = (px0 + pw - tx).min(region.2 as i64);
+    let ya = (py0 - ty).max(region.1 as i64);
+    let yb = (py0 + ph - ty).min(region.3 as i64);
+    if xa >= xb || ya >= yb {
+        return;
+    }
+    let (xa, xb, ya, yb) = (xa as usize, xb as usize, ya as usize, yb as usize);
+    let row_len = out.width() as usize * 3;
+    let rows = &mut out.as_mut()[ya * row_len..yb * row_len];
+    rows.par_chunks_mut(row_len)
+        .enumerate()
+        .for_each(|(r, raw)| {
+            let y = (ya + r) as i64;
+            let (sy, lx0) = (y + ty, xa as i64 + tx - px0);
+            let at = ((sy - py0) * pw + lx0) as usize;
+            let n = xb - xa;
+            // The dynamic region's alpha at the source pixel (the box is inside it: the
+            // general path's clamp changes nothing).
+            let dyn_row = dynamic.map(|d| {
+                let start = (sy * d.width() as i64 + xa as i64 + tx) as usize;
+                &d.as_raw()[start..start + n]
+            });
+            crate::simd::dispatch(ShiftedRow {
+                mask: &patch.mask[at..at + n],
+                rgb: &patch.rgb[3 * at..3 * (at + n)],
+                dynamic: dyn_row,
+                gain,
+                alpha,
+                out: &mut raw[3 * xa..3 * xb],
+            })
+        });
+}
+
+/// One output row of [`composite_shifted`] as a [`crate::simd::Kernel`].
+struct ShiftedRow<'a> {
+    mask: &'a [u8],
+    rgb: &'a [u8],
+    dynamic: Option<&'a [u8]>,
+    gain: [f32; 3],
+    alpha: f32,
+    out: &'a mut [u8],
+}
+
+impl crate::simd::Kernel for ShiftedRow<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let ShiftedRow {
+            mask,
+            rgb,
+            dynamic,
+            gain,
+            alpha,
+            out,
+        } = self;
+        // Runs of CHUNK pixels through fixed-size buffers (so the loops vectorise), a pixel's
+        // three channels de-interleaved by strided access, the mask a select.
+        let mut al = [0f32; CHUNK];
+        let (mut src, mut dst) = ([0u8; 3 * CHUNK], [0u8; 3 * CHUNK]);
+        for start in (0..mask.len()).step_by(CHUNK) {
+            let n = CHUNK.min(mask.len() - start);
+            let m = &mask[start..start + n];
+            if m.iter().all(|&m| m == 0) {
+                continue;
+            }
+            let mut set = [false; CHUNK];
+            for (s, &m) in set.iter_mut().zip(m) {
+                *s = m != 0;
+            }
+            match dynamic {
+                Some(d) => {
+                    for (al, &a) in al.iter_mut().zip(&d[start..start + n]) {
+                        *al = if a > 0 {
+                            alpha * a as f32 / 255.0
+                        } else {
+                            alpha
+                        };
+                    }
+                }
+                None => al = [alpha; CHUNK],
+            }
+            let (s3, o3) = (
+                &rgb[3 * start..3 * (start + n)],
+                &mut out[3 * start..3 * (start + n)],
+            );
+            src[..3 * n].copy_from_slice(s3);
+            dst[..3 * n].copy_from_slice(o3);
+            for c in 0..3 {
+                for i in 0..CHUNK {
+                    let v = src[3 * i + c] as f32 / gain[c];
+                    let old = dst[3 * i + c];
+                    let blended = al[i] * v + (1.0 - al[i]) * old as f32;
+                    dst[3 * i + c] = if set[i] { round_u8(blended) } else { old };
+                }
+            }
+            o3.copy_from_slice(&dst[..3 * n]);
+        }
+    }
 }
 
 /// What every row of [`composite`] reads.
