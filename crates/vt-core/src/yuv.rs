@@ -332,6 +332,119 @@ impl crate::simd::Kernel for RowKernel<'_> {
     }
 }
 
+/// One row of a full-range BT.601 4:2:0 picture (JPEG's matrix, the object store's pixels) to
+/// RGB where `mask` is non-zero, and 0 elsewhere, in 16-bit fixed point (JPEG's coefficients
+/// times 2^16, rounded; integer, so every machine gives the same bytes): `r = (y 2^16 + 91881 v
+/// + 2^15) >> 16` and so on, with `u`, `v` centred on 128. Chroma is each 2x2 block's own sample
+/// (nearest, not interpolated: on tree.avi, whose own chroma is per 2x2 block, bilinear
+/// upsampling lost 2.9 dB).
+///
+/// `ys` is the row's luma from the first pixel on; `us` and `vs` its chroma row from the first
+/// pixel's block on (`odd`: the first pixel is the right one of its block, so it shares the
+/// block with no other pixel of the row). `mask` and `rgb` (3 bytes a pixel) have `ys`'s
+/// length. Panics when the chroma rows are too short.
+pub fn masked_full_range_row_to_rgb(
+    ys: &[u8],
+    us: &[u8],
+    vs: &[u8],
+    odd: bool,
+    mask: &[u8],
+    rgb: &mut [u8],
+) {
+    let n = ys.len();
+    assert!(
+        mask.len() == n
+            && rgb.len() == 3 * n
+            && us.len().min(vs.len()) >= (n + odd as usize).div_ceil(2),
+        "row lengths"
+    );
+    if n == 0 {
+        return;
+    }
+    if odd {
+        let px = store_pixel(ys[0], us[0], vs[0], mask[0]);
+        rgb[..3].copy_from_slice(&px);
+        masked_full_range_row_to_rgb(
+            &ys[1..],
+            &us[1..],
+            &vs[1..],
+            false,
+            &mask[1..],
+            &mut rgb[3..],
+        );
+        return;
+    }
+    crate::simd::dispatch(MaskedRowKernel {
+        ys,
+        us,
+        vs,
+        mask,
+        rgb,
+    });
+}
+
+/// The store's conversion of one pixel (see [`masked_full_range_row_to_rgb`]), 0 where `m` is 0.
+#[inline(always)]
+fn store_pixel(y: u8, u: u8, v: u8, m: u8) -> [u8; 3] {
+    let (y, u, v) = (
+        ((y as i32) << 16) + (1 << 15),
+        u as i32 - 128,
+        v as i32 - 128,
+    );
+    let c = |x: i32| if m != 0 { clamp_u8(x >> 16) } else { 0 };
+    [
+        c(y + 91_881 * v),
+        c(y - 22_554 * u - 46_802 * v),
+        c(y + 116_130 * u),
+    ]
+}
+
+/// [`masked_full_range_row_to_rgb`] from an even first pixel, as a [`crate::simd::Kernel`].
+struct MaskedRowKernel<'a> {
+    ys: &'a [u8],
+    us: &'a [u8],
+    vs: &'a [u8],
+    mask: &'a [u8],
+    rgb: &'a mut [u8],
+}
+
+impl crate::simd::Kernel for MaskedRowKernel<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let MaskedRowKernel {
+            ys,
+            us,
+            vs,
+            mask,
+            rgb,
+        } = self;
+        let blocks = ys.len() / BLOCK;
+        for ((((yb, ub), vb), mb), ob) in ys
+            .chunks_exact(BLOCK)
+            .zip(us.chunks_exact(BLOCK / 2))
+            .zip(vs.chunks_exact(BLOCK / 2))
+            .zip(mask.chunks_exact(BLOCK))
+            .zip(rgb.chunks_exact_mut(3 * BLOCK))
+        {
+            let (mut r, mut g, mut b) = ([0u8; BLOCK], [0u8; BLOCK], [0u8; BLOCK]);
+            for k in 0..BLOCK {
+                [r[k], g[k], b[k]] = store_pixel(yb[k], ub[k / 2], vb[k / 2], mb[k]);
+            }
+            for k in 0..BLOCK {
+                ob[3 * k] = r[k];
+                ob[3 * k + 1] = g[k];
+                ob[3 * k + 2] = b[k];
+            }
+        }
+        for i in blocks * BLOCK..ys.len() {
+            let px = store_pixel(ys[i], us[i / 2], vs[i / 2], mask[i]);
+            rgb[3 * i..3 * i + 3].copy_from_slice(&px);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -436,6 +549,49 @@ mod tests {
                 for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
                     assert_eq!(*rgb.get_pixel(2 * bx + dx, 2 * by + dy), p);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn masked_store_rows_follow_the_per_pixel_formula() {
+        // The object store's former per-pixel conversion, written out.
+        let formula = |y: u8, u: u8, v: u8| {
+            let (y, u, v) = ((y as i32) << 16, u as i32 - 128, v as i32 - 128);
+            let c = |x: i32| ((x + (1 << 15)) >> 16).clamp(0, 255) as u8;
+            [
+                c(y + 91_881 * v),
+                c(y - 22_554 * u - 46_802 * v),
+                c(y + 116_130 * u),
+            ]
+        };
+        let mut rng = Rng::new(7);
+        for n in [0usize, 1, 2, 3, 15, 16, 17, 33, 100] {
+            for odd in [false, true] {
+                let ys: Vec<u8> = (0..n).map(|_| rng.next_u64() as u8).collect();
+                let nc = (n + odd as usize).div_ceil(2);
+                let us: Vec<u8> = (0..nc).map(|_| rng.next_u64() as u8).collect();
+                let vs: Vec<u8> = (0..nc).map(|_| rng.next_u64() as u8).collect();
+                let mask: Vec<u8> = (0..n).map(|_| (rng.next_u64() % 3 > 0) as u8).collect();
+                let mut rgb = vec![7u8; 3 * n];
+                masked_full_range_row_to_rgb(&ys, &us, &vs, odd, &mask, &mut rgb);
+                for i in 0..n {
+                    let c = (i + odd as usize) / 2;
+                    let want = if mask[i] != 0 {
+                        formula(ys[i], us[c], vs[c])
+                    } else {
+                        [0; 3]
+                    };
+                    assert_eq!(rgb[3 * i..3 * i + 3], want, "n {n} odd {odd} pixel {i}");
+                }
+            }
+        }
+        // Every level at its extremes of chroma.
+        for y in 0..=255u8 {
+            for (u, v) in [(0u8, 0u8), (0, 255), (255, 0), (255, 255), (128, 128)] {
+                let mut rgb = [0u8; 3];
+                masked_full_range_row_to_rgb(&[y], &[u], &[v], false, &[1], &mut rgb);
+                assert_eq!(rgb, formula(y, u, v));
             }
         }
     }

@@ -183,21 +183,6 @@ fn rgb_to_yuv420(rgb: &[u8], width: usize, height: usize, out: &mut Vec<u8>) {
     out.extend_from_slice(&v_plane);
 }
 
-/// [`rgb_to_yuv420`]'s inverse for one pixel, with its 2x2 block's chroma, in 16-bit fixed
-/// point (JPEG's coefficients times 2^16, rounded; integer so every machine gives the same bytes,
-/// and a third of the time of `f32` on the render path). Nearest chroma, not bilinear: on
-/// tree.avi, whose own chroma is per 2x2 block, bilinear upsampling lost 2.9 dB.
-#[inline]
-fn yuv_to_rgb(y: u8, u: u8, v: u8) -> [u8; 3] {
-    let (y, u, v) = ((y as i32) << 16, u as i32 - 128, v as i32 - 128);
-    let c = |x: i32| ((x + (1 << 15)) >> 16).clamp(0, 255) as u8;
-    [
-        c(y + 91_881 * v),
-        c(y - 22_554 * u - 46_802 * v),
-        c(y + 116_130 * u),
-    ]
-}
-
 /// Version 2's encoder state.
 struct Encoding {
     encoder: openh264::encoder::Encoder,
@@ -796,10 +781,15 @@ impl ObjectStore {
             return Ok(());
         };
         let ((x0, y0, x1, y1), deflated, _) = self.record_v2(i);
-        patch.reset(x0, y0, x1 - x0, y1 - y0);
         if x1 == x0 || y1 == y0 {
+            patch.reset(x0, y0, x1 - x0, y1 - y0);
             return Ok(());
         }
+        // Every byte of the box is written below: sized, not zeroed first.
+        let n = (x1 - x0) as usize * (y1 - y0) as usize;
+        (patch.x0, patch.y0, patch.width, patch.height) = (x0, y0, x1 - x0, y1 - y0);
+        patch.rgb.resize(3 * n, 0);
+        patch.mask.resize(n, 0);
         // A poisoned lock only means an earlier decode panicked midway: start afresh.
         let mut state = codec.state.lock().unwrap_or_else(|e| {
             let mut s = e.into_inner();
@@ -823,22 +813,30 @@ impl ObjectStore {
         let (pw, ph) = padded_size(self.width, self.height);
         let (y_plane, chroma) = planes.split_at(pw * ph);
         let (u_plane, v_plane) = chroma.split_at(pw * ph / 4);
-        let bw = (x1 - x0) as usize;
-        let mut k = 0;
-        for y in y0 as usize..y1 as usize {
-            let (y_row, c_row) = (y * pw, (y / 2) * (pw / 2));
-            for x in x0 as usize..x0 as usize + bw {
-                if state.bits[k / 8] >> (k % 8) & 1 == 1 {
-                    let c = c_row + x / 2;
-                    patch.mask[k] = 1;
-                    patch.rgb[3 * k..3 * k + 3].copy_from_slice(&yuv_to_rgb(
-                        y_plane[y_row + x],
-                        u_plane[c],
-                        v_plane[c],
-                    ));
-                }
-                k += 1;
+        let (bw, x0) = ((x1 - x0) as usize, x0 as usize);
+        // The box's bits, LSB first, as one byte per pixel.
+        for (m, &bits) in patch.mask.chunks_mut(8).zip(&state.bits) {
+            for (j, m) in m.iter_mut().enumerate() {
+                *m = bits >> j & 1;
             }
+        }
+        // [`rgb_to_yuv420`]'s inverse, row by row (RGB 0 where the mask is).
+        for (r, (mask, rgb)) in patch
+            .mask
+            .chunks_exact(bw)
+            .zip(patch.rgb.chunks_exact_mut(3 * bw))
+            .enumerate()
+        {
+            let y = y0 as usize + r;
+            let c_row = (y / 2) * (pw / 2) + x0 / 2;
+            vt_core::yuv::masked_full_range_row_to_rgb(
+                &y_plane[y * pw + x0..y * pw + x0 + bw],
+                &u_plane[c_row..c_row + (bw + x0 % 2).div_ceil(2)],
+                &v_plane[c_row..c_row + (bw + x0 % 2).div_ceil(2)],
+                x0 % 2 == 1,
+                mask,
+                rgb,
+            );
         }
         Ok(())
     }
