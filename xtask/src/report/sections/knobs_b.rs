@@ -399,7 +399,7 @@ fn carving_rule(ctx: &mut Ctx) -> Result<Vec<Curve>> {
              AgreeFrom(0.8, 10) fixes it too (vt-fv's carve_truth: 2.60 against the visual \
              hull's 2.82) and leaves the temple as it is, but on the kettle's 28 photos a few \
              degrees apart, where many cameras judge every voxel, the textured leave-one-out \
-             drops 24.34 -> 24.04 dB, so it is an option too.
+             drops 24.34 -> 24.04 dB, so it is an option too.",
             if ctx.quick {
                 ""
             } else {
