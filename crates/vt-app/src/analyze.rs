@@ -315,15 +315,6 @@ impl std::fmt::Display for AnalysisSummary<'_> {
         "seam score (mean over wraps and switches, on rendered frames as vt render measures them; 1 = as large as an ordinary frame step, above 1 shows): {:.3}",
         scene.seam_score
     )?;
-        for (p, v) in a.views.iter().enumerate() {
-            if let Some((r, q)) = &v.region_loop {
-                writeln!(f,
-                    "view {p}: per-region loop of {} frames, {} tiles of {} px, periods {:?}; energy {:.3e} (best single label {:.3e}); inside the dynamic region: worst step {:.2}x the median, tile wraps {:.2}x (90th percentile {:.2}x), sharpness {:.3} of the source's, {:.2} grey levels from the nearest source frame per tile; labels chosen in {:.2} s",
-                    r.length, r.labels.len(), r.tile, r.periods, r.energy, r.single_energy,
-                    q.worst_step, q.tile_wrap, q.tile_wrap_p90, q.sharpness, q.source_error, r.solve_secs
-                )?;
-            }
-        }
         let kept: Vec<String> = a
             .views
             .iter()
