@@ -315,6 +315,16 @@ impl std::fmt::Display for AnalysisSummary<'_> {
         "seam score (mean over wraps and switches, on rendered frames as vt render measures them; 1 = as large as an ordinary frame step, above 1 shows): {:.3}",
         scene.seam_score
     )?;
+        for (p, v) in a.views.iter().enumerate() {
+            if let Some(res) = &v.region_loop {
+                let (r, q, one) = (&res.chosen, &res.quality, &res.single);
+                writeln!(f,
+                    "view {p}: per-region loop of {} frames, {} tiles of {} px, periods {:?}; energy {:.3e} (best single label {:.3e}); inside the dynamic region: worst step {:.2}x the median, tile wraps {:.2}x (90th percentile {:.2}x), sharpness {:.3} of the source's, {:.2} grey levels from the nearest source frame per tile; the thesis's loop measured alike: worst step {:.2}x, sharpness {:.3}; baked in {:.2} s",
+                    r.length, r.labels.len(), r.tile, r.periods, r.energy, r.single_energy,
+                    q.worst_step, q.tile_wrap, q.tile_wrap_p90, q.sharpness, q.source_error, one.worst_step, one.sharpness, res.secs
+                )?;
+            }
+        }
         let kept: Vec<String> = a
             .views
             .iter()

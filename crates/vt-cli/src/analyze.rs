@@ -91,6 +91,19 @@ pub struct AnalyzeArgs {
     /// larger files) or lossless (raw RGB, tens of times the video's size).
     #[arg(long, default_value_t = vt_io::objects::StoreQuality::default())]
     store_quality: vt_io::objects::StoreQuality,
+    /// Loops per view: single (the thesis's one loop (m, n), eq. 1) or regions (each tile its
+    /// own start and period, baked offline into one seamless loop of length L; issue 23).
+    #[arg(long, default_value = "single", value_parser = ["single", "regions"])]
+    loops: String,
+    /// With --loops regions: tile side, pixels.
+    #[arg(long, default_value_t = vt_core::regions::RegionParams::default().tile)]
+    region_tile: u32,
+    /// With --loops regions: weight of the spatial consistency between neighbouring tiles.
+    #[arg(long, default_value_t = vt_core::regions::RegionParams::default().spatial)]
+    region_spatial: f32,
+    /// With --loops regions: feather between tiles, pixels.
+    #[arg(long, default_value_t = vt_core::regions::RegionParams::default().feather)]
+    region_feather: u32,
 }
 
 impl AnalyzeArgs {
@@ -131,6 +144,12 @@ impl AnalyzeArgs {
                 ..Default::default()
             },
             register: Default::default(),
+            regions: (self.loops == "regions").then(|| vt_core::regions::RegionParams {
+                tile: self.region_tile,
+                spatial: self.region_spatial,
+                feather: self.region_feather,
+                ..Default::default()
+            }),
             background: self.background.parse().map_err(|_| {
                 anyhow!(
                     "--background '{}' is not plane, morph or auto",

@@ -31,6 +31,9 @@ pub fn flag_of(name: &str) -> Option<&'static str> {
         "masks" => "--masks",
         "camera" => "--camera",
         "method" => "--method",
+        "regions.tile" => "--region-tile",
+        "regions.spatial" => "--region-spatial",
+        "regions.feather" => "--region-feather",
         _ => return None,
     })
 }

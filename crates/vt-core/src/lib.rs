@@ -26,6 +26,7 @@ pub mod model;
 pub mod noise;
 pub mod parallax;
 pub mod register;
+pub mod regions;
 pub mod render;
 pub mod rng;
 pub mod seam;

@@ -253,6 +253,11 @@ pub struct AnalyzeParams {
     /// the plane.
     #[serde(default)]
     pub background: BackgroundMode,
+    /// Per-region loops baked into one seamless loop per view ([`crate::regions`]); None: the
+    /// thesis's one loop (m, n) per view. Needs a view's frames to fit `cache_bytes` as RGB
+    /// (otherwise that view keeps its one loop).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub regions: Option<crate::regions::RegionParams>,
 }
 
 fn default_cache() -> usize {
@@ -357,6 +362,9 @@ impl AnalyzeParams {
         }
         self.noise.check()?;
         self.register.check()?;
+        if let Some(r) = &self.regions {
+            r.check()?;
+        }
         if !(self.appearance.is_finite() && (0.0..=1000.0).contains(&self.appearance)) {
             let why = "the appearance weight must be in 0..=1000 (0 = masks only)";
             return bad("appearance", self.appearance.to_string(), why.into());
@@ -380,6 +388,7 @@ impl Default for AnalyzeParams {
             cache_bytes: default_cache(),
             register: RegisterParams::default(),
             background: BackgroundMode::Auto,
+            regions: None,
         }
     }
 }
@@ -496,6 +505,23 @@ pub struct ViewResult {
     /// Share of the real frame-to-frame change the view keeps at its own viewpoint
     /// ([`crate::noise::MotionKept`]).
     pub motion_kept: f64,
+    /// The per-region loop baked into this view's frames (then `masks` are the baked frames'
+    /// and `best_loop` is `(0, L)`), with its measured quality; None: the thesis's loop.
+    pub region_loop: Option<RegionResult>,
+}
+
+/// A view's per-region loop ([`crate::regions`]) and what it measures, beside the thesis's
+/// single loop measured the same way on the same frames.
+#[derive(Debug, Clone)]
+pub struct RegionResult {
+    /// The labels (source frame numbers of the view).
+    pub chosen: crate::regions::RegionLoop,
+    /// The baked loop measured.
+    pub quality: crate::regions::Quality,
+    /// The thesis's loop (m, n) measured the same way (its wrap is its one seam).
+    pub single: crate::regions::Quality,
+    /// Seconds of the whole bake (labels, composition, measures).
+    pub secs: f64,
 }
 
 /// A neighbour link `p -> p + 1`.

@@ -193,6 +193,13 @@ pub(super) fn analyze_view(
             None => foreground_mask(blurred, &bg_blur, &params.mask),
         }
     };
+    // Per-region loops need the view's frames as RGB: kept (instead of written) in pass 2 when
+    // they fit the cache budget.
+    let bake = params.regions.is_some()
+        && cache.is_some()
+        && (n1 as u64).saturating_mul(3 * bg_blur.width() as u64 * bg_blur.height() as u64)
+            <= params.cache_bytes as u64;
+    let mut held: Vec<RgbImage> = Vec::new();
     let mut kept = MotionKept::new();
     let with_thumbs = params.appearance > 0.0;
     let factor = thumb_factor(bg_blur.width(), bg_blur.height());
@@ -277,7 +284,11 @@ pub(super) fn analyze_view(
                 let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
                 let mut flush = || -> Result<()> {
                     for ((m, thumb), f) in pending.drain(..).zip(&ready) {
-                        observer.object_frame(p, i, &shown(&m), f)?;
+                        if bake {
+                            held.push(f.clone());
+                        } else {
+                            observer.object_frame(p, i, &shown(&m), f)?;
+                        }
                         masks.push(m);
                         thumbs.extend(thumb);
                         observer.tick();
@@ -335,16 +346,16 @@ pub(super) fn analyze_view(
     // Eq. (1), with the appearance term in the unit of the masks' ordinary step.
     check_loop_input(masks.len(), &params.loops, &label(""))?;
     crate::mask::check_same_size(&masks, &label(""))?;
-    let xor_steps: Vec<u64> = masks
+    let mut xor_steps: Vec<u64> = masks
         .par_windows(2)
         .map(|w| crate::mask::xor_count(&w[0], &w[1]))
         .collect();
-    let app_steps: Vec<u64> = thumbs
+    let mut app_steps: Vec<u64> = thumbs
         .par_windows(2)
         .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
         .collect();
     let mean = |v: &[u64]| v.iter().sum::<u64>() as f64 / v.len().max(1) as f64;
-    let kappa = appearance::kappa(params.appearance as f64, mean(&xor_steps), mean(&app_steps));
+    let mut kappa = appearance::kappa(params.appearance as f64, mean(&xor_steps), mean(&app_steps));
     let mut d = pair_costs(&masks, params.loops.min_length);
     if kappa > 0.0 {
         let app = appearance::loop_pair_costs(&thumbs, params.loops.min_length);
@@ -358,7 +369,83 @@ pub(super) fn analyze_view(
         params.loops.window,
     );
     let alternatives = loops.split_off(1);
-    let best_loop = loops[0];
+    let mut best_loop = loops[0];
+    let mut n_frames = n1;
+    let mut region_loop = None;
+    if let (true, Some(rp)) = (bake, params.regions.as_ref()) {
+        let t_bake = Instant::now();
+        // The source window (at most `max_frames`, holding the thesis's loop's start).
+        let span = rp.max_frames.min(n1);
+        let first = best_loop.start.min(n1 - span);
+        let (src, src_masks) = (&held[first..first + span], &masks[first..first + span]);
+        let mut rl = crate::regions::solve(
+            src,
+            alpha,
+            Some(best_loop.len()),
+            params.loops.min_length,
+            rp,
+        )?;
+        let (mut baked, mut baked_masks) = crate::regions::compose(src, src_masks, &rl, rp.feather);
+        let quality = crate::regions::quality(&baked, src, &rl, alpha);
+        // The thesis's loop, measured the same way.
+        let own = crate::regions::Label {
+            start: best_loop.start + 1 - first,
+            period: best_loop.len(),
+        };
+        let one = crate::regions::single_loop(own, bg_blur.dimensions(), rp.tile);
+        let single = crate::regions::quality(
+            &crate::regions::compose(src, src_masks, &one, 0).0,
+            src,
+            &one,
+            alpha,
+        );
+        // The player's wrap onto the smoothest step of the cycle.
+        let by = quality.smoothest;
+        crate::regions::rotate(&mut baked_masks, &mut rl.clone(), by);
+        crate::regions::rotate(&mut baked, &mut rl, by);
+        for l in &mut rl.labels {
+            l.start += first;
+        }
+        drop(held);
+        for (i, (f, m)) in baked.iter().zip(&baked_masks).enumerate() {
+            observer.object_frame(p, i, &shown(m), f)?;
+        }
+        if with_thumbs {
+            thumbs = baked
+                .par_iter()
+                .map(|f| {
+                    Ok(change_thumb(
+                        &gaussian_blur(f, &params.blur)?,
+                        &bg_blur,
+                        factor,
+                    ))
+                })
+                .collect::<Result<_>>()?;
+        }
+        masks = baked_masks;
+        xor_steps = masks
+            .par_windows(2)
+            .map(|w| crate::mask::xor_count(&w[0], &w[1]))
+            .collect();
+        app_steps = thumbs
+            .par_windows(2)
+            .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
+            .collect();
+        kappa = appearance::kappa(params.appearance as f64, mean(&xor_steps), mean(&app_steps));
+        // Frame L is frame 0 again: the wrap L -> 1 is the step 0 -> 1.
+        best_loop = Loop {
+            start: 0,
+            end: rl.length,
+            cost: 0,
+        };
+        n_frames = masks.len();
+        region_loop = Some(RegionResult {
+            chosen: rl,
+            quality,
+            single,
+            secs: t_bake.elapsed().as_secs_f64(),
+        });
+    }
     observer.finish();
     timings.loops += t.elapsed();
     let total_px = masks.len() as f64 * masks[0].len() as f64;
@@ -375,7 +462,7 @@ pub(super) fn analyze_view(
     let loop_seam = seam_score(best_loop.cost, params.loops.window, step);
     Ok(ViewResult {
         name,
-        n_frames: n1,
+        n_frames,
         background,
         masks,
         best_loop,
@@ -392,5 +479,6 @@ pub(super) fn analyze_view(
             .map_or(0.0, |s| s.count_ones() as f64 / s.len() as f64),
         dynamic_alpha: model.and_then(|m| m.alpha),
         motion_kept: kept.share(),
+        region_loop,
     })
 }

@@ -1,0 +1,875 @@
+//! Per-region loops baked into one seamless loop (issue 23, beyond the thesis's one loop per
+//! view; after Liao, Joshi and Hoppe 2013, "Automated video looping with progressive dynamism").
+//!
+//! The view is cut into square tiles. Each tile gets its own label: a start `s` and a period `p`
+//! from a small set of periods that all divide one loop length `L`, so that output frame `t` shows
+//! at that tile source frame `phi(t) = s + ((t - s) mod p)` and the whole output repeats after
+//! `L` frames. Labels minimise, at reduced resolution and weighted by the dynamic region,
+//!
+//! - the temporal cost of each tile's own wrap, `|V(s) - V(s + p)|^2 + |V(s - 1) - V(s + p - 1)|^2`
+//!   summed over the tile's pixels (what would follow frame `s + p - 1` against what does), and
+//! - `lambda` times the spatial cost of each pair of neighbouring tiles, the mean over the loop's
+//!   `L` frames of `|V(phi_a(t)) - V(phi_b(t))|^2` on the pixels either side of their shared
+//!   edge (zero where the two tiles share a label),
+//!
+//! by iterated conditional modes ([`Problem::icm`]) from the best single label and from each
+//! tile's own best label (the lower energy kept), for each loop
+//! length in a short list (the thesis's own period among them, so its single loop stays a
+//! candidate), keeping the lowest energy. [`compose`] then bakes the `L + 1` frames (frame `L`
+//! repeats frame 0, so a player looping `(0, L)` wraps onto the frame that would come next),
+//! feathering each tile into its neighbours over `feather` pixels; masks follow each pixel's own
+//! tile. Everything is computed offline: the renderer plays the baked frames as any loop.
+
+use image::RgbImage;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Mask, Result};
+
+/// The parameters of per-region loops.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RegionParams {
+    /// Tile side, full-resolution pixels.
+    pub tile: u32,
+    /// Reduction of the frames the labels are chosen on (block mean of `scale` x `scale`).
+    pub scale: u32,
+    /// Longest baked loop, frames.
+    pub max_length: usize,
+    /// Weight of the spatial term against the temporal one.
+    pub spatial: f32,
+    /// Width of the feather between tiles with different labels, full-resolution pixels.
+    pub feather: u32,
+    /// Most ICM sweeps per loop length.
+    pub sweeps: usize,
+    /// Most source frames considered (a window holding the thesis's loop).
+    pub max_frames: usize,
+}
+
+impl Default for RegionParams {
+    fn default() -> Self {
+        Self {
+            tile: 16,
+            scale: 2,
+            max_length: 240,
+            spatial: 10.0,
+            feather: 8,
+            sweeps: 12,
+            max_frames: 128,
+        }
+    }
+}
+
+impl RegionParams {
+    /// The parameters' rules.
+    pub fn check(&self) -> Result<()> {
+        let bad = |name, value: String, why: &str| {
+            Err(Error::InvalidParameter {
+                name,
+                value,
+                why: why.into(),
+            })
+        };
+        if !(4..=256).contains(&self.tile) {
+            return bad("regions.tile", self.tile.to_string(), "4 to 256 pixels");
+        }
+        if self.scale == 0 || self.scale > self.tile || self.tile % self.scale != 0 {
+            return bad(
+                "regions.scale",
+                self.scale.to_string(),
+                "at least 1 and dividing the tile side",
+            );
+        }
+        if !(2..=2000).contains(&self.max_length) {
+            return bad(
+                "regions.max_length",
+                self.max_length.to_string(),
+                "2 to 2000 frames",
+            );
+        }
+        if !(self.spatial.is_finite() && (0.0..=1e6).contains(&self.spatial)) {
+            return bad("regions.spatial", self.spatial.to_string(), "0 to 1e6");
+        }
+        if self.feather > self.tile {
+            return bad(
+                "regions.feather",
+                self.feather.to_string(),
+                "at most the tile side",
+            );
+        }
+        if !(4..=1000).contains(&self.max_frames) {
+            return bad(
+                "regions.max_frames",
+                self.max_frames.to_string(),
+                "4 to 1000 frames",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// A tile's loop: output frame `t` shows source frame `start + ((t - start) mod period)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Label {
+    /// First source frame of the loop.
+    pub start: usize,
+    /// Frames per cycle.
+    pub period: usize,
+}
+
+impl Label {
+    /// The source frame shown at output frame `t`.
+    pub fn frame(&self, t: usize) -> usize {
+        let p = self.period;
+        self.start + (t + p - self.start % p) % p
+    }
+}
+
+/// Frames reduced for the label search: RGB as `f32`, per-pixel weights (the dynamic region).
+pub struct Reduced {
+    /// Width and height.
+    pub size: (usize, usize),
+    /// One `3 * w * h` plane per frame.
+    pub frames: Vec<Vec<f32>>,
+    /// Per-pixel weight.
+    pub weight: Vec<f32>,
+}
+
+/// Weight of pixels outside the dynamic region (labels there stay defined).
+const OUTSIDE: f32 = 0.02;
+
+/// Block-mean reduction of `frames` by `scale`, weighted by `alpha` (0..255; None: all 1).
+pub fn reduce(frames: &[RgbImage], alpha: Option<&image::GrayImage>, scale: u32) -> Reduced {
+    let (w, h) = frames[0].dimensions();
+    let (rw, rh) = (w.div_ceil(scale) as usize, h.div_ceil(scale) as usize);
+    let reduce_one = |f: &RgbImage| -> Vec<f32> {
+        let mut out = vec![0f32; 3 * rw * rh];
+        let mut count = vec![0f32; rw * rh];
+        for (x, y, px) in f.enumerate_pixels() {
+            let i = (y / scale) as usize * rw + (x / scale) as usize;
+            for c in 0..3 {
+                out[3 * i + c] += px[c] as f32;
+            }
+            count[i] += 1.0;
+        }
+        for (i, n) in count.iter().enumerate() {
+            for c in 0..3 {
+                out[3 * i + c] /= n;
+            }
+        }
+        out
+    };
+    let reduced: Vec<Vec<f32>> = frames.par_iter().map(reduce_one).collect();
+    let mut weight = vec![0f32; rw * rh];
+    let mut count = vec![0f32; rw * rh];
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y / scale) as usize * rw + (x / scale) as usize;
+            weight[i] += alpha.map_or(1.0, |a| a.get_pixel(x, y)[0] as f32 / 255.0);
+            count[i] += 1.0;
+        }
+    }
+    for (wt, n) in weight.iter_mut().zip(&count) {
+        *wt = (*wt / n).max(OUTSIDE);
+    }
+    Reduced {
+        size: (rw, rh),
+        frames: reduced,
+        weight,
+    }
+}
+
+/// Weighted squared RGB difference of frames `i` and `j` over `pixels`.
+fn diff(r: &Reduced, i: usize, j: usize, pixels: &[usize]) -> f32 {
+    let (a, b) = (&r.frames[i], &r.frames[j]);
+    pixels
+        .iter()
+        .map(|&k| {
+            let d0 = a[3 * k] - b[3 * k];
+            let d1 = a[3 * k + 1] - b[3 * k + 1];
+            let d2 = a[3 * k + 2] - b[3 * k + 2];
+            r.weight[k] * (d0 * d0 + d1 * d1 + d2 * d2)
+        })
+        .sum()
+}
+
+/// One labelling problem: a loop length, its labels, the unary and pairwise costs.
+pub struct Problem {
+    /// Tiles across and down.
+    pub grid: (usize, usize),
+    /// Loop length `L`.
+    pub length: usize,
+    /// The candidate labels.
+    pub labels: Vec<Label>,
+    /// `unary[tile * labels + l]`: the temporal cost.
+    pub unary: Vec<f64>,
+    /// Neighbouring tile pairs `(a, b)`, `a < b`.
+    pub edges: Vec<(usize, usize)>,
+    /// Per edge, the `n x n` weighted difference of source frames on the edge's strip.
+    edge_d: Vec<Vec<f32>>,
+    /// Frames considered.
+    n: usize,
+    /// The spatial weight.
+    lambda: f64,
+    /// Per tile, its edges (index, the other tile).
+    adj: Vec<Vec<(usize, usize)>>,
+}
+
+/// Tiles of `tile_r` reduced pixels over a `size` reduction: each tile's pixel indices.
+fn tiles(size: (usize, usize), tile_r: usize) -> ((usize, usize), Vec<Vec<usize>>) {
+    let (rw, rh) = size;
+    let (cols, rows) = (rw.div_ceil(tile_r), rh.div_ceil(tile_r));
+    let mut px = vec![Vec::new(); cols * rows];
+    for y in 0..rh {
+        for x in 0..rw {
+            px[(y / tile_r) * cols + x / tile_r].push(y * rw + x);
+        }
+    }
+    ((cols, rows), px)
+}
+
+/// The neighbouring tile pairs and the reduced pixels either side of their shared edge.
+fn edge_strips(
+    size: (usize, usize),
+    grid: (usize, usize),
+    tile_r: usize,
+) -> Vec<((usize, usize), Vec<usize>)> {
+    let (rw, rh) = size;
+    let (cols, rows) = grid;
+    let mut out = Vec::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            let a = r * cols + c;
+            if c + 1 < cols {
+                let xb = (c + 1) * tile_r;
+                let strip = (r * tile_r..((r + 1) * tile_r).min(rh))
+                    .flat_map(|y| [y * rw + xb - 1, y * rw + xb])
+                    .collect();
+                out.push(((a, a + 1), strip));
+            }
+            if r + 1 < rows {
+                let yb = (r + 1) * tile_r;
+                let strip = (c * tile_r..((c + 1) * tile_r).min(rw))
+                    .flat_map(|x| [(yb - 1) * rw + x, yb * rw + x])
+                    .collect();
+                out.push(((a, a + cols), strip));
+            }
+        }
+    }
+    out
+}
+
+/// Loop lengths tried: highly divisible lengths up to `max_length`, `max_length` itself, and
+/// `own` (the thesis's period) when given.
+fn lengths(max_length: usize, own: Option<usize>) -> Vec<usize> {
+    let mut v: Vec<usize> = [24, 36, 48, 60, 72, 96, 120, 144, 180, 240, 360, 480, 720]
+        .into_iter()
+        .filter(|&l| l <= max_length)
+        .collect();
+    for o in own.into_iter().chain([max_length]) {
+        if o >= 2 && o <= max_length && !v.contains(&o) {
+            v.push(o);
+        }
+    }
+    v
+}
+
+/// Periods usable with loop length `l`: its divisors `p` with `min_period <= p` and room for a
+/// start (`1 <= s`, `s + p <= n - 1`).
+fn periods(l: usize, min_period: usize, n: usize) -> Vec<usize> {
+    (min_period.max(2)..=l)
+        .filter(|p| l % p == 0 && p + 2 <= n)
+        .collect()
+}
+
+impl Problem {
+    /// Builds the problem for loop length `length` over `r` (source frames `0..n`), tiles of
+    /// `tile_r` reduced pixels, periods at least `min_period`. None if no period fits.
+    pub fn new(
+        r: &Reduced,
+        tile_r: usize,
+        length: usize,
+        min_period: usize,
+        lambda: f64,
+        strips: &Strips,
+    ) -> Option<Self> {
+        let n = r.frames.len();
+        let ps = periods(length, min_period, n);
+        if ps.is_empty() {
+            return None;
+        }
+        let labels: Vec<Label> = ps
+            .iter()
+            .flat_map(|&p| {
+                (1..n - p).map(move |s| Label {
+                    start: s,
+                    period: p,
+                })
+            })
+            .collect();
+        let ((cols, rows), tile_px) = tiles(r.size, tile_r);
+        let tl = tile_px.len();
+        // Temporal costs per tile, period and start.
+        let unary: Vec<f64> = tile_px
+            .par_iter()
+            .flat_map_iter(|px| {
+                let per: Vec<Vec<f32>> = ps
+                    .iter()
+                    .map(|&p| (0..n - p).map(|i| diff(r, i, i + p, px)).collect())
+                    .collect();
+                labels
+                    .iter()
+                    .map(|l| {
+                        let k = ps.iter().position(|&p| p == l.period).expect("listed");
+                        (per[k][l.start] + per[k][l.start - 1]) as f64
+                    })
+                    .collect::<Vec<f64>>()
+            })
+            .collect();
+        let mut adj = vec![Vec::new(); tl];
+        for (e, &(a, b)) in strips.edges.iter().enumerate() {
+            adj[a].push((e, b));
+            adj[b].push((e, a));
+        }
+        Some(Self {
+            grid: (cols, rows),
+            length,
+            labels,
+            unary,
+            edges: strips.edges.clone(),
+            edge_d: strips.d.clone(),
+            n,
+            lambda,
+            adj,
+        })
+    }
+
+    /// The spatial cost of edge `e` with labels `a` and `b` on its two tiles.
+    pub fn pair(&self, e: usize, a: usize, b: usize) -> f64 {
+        if a == b {
+            return 0.0;
+        }
+        let (la, lb) = (self.labels[a], self.labels[b]);
+        let d = &self.edge_d[e];
+        let sum: f64 = (0..self.length)
+            .map(|t| d[la.frame(t) * self.n + lb.frame(t)] as f64)
+            .sum();
+        self.lambda * sum / self.length as f64
+    }
+
+    /// The energy of a labelling (one label index per tile).
+    pub fn energy(&self, lab: &[usize]) -> f64 {
+        let nl = self.labels.len();
+        let unary: f64 = lab
+            .iter()
+            .enumerate()
+            .map(|(t, &l)| self.unary[t * nl + l])
+            .sum();
+        let pair: f64 = self
+            .edges
+            .iter()
+            .enumerate()
+            .map(|(e, &(a, b))| self.pair(e, lab[a], lab[b]))
+            .sum();
+        unary + pair
+    }
+
+    /// The label with the lowest total temporal cost, for every tile (the best single loop
+    /// among the labels).
+    pub fn single(&self) -> Vec<usize> {
+        let nl = self.labels.len();
+        let tl = self.unary.len() / nl;
+        let best = (0..nl)
+            .min_by(|&a, &b| {
+                let sa: f64 = (0..tl).map(|t| self.unary[t * nl + a]).sum();
+                let sb: f64 = (0..tl).map(|t| self.unary[t * nl + b]).sum();
+                sa.total_cmp(&sb)
+            })
+            .expect("at least one label");
+        vec![best; tl]
+    }
+
+    /// Each tile's own lowest temporal cost, neighbours ignored.
+    pub fn independent(&self) -> Vec<usize> {
+        let nl = self.labels.len();
+        self.unary
+            .chunks(nl)
+            .map(|u| {
+                (0..nl)
+                    .min_by(|&a, &b| u[a].total_cmp(&u[b]))
+                    .expect("labels")
+            })
+            .collect()
+    }
+
+    /// Iterated conditional modes from `lab`: each tile in turn takes the label that minimises
+    /// its temporal cost plus the spatial costs with its neighbours' current labels, until a
+    /// sweep changes nothing or `sweeps` sweeps. Never raises the energy.
+    pub fn icm(&self, mut lab: Vec<usize>, sweeps: usize) -> Vec<usize> {
+        let nl = self.labels.len();
+        for _ in 0..sweeps {
+            let mut changed = false;
+            for t in 0..lab.len() {
+                let local = |l: usize, lab: &[usize]| -> f64 {
+                    self.unary[t * nl + l]
+                        + self.adj[t]
+                            .iter()
+                            .map(|&(e, o)| {
+                                let (a, b) = if self.edges[e].0 == t {
+                                    (l, lab[o])
+                                } else {
+                                    (lab[o], l)
+                                };
+                                self.pair(e, a, b)
+                            })
+                            .sum::<f64>()
+                };
+                let costs: Vec<f64> = (0..nl).into_par_iter().map(|l| local(l, &lab)).collect();
+                let (best, &c) = costs
+                    .iter()
+                    .enumerate()
+                    .min_by(|a, b| a.1.total_cmp(b.1))
+                    .expect("labels");
+                if best != lab[t] && c < costs[lab[t]] {
+                    lab[t] = best;
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        lab
+    }
+}
+
+/// The edges of a tiling and their frame-pair differences (shared by every loop length).
+pub struct Strips {
+    /// Neighbouring tiles `(a, b)`.
+    pub edges: Vec<(usize, usize)>,
+    /// Per edge, `n x n` weighted differences on its strip.
+    d: Vec<Vec<f32>>,
+}
+
+impl Strips {
+    /// The strips of `r` tiled by `tile_r` reduced pixels.
+    pub fn new(r: &Reduced, tile_r: usize) -> Self {
+        let n = r.frames.len();
+        let ((cols, rows), _) = tiles(r.size, tile_r);
+        let strips = edge_strips(r.size, (cols, rows), tile_r);
+        let d = strips
+            .par_iter()
+            .map(|(_, px)| {
+                let mut m = vec![0f32; n * n];
+                for i in 0..n {
+                    for j in i + 1..n {
+                        let v = diff(r, i, j, px);
+                        m[i * n + j] = v;
+                        m[j * n + i] = v;
+                    }
+                }
+                m
+            })
+            .collect();
+        Self {
+            edges: strips.into_iter().map(|(e, _)| e).collect(),
+            d,
+        }
+    }
+}
+
+/// The chosen per-region loop of a view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionLoop {
+    /// Loop length `L` (the baked sequence holds `L + 1` frames).
+    pub length: usize,
+    /// Tile side, full-resolution pixels.
+    pub tile: u32,
+    /// Tiles across and down.
+    pub grid: (usize, usize),
+    /// One label per tile, row by row, in source frame numbers.
+    pub labels: Vec<Label>,
+    /// The energy reached, and that of the best single label of the same length.
+    pub energy: f64,
+    /// The best single label's energy (same loop length).
+    pub single_energy: f64,
+    /// Distinct periods used.
+    pub periods: Vec<usize>,
+    /// Seconds spent choosing labels.
+    pub solve_secs: f64,
+    /// Output frame 0 shows the labels' time `phase` (see [`rotate`]).
+    pub phase: usize,
+}
+
+/// Chooses the per-region loop of `frames` (the view's source frames, `first` the number of
+/// frames[0]) weighted by the dynamic region `alpha`; `own` is the thesis loop's period (a
+/// candidate length), `min_period` the shortest period allowed.
+pub fn solve(
+    frames: &[RgbImage],
+    alpha: Option<&image::GrayImage>,
+    own: Option<usize>,
+    min_period: usize,
+    params: &RegionParams,
+) -> Result<RegionLoop> {
+    params.check()?;
+    let started = std::time::Instant::now();
+    if frames.len() < 4 {
+        return Err(Error::TooFewFrames {
+            what: "per-region loops".into(),
+            got: frames.len(),
+            need: 4,
+            why: "a loop needs a few frames".into(),
+        });
+    }
+    let r = reduce(frames, alpha, params.scale);
+    let tile_r = (params.tile / params.scale) as usize;
+    let strips = Strips::new(&r, tile_r);
+    let mut best: Option<(f64, f64, Problem, Vec<usize>)> = None;
+    for l in lengths(params.max_length, own) {
+        let Some(pb) = Problem::new(&r, tile_r, l, min_period, params.spatial as f64, &strips)
+        else {
+            continue;
+        };
+        let single = pb.single();
+        let single_e = pb.energy(&single);
+        // ICM from the best single label and from each tile's own best label; the lower.
+        let lab = [single, pb.independent()]
+            .into_iter()
+            .map(|init| {
+                let lab = pb.icm(init, params.sweeps);
+                (pb.energy(&lab), lab)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("two starts");
+        let (e, lab) = lab;
+        if best.as_ref().is_none_or(|b| e < b.0) {
+            best = Some((e, single_e, pb, lab));
+        }
+    }
+    let Some((energy, single_energy, pb, lab)) = best else {
+        return Err(Error::TooFewFrames {
+            what: "per-region loops".into(),
+            got: frames.len(),
+            need: min_period.max(2) + 2,
+            why: "no period of any loop length fits".into(),
+        });
+    };
+    let labels: Vec<Label> = lab.iter().map(|&l| pb.labels[l]).collect();
+    let mut periods: Vec<usize> = labels.iter().map(|l| l.period).collect();
+    periods.sort_unstable();
+    periods.dedup();
+    Ok(RegionLoop {
+        length: pb.length,
+        tile: params.tile,
+        grid: pb.grid,
+        labels,
+        energy,
+        single_energy,
+        periods,
+        solve_secs: started.elapsed().as_secs_f64(),
+        phase: 0,
+    })
+}
+
+/// Per pixel along one axis: the two tiles blended and the second's weight.
+fn axis_blend(len: u32, tile: u32, count: usize, feather: u32) -> Vec<(usize, usize, f32)> {
+    (0..len)
+        .map(|x| {
+            let c = (x / tile) as usize;
+            let d = (x % tile) as f32 + 0.5;
+            let half = feather as f32 / 2.0;
+            if feather > 0 && d < half && c > 0 {
+                (c, c - 1, 0.5 - d / feather as f32)
+            } else if feather > 0 && tile as f32 - d < half && c + 1 < count {
+                (c, c + 1, 0.5 - (tile as f32 - d) / feather as f32)
+            } else {
+                (c, c, 0.0)
+            }
+        })
+        .collect()
+}
+
+/// The baked loop: `L + 1` frames (frame `L` is frame 0 again) and their masks, each pixel's
+/// colour the feathered mix of its tiles' source frames, its mask bit its own tile's.
+pub fn compose(
+    frames: &[RgbImage],
+    masks: &[Mask],
+    rl: &RegionLoop,
+    feather: u32,
+) -> (Vec<RgbImage>, Vec<Mask>) {
+    let (w, h) = frames[0].dimensions();
+    let (cols, rows) = rl.grid;
+    let bx = axis_blend(w, rl.tile, cols, feather);
+    let by = axis_blend(h, rl.tile, rows, feather);
+    let out: Vec<(RgbImage, Mask)> = (0..=rl.length)
+        .into_par_iter()
+        .map(|t| {
+            let t = (t + rl.phase) % rl.length;
+            let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
+            let img = RgbImage::from_fn(w, h, |x, y| {
+                let (cx, ox, ax) = bx[x as usize];
+                let (cy, oy, ay) = by[y as usize];
+                let parts = [
+                    (src(cx, cy), (1.0 - ax) * (1.0 - ay)),
+                    (src(ox, cy), ax * (1.0 - ay)),
+                    (src(cx, oy), (1.0 - ax) * ay),
+                    (src(ox, oy), ax * ay),
+                ];
+                let mut acc = [0f32; 3];
+                for (f, wt) in parts {
+                    if wt > 0.0 {
+                        let p = frames[f].get_pixel(x, y);
+                        for c in 0..3 {
+                            acc[c] += wt * p[c] as f32;
+                        }
+                    }
+                }
+                image::Rgb(acc.map(|v| v.round().clamp(0.0, 255.0) as u8))
+            });
+            let mask = Mask::from_fn(w, h, |x, y| {
+                let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
+                masks[f].get(x, y)
+            });
+            (img, mask)
+        })
+        .collect();
+    out.into_iter().unzip()
+}
+
+/// Rotates a baked loop (`L + 1` frames, the last the first again) so that its frame 0 is the
+/// old frame `by`: the player's wrap `L -> 1` then shows the old step `by -> by + 1`.
+pub fn rotate<T: Clone>(baked: &mut Vec<T>, rl: &mut RegionLoop, by: usize) {
+    let l = rl.length;
+    baked.truncate(l);
+    baked.rotate_left(by % l);
+    baked.push(baked[0].clone());
+    rl.phase = (rl.phase + by) % l;
+}
+
+/// A single loop as a [`RegionLoop`] (every tile the same label), to measure the thesis's loop
+/// as the per-region ones are.
+pub fn single_loop(label: Label, frame: (u32, u32), tile: u32) -> RegionLoop {
+    let grid = (
+        frame.0.div_ceil(tile) as usize,
+        frame.1.div_ceil(tile) as usize,
+    );
+    RegionLoop {
+        length: label.period,
+        tile,
+        grid,
+        labels: vec![label; grid.0 * grid.1],
+        energy: 0.0,
+        single_energy: 0.0,
+        periods: vec![label.period],
+        solve_secs: 0.0,
+        phase: label.period - label.start % label.period,
+    }
+}
+
+/// What a baked loop looks like, measured on its frames inside the dynamic region.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Quality {
+    /// The output time whose step to the next is the smallest (where [`rotate`] puts the
+    /// player's wrap).
+    pub smoothest: usize,
+    /// The largest step of the baked loop (its wrap `L -> 1` included) over its median step,
+    /// over the dynamic region: any seam anywhere in the loop.
+    pub worst_step: f64,
+    /// Per tile, its own wrap's step over its median ordinary step (inside the tile; the unit
+    /// floored at [`crate::seam::MIN_UNIT`]): the median over the tiles with at least 10% of
+    /// their pixels dynamic, weighted by their share of the dynamic region.
+    pub tile_wrap: f64,
+    /// The same ratio's weighted 90th percentile over the tiles.
+    pub tile_wrap_p90: f64,
+    /// Mean gradient energy of the baked frames over that of the source frames.
+    pub sharpness: f64,
+    /// Mean absolute error (grey levels) of each baked frame to the nearest source frame,
+    /// tile by tile (the nearest frame may differ per tile), weighted by the dynamic region.
+    pub source_error: f64,
+}
+
+fn grey(p: &image::Rgb<u8>) -> f32 {
+    0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32
+}
+
+/// Mean gradient energy (squared forward differences of grey) weighted by `wt`.
+fn gradient_energy(f: &RgbImage, wt: &[f32]) -> f64 {
+    let (w, h) = f.dimensions();
+    let (mut sum, mut n) = (0f64, 0f64);
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let a = wt[(y * w + x) as usize] as f64;
+            if a == 0.0 {
+                continue;
+            }
+            let g = grey(f.get_pixel(x, y));
+            let gx = grey(f.get_pixel(x + 1, y)) - g;
+            let gy = grey(f.get_pixel(x, y + 1)) - g;
+            sum += a * (gx * gx + gy * gy) as f64;
+            n += a;
+        }
+    }
+    sum / n.max(1e-9)
+}
+
+/// Weighted mean absolute difference over `px` (full-resolution pixel indices).
+fn mad(a: &RgbImage, b: &RgbImage, px: &[usize], wt: &[f32]) -> (f64, f64) {
+    let (ra, rb) = (a.as_raw(), b.as_raw());
+    let mut s = 0f64;
+    let mut n = 0f64;
+    for &i in px {
+        let w = wt[i] as f64;
+        if w == 0.0 {
+            continue;
+        }
+        let d = (0..3)
+            .map(|c| ra[3 * i + c].abs_diff(rb[3 * i + c]) as u32)
+            .sum::<u32>();
+        s += w * d as f64 / 3.0;
+        n += w;
+    }
+    (s, n)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Measures `baked` (from [`compose`]) against `source` inside the dynamic region `alpha`.
+pub fn quality(
+    baked: &[RgbImage],
+    source: &[RgbImage],
+    rl: &RegionLoop,
+    alpha: Option<&image::GrayImage>,
+) -> Quality {
+    let (w, h) = source[0].dimensions();
+    let wt: Vec<f32> = match alpha {
+        Some(a) => a.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
+        None => vec![1.0; (w * h) as usize],
+    };
+    let all: Vec<usize> = (0..(w * h) as usize).collect();
+    let l = rl.length;
+    // Steps 0 -> 1 .. L-1 -> L, then the player's wrap L -> 1.
+    let mut steps: Vec<f64> = (0..l)
+        .into_par_iter()
+        .map(|t| {
+            let (s, n) = mad(&baked[t], &baked[t + 1], &all, &wt);
+            s / n.max(1e-9)
+        })
+        .collect();
+    let (s, n) = mad(&baked[l], &baked[1.min(l)], &all, &wt);
+    steps.push(s / n.max(1e-9));
+    let med = median(steps.clone()).max(1e-9);
+    let smoothest = (0..l)
+        .min_by(|&a, &b| steps[a].total_cmp(&steps[b]))
+        .unwrap_or(0);
+    let worst_step = steps.iter().cloned().fold(0.0, f64::max) / med;
+    // Per tile.
+    let (cols, _) = rl.grid;
+    let mut tile_px = vec![Vec::new(); rl.labels.len()];
+    for y in 0..h {
+        for x in 0..w {
+            tile_px[(y / rl.tile) as usize * cols + (x / rl.tile) as usize]
+                .push((y * w + x) as usize);
+        }
+    }
+    let per_tile: Vec<(f64, f64, f64, f64)> = tile_px
+        .par_iter()
+        .zip(&rl.labels)
+        .map(|(px, lab)| {
+            let share: f64 = px.iter().map(|&i| wt[i] as f64).sum::<f64>();
+            if share < 0.1 * px.len() as f64 {
+                return (0.0, 0.0, 0.0, share);
+            }
+            let mut ordinary = Vec::new();
+            let mut wraps = Vec::new();
+            for t in 0..l {
+                let (s, n) = mad(&baked[t], &baked[t + 1], px, &wt);
+                let step = s / n.max(1e-9);
+                if lab.frame(t + 1) == lab.frame(t) + 1 {
+                    ordinary.push(step);
+                } else {
+                    wraps.push(step);
+                }
+            }
+            let med = median(ordinary).max(crate::seam::MIN_UNIT);
+            let wrap = wraps.iter().sum::<f64>() / wraps.len().max(1) as f64 / med;
+
+            // Nearest source frame per baked frame, inside the tile.
+            let err: f64 = baked[..l]
+                .iter()
+                .map(|b| {
+                    source
+                        .iter()
+                        .map(|s| {
+                            let (e, n) = mad(b, s, px, &wt);
+                            e / n.max(1e-9)
+                        })
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .sum::<f64>()
+                / l as f64;
+            (wrap, wrap, err, share)
+        })
+        .collect();
+    let total: f64 = per_tile.iter().filter(|t| t.0 > 0.0).map(|t| t.3).sum();
+    let quantile = |q: f64| -> f64 {
+        let mut v: Vec<(f64, f64)> = per_tile
+            .iter()
+            .filter(|t| t.0 > 0.0)
+            .map(|t| (t.1, t.3))
+            .collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut acc = 0.0;
+        for (r, w) in &v {
+            acc += w;
+            if acc >= q * total {
+                return *r;
+            }
+        }
+        v.last().map_or(0.0, |x| x.0)
+    };
+    let wmean = |k: fn(&(f64, f64, f64, f64)) -> f64| {
+        per_tile
+            .iter()
+            .filter(|t| t.0 > 0.0)
+            .map(|t| k(t) * t.3)
+            .sum::<f64>()
+            / total.max(1e-9)
+    };
+    let ge = |v: &[RgbImage]| {
+        v.par_iter().map(|f| gradient_energy(f, &wt)).sum::<f64>() / v.len() as f64
+    };
+    Quality {
+        smoothest,
+        worst_step,
+        tile_wrap: quantile(0.5),
+        tile_wrap_p90: quantile(0.9),
+        sharpness: ge(&baked[..l]) / ge(source).max(1e-9),
+        source_error: wmean(|t| t.2),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn label_frames_cycle() {
+        let l = Label {
+            start: 7,
+            period: 5,
+        };
+        let seq: Vec<usize> = (0..12).map(|t| l.frame(t)).collect();
+        assert_eq!(seq, vec![10, 11, 7, 8, 9, 10, 11, 7, 8, 9, 10, 11]);
+        // Every frame in the loop, its successor the next but for one wrap per cycle.
+        for t in 0..20 {
+            let (a, b) = (l.frame(t), l.frame(t + 1));
+            assert!((7..12).contains(&a));
+            assert!(b == a + 1 || (a == 11 && b == 7));
+        }
+    }
+}

@@ -1,0 +1,195 @@
+//! Per-region loops against independent truth: a scene whose left half repeats every 5 frames
+//! and right half every 7 (no single loop shorter than 35 exists), and brute force over every
+//! labelling of a tiny problem.
+
+use image::{Rgb, RgbImage};
+use vt_core::regions::{compose, quality, reduce, solve, Label, Problem, RegionParams, Strips};
+use vt_core::rng::mix_at;
+use vt_core::Mask;
+
+/// Random texture per phase: pixel (x, y) at phase `k` of a region with `seed`.
+fn texel(seed: u64, k: usize, x: u32, y: u32) -> u8 {
+    (mix_at(seed, (k as u64) << 32 | (y as u64) << 16 | x as u64) >> 56) as u8
+}
+
+/// `n` frames of `w x h`: columns left of `split` repeat every `p_left`, the rest every
+/// `p_right`.
+fn two_periods(
+    n: usize,
+    w: u32,
+    h: u32,
+    split: u32,
+    p_left: usize,
+    p_right: usize,
+) -> Vec<RgbImage> {
+    (0..n)
+        .map(|i| {
+            RgbImage::from_fn(w, h, |x, y| {
+                let v = if x < split {
+                    texel(1, i % p_left, x, y)
+                } else {
+                    texel(2, i % p_right, x, y)
+                };
+                Rgb([v, v / 2, 255 - v])
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn each_half_gets_its_own_true_period_and_loops_exactly() {
+    let (w, h, n) = (64u32, 32u32, 30usize);
+    let frames = two_periods(n, w, h, 32, 5, 7);
+    let masks: Vec<Mask> = (0..n).map(|_| Mask::new(w, h)).collect();
+    let params = RegionParams {
+        tile: 16,
+        scale: 2,
+        max_length: 35,
+        feather: 4,
+        ..Default::default()
+    };
+    let rl = solve(&frames, None, None, 5, &params).unwrap();
+    // Periods dividing a length up to 35 with room in 30 frames: the only length both halves
+    // can loop exactly in is 35 (periods 5 and 7).
+    assert_eq!(rl.length, 35);
+    let (cols, rows) = rl.grid;
+    assert_eq!((cols, rows), (4, 2));
+    for r in 0..rows {
+        for c in 0..cols {
+            let want = if c < 2 { 5 } else { 7 };
+            assert_eq!(rl.labels[r * cols + c].period, want, "tile ({c}, {r})");
+        }
+    }
+    let (baked, _) = compose(&frames, &masks, &rl, params.feather);
+    assert_eq!(baked.len(), 36);
+    assert_eq!(baked[35], baked[0]);
+    // Away from the feather band at x = 32, every baked pixel is the true periodic signal at
+    // output time t plus a constant shift per half: the loop has no seam at all.
+    for (x, seed, p) in [(5u32, 1u64, 5usize), (28, 1, 5), (36, 2, 7), (60, 2, 7)] {
+        let y = 9;
+        let shift = (0..p)
+            .find(|&c| texel(seed, c % p, x, y) == baked[0].get_pixel(x, y)[0])
+            .unwrap();
+        for (t, f) in baked.iter().enumerate() {
+            assert_eq!(
+                f.get_pixel(x, y)[0],
+                texel(seed, (t + shift) % p, x, y),
+                "x {x} t {t}"
+            );
+        }
+    }
+    let q = quality(&baked, &frames, &rl, None);
+    // Only the feather band blends frames: the rest is source content exactly.
+    assert!(q.source_error < 4.0, "{q:?}");
+    assert!(q.tile_wrap <= 1.0 + 1e-9, "{q:?}");
+}
+
+#[test]
+fn a_single_periodic_scene_keeps_its_exact_period() {
+    let (w, h, n) = (48u32, 32u32, 40usize);
+    let frames = two_periods(n, w, h, w, 6, 6);
+    let params = RegionParams {
+        tile: 16,
+        scale: 2,
+        max_length: 36,
+        ..Default::default()
+    };
+    let rl = solve(&frames, None, Some(6), 6, &params).unwrap();
+    // Every tile loops on a multiple of the true period, with no temporal cost.
+    for l in &rl.labels {
+        assert_eq!(l.period % 6, 0, "{l:?}");
+    }
+    assert_eq!(rl.energy, 0.0);
+}
+
+#[test]
+fn icm_reaches_the_brute_force_optimum_on_a_tiny_case() {
+    // 2 x 2 tiles of 4 px, 9 frames of noise with a weak period-3 component: a few labels.
+    let (w, h, n) = (8u32, 8u32, 9usize);
+    let frames: Vec<RgbImage> = (0..n)
+        .map(|i| {
+            RgbImage::from_fn(w, h, |x, y| {
+                let base = texel(3, i % 3, x, y) / 2;
+                let noise = texel(4, i, x, y) / 4;
+                let v = base + noise;
+                Rgb([v, v, v])
+            })
+        })
+        .collect();
+    let r = reduce(&frames, None, 1);
+    let strips = Strips::new(&r, 4);
+    for lambda in [0.0, 1.0, 10.0] {
+        let pb = Problem::new(&r, 4, 6, 2, lambda, &strips).unwrap();
+        let nl = pb.labels.len();
+        // Labels: periods 2, 3 and 6 (divisors of 6 with room in 9 frames), every start.
+        let want: usize = [2usize, 3, 6].iter().map(|p| n - 1 - p).sum();
+        assert_eq!(nl, want);
+        // The energy against one computed here from the frames.
+        let energy_here = |lab: &[usize]| -> f64 {
+            let d = |i: usize, j: usize, px: &[(u32, u32)]| -> f64 {
+                px.iter()
+                    .map(|&(x, y)| {
+                        let (a, b) = (frames[i].get_pixel(x, y), frames[j].get_pixel(x, y));
+                        (0..3)
+                            .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
+                            .sum::<f64>()
+                    })
+                    .sum()
+            };
+            let tile_px = |t: usize| -> Vec<(u32, u32)> {
+                let (c, r) = ((t % 2) as u32, (t / 2) as u32);
+                (0..16).map(|k| (c * 4 + k % 4, r * 4 + k / 4)).collect()
+            };
+            let mut e = 0.0;
+            for t in 0..4 {
+                let l: Label = pb.labels[lab[t]];
+                let px = tile_px(t);
+                e += d(l.start, l.start + l.period, &px)
+                    + d(l.start - 1, l.start + l.period - 1, &px);
+            }
+            // Edges: the pixel columns/rows either side of each shared edge.
+            let edges: [(usize, usize, Vec<(u32, u32)>); 4] = [
+                (0, 1, (0..4).flat_map(|y| [(3, y), (4, y)]).collect()),
+                (2, 3, (4..8).flat_map(|y| [(3, y), (4, y)]).collect()),
+                (0, 2, (0..4).flat_map(|x| [(x, 3), (x, 4)]).collect()),
+                (1, 3, (4..8).flat_map(|x| [(x, 3), (x, 4)]).collect()),
+            ];
+            for (a, b, px) in edges {
+                if lab[a] == lab[b] {
+                    continue;
+                }
+                let (la, lb) = (pb.labels[lab[a]], pb.labels[lab[b]]);
+                let s: f64 = (0..6).map(|t| d(la.frame(t), lb.frame(t), &px)).sum();
+                e += lambda * s / 6.0;
+            }
+            e
+        };
+        let mut best = (f64::INFINITY, vec![0; 4]);
+        for code in 0..nl.pow(4) {
+            let lab: Vec<usize> = (0..4).map(|k| code / nl.pow(k) % nl).collect();
+            let e = pb.energy(&lab);
+            if e < best.0 {
+                best = (e, lab);
+            }
+        }
+        let got = pb.icm(pb.single(), 50);
+        let e_icm = pb.energy(&got);
+        let rel = |a: f64, b: f64| (a - b).abs() <= 1e-3 * b.abs().max(1.0);
+        assert!(rel(energy_here(&got), e_icm), "lambda {lambda}");
+        assert!(rel(energy_here(&best.1), best.0), "lambda {lambda}");
+        assert!(e_icm >= best.0 - 1e-6);
+        // ICM's result is a local minimum: no single tile's change lowers the energy.
+        for t in 0..4 {
+            for l in 0..nl {
+                let mut other = got.clone();
+                other[t] = l;
+                assert!(pb.energy(&other) >= e_icm - 1e-6);
+            }
+        }
+        assert!(
+            rel(e_icm, best.0),
+            "lambda {lambda}: icm {e_icm} brute {}",
+            best.0
+        );
+    }
+}
