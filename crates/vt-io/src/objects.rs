@@ -2,7 +2,9 @@
 //! file that the renderer reads frame by frame in any order.
 //!
 //! Two versions, both read. Version 2 (the default, [`StoreQuality::H264`]) keeps the pixels as
-//! H.264, version 1 ([`StoreQuality::Lossless`]) as raw RGB.
+//! H.264, version 1 ([`StoreQuality::Lossless`]) as raw RGB. Version 1 is read whole; version 2
+//! keeps its index in memory and reads a record when it decodes it, on a thread of its own that
+//! decodes the next frame ahead (see [`ObjectStore`]).
 //!
 //! Version 1 (little endian):
 //! ```text
@@ -455,40 +457,777 @@ impl ObjectWriter {
     }
 }
 
-/// A loaded store (either version). Version 2's frames are decoded on demand, by group of
-/// pictures, through a small cache of decoded frames; see [`ObjectStore::decode_into`].
+/// A loaded store (either version). Version 1 is held in memory. Version 2 loaded from a file
+/// keeps only its index (offsets and boxes, 28 bytes a frame) and reads each record when it is
+/// decoded, so memory does not grow with the video's length; its frames are decoded by a
+/// thread of the store's own, by group of pictures, into a small cache of decoded frames, and
+/// the frame after the one asked for is decoded ahead while the caller renders; see
+/// [`ObjectStore::decode_into`].
 pub struct ObjectStore {
     path: PathBuf,
     width: u32,
     height: u32,
-    data: Vec<u8>,
-    offsets: Vec<u64>,
+    bytes: std::sync::Arc<Bytes>,
+    index: std::sync::Arc<Index>,
     /// Version 2's decoder; None for version 1.
     codec: Option<Decoding>,
 }
 
-/// Version 2's record: the mask's box, its deflated bits, the access unit.
-type RecordV2<'a> = ((u32, u32, u32, u32), &'a [u8], &'a [u8]);
+/// Where a store's bytes are.
+enum Bytes {
+    /// All of them (version 1, and stores given as bytes).
+    Memory(Vec<u8>),
+    /// In the file, read record by record.
+    File { file: std::fs::File, len: usize },
+}
 
-/// Version 2's reading side.
+impl Bytes {
+    fn len(&self) -> usize {
+        match self {
+            Self::Memory(d) => d.len(),
+            Self::File { len, .. } => *len,
+        }
+    }
+
+    /// Calls `f` with bytes `at..at + n` (read into `buf` from a file); an error when they
+    /// cannot be read (a file shortened since it was loaded).
+    fn with<R>(
+        &self,
+        at: usize,
+        n: usize,
+        buf: &mut Vec<u8>,
+        f: impl FnOnce(&[u8]) -> R,
+    ) -> std::io::Result<R> {
+        match self {
+            Self::Memory(d) => d
+                .get(at..at.saturating_add(n))
+                .map(f)
+                .ok_or_else(|| std::io::ErrorKind::UnexpectedEof.into()),
+            Self::File { file, .. } => {
+                use std::os::unix::fs::FileExt;
+                buf.clear();
+                buf.resize(n, 0);
+                file.read_exact_at(buf, at as u64)?;
+                Ok(f(buf))
+            }
+        }
+    }
+
+    /// All the bytes (version 1 is always held in memory).
+    fn memory(&self) -> &[u8] {
+        match self {
+            Self::Memory(d) => d,
+            Self::File { .. } => unreachable!("version 1 stores are read whole"),
+        }
+    }
+}
+
+/// Where each record is.
+struct Index {
+    /// Byte offset of each record, and where the table starts.
+    offsets: Vec<u64>,
+    /// Version 2's record heads (box and deflated mask length), read once; empty in version 1.
+    heads: Vec<((u32, u32, u32, u32), u32)>,
+}
+
+impl Index {
+    /// Version 2's record `i`: its deflated mask's bytes and its access unit's, as ranges.
+    fn parts_v2(&self, i: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+        let (start, end) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
+        let mask_end = start + RECORD_HEAD_V2 + self.heads[i].1 as usize;
+        (start + RECORD_HEAD_V2..mask_end, mask_end..end)
+    }
+}
+
+/// Version 2's reading side: the decoding thread (started on the first decode) and what it
+/// shares with the callers.
 struct Decoding {
     gop: usize,
     qp: u8,
-    state: std::sync::Mutex<DecodeState>,
+    shared: std::sync::Arc<Shared>,
+    worker: std::sync::Mutex<Option<std::thread::JoinHandle<()>>>,
+    /// The mask bits of the box being decoded, and a record's bytes read from the file (reused).
+    scratch: std::sync::Mutex<(Vec<u8>, Vec<u8>)>,
 }
 
-/// What the decoder holds between calls.
+/// What the decoding thread and the callers share.
+struct Shared {
+    queue: std::sync::Mutex<Queue>,
+    changed: std::sync::Condvar,
+}
+
+/// The decoding thread's requests and results.
 #[derive(Default)]
-struct DecodeState {
+struct Queue {
+    /// The frames callers wait for.
+    wants: Vec<usize>,
+    /// The frame to decode when no caller waits (the one after the last asked for).
+    ahead: Option<usize>,
+    /// Recently decoded frames as 4:2:0 planes of the padded size, oldest first (at most a
+    /// group and three).
+    cache: std::collections::VecDeque<(usize, std::sync::Arc<Vec<u8>>)>,
+    /// Buffers of frames dropped from the cache, for the next ones.
+    spare: Vec<Vec<u8>>,
+    /// A frame that did not decode, and what of it.
+    failed: Option<(usize, &'static str)>,
+    /// Set when the store is dropped, or by the thread when it ends.
+    stop: bool,
+}
+
+impl Queue {
+    fn cached(&self, f: usize) -> Option<&std::sync::Arc<Vec<u8>>> {
+        self.cache.iter().find(|(g, _)| *g == f).map(|(_, b)| b)
+    }
+
+    /// The frame (and what of it) that did not decode on the way to `f`: `f` or one before it
+    /// in its group.
+    fn blocked(&self, f: usize, gop: usize) -> Option<(usize, &'static str)> {
+        self.failed.filter(|&(g, _)| g <= f && g / gop == f / gop)
+    }
+}
+
+impl Drop for Decoding {
+    fn drop(&mut self) {
+        if let Ok(mut q) = self.shared.queue.lock() {
+            q.stop = true;
+        }
+        self.shared.changed.notify_all();
+        if let Some(w) = self.worker.get_mut().ok().and_then(Option::take) {
+            let _ = w.join();
+        }
+    }
+}
+
+/// The decoding thread's own state: the decoder and where it stands.
+struct Worker {
+    bytes: std::sync::Arc<Bytes>,
+    index: std::sync::Arc<Index>,
+    shared: std::sync::Arc<Shared>,
+    gop: usize,
+    size: (usize, usize),
     decoder: Option<openh264::decoder::Decoder>,
     /// The frame the decoder would output next if fed the next access unit (its references are
     /// those of the frame before); None when it holds nothing usable.
     next: Option<usize>,
-    /// Recently decoded frames as 4:2:0 planes of the padded size, oldest first (at most a
-    /// group and two).
-    cache: std::collections::VecDeque<(usize, Vec<u8>)>,
-    /// The mask bits of the box being decoded (reused).
-    bits: Vec<u8>,
+    unit: Vec<u8>,
+}
+
+/// Marks the queue stopped when the decoding thread ends, a panic included, so no caller
+/// waits for it.
+struct StopOnExit(std::sync::Arc<Shared>);
+
+impl Drop for StopOnExit {
+    fn drop(&mut self) {
+        let mut q = self.0.queue.lock().unwrap_or_else(|e| e.into_inner());
+        q.stop = true;
+        drop(q);
+        self.0.changed.notify_all();
+    }
+}
+
+impl Worker {
+    fn run(mut self) {
+        let _stop = StopOnExit(self.shared.clone());
+        let shared = self.shared.clone();
+        let mut q = shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            if q.stop {
+                return;
+            }
+            let target = q
+                .wants
+                .iter()
+                .copied()
+                .chain(q.ahead)
+                .find(|&f| q.cached(f).is_none() && q.blocked(f, self.gop).is_none());
+            let Some(f) = target else {
+                q = shared.changed.wait(q).unwrap_or_else(|e| e.into_inner());
+                continue;
+            };
+            drop(q);
+            self.decode_to(f);
+            q = shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    /// Decodes frame `f` into the cache: from its group's start, or on from where the decoder
+    /// stands when that is in the group before `f`. Stops early when a caller comes to wait for
+    /// a frame this run will not reach.
+    fn decode_to(&mut self, f: usize) {
+        let group_start = f - f % self.gop;
+        let from = match self.next {
+            Some(n) if (group_start..=f).contains(&n) && self.decoder.is_some() => n,
+            _ => group_start,
+        };
+        self.next = None;
+        for g in from..=f {
+            let mut buf = {
+                let mut q = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+                q.spare.pop().unwrap_or_default()
+            };
+            if let Err(what) = self.decode_one(g, &mut buf) {
+                self.decoder = None;
+                let mut q = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+                q.failed = Some((g, what));
+                drop(q);
+                self.shared.changed.notify_all();
+                return;
+            }
+            self.next = Some(g + 1);
+            let mut q = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+            q.cache.retain(|(h, _)| *h != g);
+            q.cache.push_back((g, std::sync::Arc::new(buf)));
+            while q.cache.len() > self.gop + 3 {
+                // The oldest frame no caller waits for.
+                let Some(at) = q.cache.iter().position(|(h, _)| !q.wants.contains(h)) else {
+                    break;
+                };
+                if let Some((_, b)) = q.cache.remove(at) {
+                    if let Ok(b) = std::sync::Arc::try_unwrap(b) {
+                        q.spare.push(b);
+                    }
+                }
+            }
+            let interrupted = q
+                .wants
+                .iter()
+                .any(|&w| q.cached(w).is_none() && !(g + 1..=f).contains(&w));
+            drop(q);
+            self.shared.changed.notify_all();
+            if interrupted {
+                return;
+            }
+        }
+    }
+
+    /// Decodes record `g`'s access unit into `out`: its planes without the strides' padding.
+    fn decode_one(&mut self, g: usize, out: &mut Vec<u8>) -> std::result::Result<(), &'static str> {
+        let range = self.index.parts_v2(g).1;
+        let mut unit = std::mem::take(&mut self.unit);
+        let bytes = self.bytes.clone();
+        let result = bytes
+            .with(range.start, range.len(), &mut unit, |unit| {
+                self.decode_unit(unit, out)
+            })
+            .map_err(|_| "frame")
+            .and_then(|r| r);
+        self.unit = unit;
+        result
+    }
+
+    fn decode_unit(
+        &mut self,
+        unit: &[u8],
+        out: &mut Vec<u8>,
+    ) -> std::result::Result<(), &'static str> {
+        if self.decoder.is_none() {
+            self.decoder = Some(openh264::decoder::Decoder::new().map_err(|_| "frame")?);
+        }
+        let dec = self.decoder.as_mut().expect("set above");
+        let yuv = match dec.decode(unit) {
+            Ok(Some(yuv)) => yuv,
+            _ => return Err("picture"),
+        };
+        use openh264::formats::YUVSource;
+        let (pw, ph) = self.size;
+        if yuv.dimensions() != (pw, ph) {
+            return Err("picture size");
+        }
+        out.clear();
+        let (sy, su, sv) = yuv.strides();
+        for (plane, stride, w, h) in [
+            (yuv.y(), sy, pw, ph),
+            (yuv.u(), su, pw / 2, ph / 2),
+            (yuv.v(), sv, pw / 2, ph / 2),
+        ] {
+            for row in 0..h {
+                out.extend_from_slice(&plane[row * stride..row * stride + w]);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ObjectStore {
+    /// Loads and validates a store: version 1 whole, version 2's index only (its records are
+    /// read when decoded; each is read once here to check it).
+    pub fn load(path: &Path) -> Result<Self> {
+        let len = crate::limits::check_file_size(
+            path,
+            crate::limits::MAX_OBJECT_STORE_BYTES,
+            "object store",
+        )?;
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut magic = [0u8; 8];
+        {
+            use std::os::unix::fs::FileExt;
+            if len < 8 || file.read_exact_at(&mut magic, 0).is_err() || &magic != MAGIC_V2 {
+                let data = crate::limits::read_bytes(
+                    path,
+                    crate::limits::MAX_OBJECT_STORE_BYTES,
+                    "object store",
+                )?;
+                return Self::from_bytes(data, path);
+            }
+        }
+        let len = usize::try_from(len).map_err(|_| Error::Scene {
+            path: path.to_path_buf(),
+            message: "object store too large for this machine".into(),
+        })?;
+        Self::parse(Bytes::File { file, len }, path)
+    }
+
+    /// Validates a store's bytes (every offset, box and pixel count checked, so no later access
+    /// can fail); `path` names it in errors.
+    pub fn from_bytes(data: Vec<u8>, path: &Path) -> Result<Self> {
+        Self::parse(Bytes::Memory(data), path)
+    }
+
+    fn parse(bytes: Bytes, path: &Path) -> Result<Self> {
+        let bad = |m: String| Error::Scene {
+            path: path.to_path_buf(),
+            message: m,
+        };
+        let len = bytes.len();
+        let mut buf = Vec::new();
+        let head = bytes
+            .with(0, HEADER_V2.min(len), &mut buf, <[u8]>::to_vec)
+            .map_err(|e| Error::io(path, e))?;
+        let version2 = head.len() >= 8 && &head[..8] == MAGIC_V2;
+        if head.len() >= 8 && head[..5] == MAGIC[..5] && !version2 && &head[..8] != MAGIC {
+            return Err(bad(format!(
+                "object store version '{}' is not one this vt reads (1 or 2); run vt analyze \
+                 again to re-create the scene",
+                String::from_utf8_lossy(&head[5..8]).trim_end_matches('\0')
+            )));
+        }
+        if len < HEADER || (&head[..8] != MAGIC && !version2) {
+            return Err(bad("not a vt object store (bad magic)".into()));
+        }
+        let header = if version2 { HEADER_V2 } else { HEADER };
+        let tail = if len >= header + 24 {
+            bytes
+                .with(len - 16, 16, &mut buf, <[u8]>::to_vec)
+                .map_err(|e| Error::io(path, e))?
+        } else {
+            Vec::new()
+        };
+        if tail.len() < 16 || &tail[8..] != END {
+            return Err(bad(
+                "corrupted or truncated object store (no end marker)".into()
+            ));
+        }
+        let u32_at =
+            |d: &[u8], o: usize| u32::from_le_bytes(d[o..o + 4].try_into().expect("4 bytes"));
+        let u64_at =
+            |d: &[u8], o: usize| u64::from_le_bytes(d[o..o + 8].try_into().expect("8 bytes"));
+        let (width, height) = (u32_at(&head, 8), u32_at(&head, 12));
+        let side = crate::limits::MAX_IMAGE_SIDE;
+        if width == 0 || height == 0 || width > side || height > side {
+            return Err(bad(format!(
+                "corrupted: frame size {width}x{height} (1 to {side} per side)"
+            )));
+        }
+        let n = u64_at(&tail, 0) as usize;
+        let table_len = n
+            .checked_add(1)
+            .and_then(|k| k.checked_mul(8))
+            .filter(|&l| l.checked_add(16 + header).is_some_and(|t| t <= len));
+        let Some(table_len) = table_len else {
+            return Err(bad(format!(
+                "corrupted: {n} frames do not fit in {len} bytes"
+            )));
+        };
+        let table_start = len - 16 - table_len;
+        let offsets: Vec<u64> = bytes
+            .with(table_start, table_len, &mut buf, |t| {
+                (0..=n).map(|i| u64_at(t, 8 * i)).collect()
+            })
+            .map_err(|e| Error::io(path, e))?;
+        let min_record = if version2 { RECORD_HEAD_V2 + 1 } else { 16 };
+        if offsets
+            .windows(2)
+            .any(|w| w[1] < w[0].saturating_add(min_record as u64))
+            || offsets.first() != Some(&(header as u64))
+            || offsets[n] != table_start as u64
+        {
+            return Err(bad("corrupted: offset table does not match the file".into()));
+        }
+        let codec = if version2 {
+            let (gop, qp) = (u32_at(&head, 16), u32_at(&head, 20));
+            if !(1..=250).contains(&gop) || qp > 51 {
+                return Err(bad(format!(
+                    "corrupted: group of {gop} frames at quantiser {qp} (1 to 250, 0 to 51)"
+                )));
+            }
+            Some(Decoding {
+                gop: gop as usize,
+                qp: qp as u8,
+                shared: std::sync::Arc::new(Shared {
+                    queue: Default::default(),
+                    changed: Default::default(),
+                }),
+                worker: Default::default(),
+                scratch: Default::default(),
+            })
+        } else {
+            None
+        };
+        let mut store = Self {
+            path: path.to_path_buf(),
+            width,
+            height,
+            bytes: std::sync::Arc::new(bytes),
+            index: std::sync::Arc::new(Index {
+                offsets,
+                heads: Vec::new(),
+            }),
+            codec,
+        };
+        if store.codec.is_some() {
+            store.check_v2(&mut buf)?;
+            return Ok(store);
+        }
+        for i in 0..n {
+            let (x0, y0, x1, y1) = store.raw_bbox(i);
+            let ok = x0 <= x1 && y0 <= y1 && x1 <= width && y1 <= height;
+            // Sizes are at most MAX_IMAGE_SIDE^2 = 2^28 bits: no overflow.
+            let n_bits = ok.then(|| (x1 - x0) as usize * (y1 - y0) as usize);
+            let need = n_bits.map(|b| 16 + b.div_ceil(8));
+            let offsets = &store.index.offsets;
+            let len = (offsets[i + 1] - offsets[i]) as usize;
+            if need.is_none_or(|need| len < need || !(len - need).is_multiple_of(3)) {
+                return Err(bad(format!("corrupted: frame {i} record is inconsistent")));
+            }
+            // Every set bit needs its RGB triple, no more, no less.
+            let (n_bits, need) = (n_bits.unwrap_or(0), need.unwrap_or(16));
+            let o = offsets[i] as usize + 16;
+            let bits = &store.bytes.memory()[o..o + n_bits.div_ceil(8)];
+            let full = n_bits / 8;
+            let mut set: usize = bits[..full].iter().map(|b| b.count_ones() as usize).sum();
+            if n_bits % 8 != 0 {
+                set += (bits[full] & ((1u8 << (n_bits % 8)) - 1)).count_ones() as usize;
+            }
+            if set * 3 != len - need {
+                return Err(bad(format!(
+                    "corrupted: frame {i} has {set} object pixels but {} colours",
+                    (len - need) / 3
+                )));
+            }
+        }
+        Ok(store)
+    }
+
+    /// Version 2's records, each read once: boxes inside the frame, masks that inflate to
+    /// exactly their box's bits, an access unit in every record (its content is checked when
+    /// decoded). Keeps the record heads.
+    fn check_v2(&mut self, buf: &mut Vec<u8>) -> Result<()> {
+        let mut heads = Vec::with_capacity(self.len());
+        for i in 0..self.len() {
+            let bad = |m: &str| Error::Scene {
+                path: self.path.clone(),
+                message: format!("corrupted: frame {i} {m}"),
+            };
+            let offsets = &self.index.offsets;
+            let (start, end) = (offsets[i] as usize, offsets[i + 1] as usize);
+            let (width, height) = (self.width, self.height);
+            let head = self
+                .bytes
+                .with(start, end - start, buf, |rec| {
+                    let g = |k: usize| {
+                        u32::from_le_bytes(rec[4 * k..4 * k + 4].try_into().expect("4 bytes"))
+                    };
+                    let (x0, y0, x1, y1) = (g(0), g(1), g(2), g(3));
+                    if !(x0 <= x1 && y0 <= y1 && x1 <= width && y1 <= height) {
+                        return Err("has a box outside the frame");
+                    }
+                    let mask_len = g(4) as usize;
+                    if mask_len >= end - start - RECORD_HEAD_V2 {
+                        return Err("record is inconsistent");
+                    }
+                    let nb = ((x1 - x0) as usize * (y1 - y0) as usize).div_ceil(8);
+                    let deflated = &rec[RECORD_HEAD_V2..RECORD_HEAD_V2 + mask_len];
+                    match miniz_oxide::inflate::decompress_to_vec_with_limit(deflated, nb) {
+                        Ok(bits) if bits.len() == nb => Ok(((x0, y0, x1, y1), mask_len as u32)),
+                        _ => Err("has a damaged mask"),
+                    }
+                })
+                .map_err(|e| Error::io(&self.path, e))?
+                .map_err(bad)?;
+            heads.push(head);
+        }
+        std::sync::Arc::get_mut(&mut self.index)
+            .expect("not shared before the store is made")
+            .heads = heads;
+        Ok(())
+    }
+
+    /// How the store keeps its pixels.
+    pub fn quality(&self) -> StoreQuality {
+        match &self.codec {
+            None => StoreQuality::Lossless,
+            Some(c) => StoreQuality::H264 { qp: c.qp },
+        }
+    }
+
+    /// Bytes of the file that decoding frame `i` alone reads (its record; version 2 also
+    /// decodes the frames before it in its group when they are not cached).
+    pub fn frame_bytes(&self, i: usize) -> usize {
+        (self.index.offsets[i + 1] - self.index.offsets[i]) as usize
+    }
+
+    /// The store's size in bytes.
+    pub fn byte_len(&self) -> usize {
+        self.bytes.len()
+    }
+
+    fn raw_bbox(&self, i: usize) -> (u32, u32, u32, u32) {
+        if self.codec.is_some() {
+            return self.index.heads[i].0;
+        }
+        let o = self.index.offsets[i] as usize;
+        let data = self.bytes.memory();
+        let g = |k: usize| {
+            u32::from_le_bytes(data[o + 4 * k..o + 4 * k + 4].try_into().expect("4 bytes"))
+        };
+        (g(0), g(1), g(2), g(3))
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.index.offsets.len() - 1
+    }
+
+    /// True when the store has no frames.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Frame size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Frame `i`'s object in a version 1 store (None in version 2, whose pixels need
+    /// decoding: use [`ObjectStore::decode_into`]). Panics when `i >= len()`.
+    pub fn frame(&self, i: usize) -> Option<ObjectFrame<'_>> {
+        self.codec.is_none().then(|| self.raw_frame(i))
+    }
+
+    fn raw_frame(&self, i: usize) -> ObjectFrame<'_> {
+        let bbox = self.raw_bbox(i);
+        let offsets = &self.index.offsets;
+        let (o, end) = (offsets[i] as usize + 16, offsets[i + 1] as usize);
+        let nb = (((bbox.2 - bbox.0) * (bbox.3 - bbox.1)) as usize).div_ceil(8);
+        let data = self.bytes.memory();
+        ObjectFrame {
+            bbox,
+            bits: &data[o..o + nb],
+            rgb: &data[o + nb..end],
+        }
+    }
+
+    /// Frame `i`'s mask as a full-size [`Mask`] (empty where a version 2 file can no longer be
+    /// read). Panics when `i >= len()`.
+    pub fn mask(&self, i: usize) -> Mask {
+        let mut m = Mask::new(self.width, self.height);
+        if self.codec.is_none() {
+            self.raw_frame(i)
+                .for_each_pixel(|x, y, _| m.set(x, y, true));
+            return m;
+        }
+        let (x0, y0, x1, y1) = self.raw_bbox(i);
+        let nb = ((x1 - x0) as usize * (y1 - y0) as usize).div_ceil(8);
+        let range = self.index.parts_v2(i).0;
+        let bits = self
+            .bytes
+            .with(range.start, range.len(), &mut Vec::new(), |deflated| {
+                miniz_oxide::inflate::decompress_to_vec_with_limit(deflated, nb).ok()
+            })
+            .ok()
+            .flatten()
+            .filter(|b| b.len() == nb);
+        let Some(bits) = bits else {
+            return m;
+        };
+        let mut k = 0;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if bits[k / 8] >> (k % 8) & 1 == 1 {
+                    m.set(x, y, true);
+                }
+                k += 1;
+            }
+        }
+        m
+    }
+
+    /// Decodes frame `i` into a renderer patch (box-sized RGB + mask), reusing its storage.
+    /// Version 2 hands the frame to the store's decoding thread, which decodes from the frame's
+    /// group start unless it is already there (the next frame in playback order) or the frame
+    /// is cached, and then goes on to the frame after it while the caller converts and renders
+    /// this one. Panics when `i >= len()`; an error is a damaged access unit.
+    pub fn decode_into(&self, i: usize, patch: &mut vt_core::render::ObjectPatch) -> Result<()> {
+        let Some(codec) = &self.codec else {
+            self.raw_frame(i).decode_into(patch);
+            return Ok(());
+        };
+        let (x0, y0, x1, y1) = self.raw_bbox(i);
+        if x1 == x0 || y1 == y0 {
+            patch.reset(x0, y0, x1 - x0, y1 - y0);
+            return Ok(());
+        }
+        // Every byte of the box is written below: sized, not zeroed first.
+        let n = (x1 - x0) as usize * (y1 - y0) as usize;
+        (patch.x0, patch.y0, patch.width, patch.height) = (x0, y0, x1 - x0, y1 - y0);
+        patch.rgb.resize(3 * n, 0);
+        patch.mask.resize(n, 0);
+        // The mask, while the thread decodes the picture.
+        let planes = self.request(codec, i)?;
+        let mut scratch = codec.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let (bits, record) = &mut *scratch;
+        let nb = n.div_ceil(8);
+        bits.resize(nb, 0);
+        let range = self.index.parts_v2(i).0;
+        let inflated = self
+            .bytes
+            .with(range.start, range.len(), record, |deflated| {
+                miniz_oxide::inflate::decompress_slice_iter_to_slice(
+                    bits,
+                    std::iter::once(deflated),
+                    false,
+                    true,
+                )
+            })
+            .ok();
+        if inflated != Some(Ok(nb)) {
+            return Err(self.damaged(i, "mask"));
+        }
+        let planes = planes.wait()?;
+        let (pw, ph) = padded_size(self.width, self.height);
+        let (y_plane, chroma) = planes.split_at(pw * ph);
+        let (u_plane, v_plane) = chroma.split_at(pw * ph / 4);
+        let (bw, x0) = ((x1 - x0) as usize, x0 as usize);
+        // The box's bits, LSB first, as one byte per pixel.
+        for (m, &bits) in patch.mask.chunks_mut(8).zip(bits.iter()) {
+            for (j, m) in m.iter_mut().enumerate() {
+                *m = bits >> j & 1;
+            }
+        }
+        // [`rgb_to_yuv420`]'s inverse, row by row (RGB 0 where the mask is).
+        for (r, (mask, rgb)) in patch
+            .mask
+            .chunks_exact(bw)
+            .zip(patch.rgb.chunks_exact_mut(3 * bw))
+            .enumerate()
+        {
+            let y = y0 as usize + r;
+            let c_row = (y / 2) * (pw / 2) + x0 / 2;
+            let nc = (bw + x0 % 2).div_ceil(2);
+            vt_core::yuv::masked_full_range_row_to_rgb(
+                &y_plane[y * pw + x0..y * pw + x0 + bw],
+                &u_plane[c_row..c_row + nc],
+                &v_plane[c_row..c_row + nc],
+                x0 % 2 == 1,
+                mask,
+                rgb,
+            );
+        }
+        Ok(())
+    }
+
+    /// Asks the decoding thread for frame `i` (and the one after it), starting the thread on
+    /// the first call.
+    fn request<'a>(&'a self, codec: &'a Decoding, i: usize) -> Result<Pending<'a>> {
+        let mut worker = codec.worker.lock().unwrap_or_else(|e| e.into_inner());
+        if worker.is_none() {
+            let w = Worker {
+                bytes: self.bytes.clone(),
+                index: self.index.clone(),
+                shared: codec.shared.clone(),
+                gop: codec.gop,
+                size: padded_size(self.width, self.height),
+                decoder: None,
+                next: None,
+                unit: Vec::new(),
+            };
+            let handle = std::thread::Builder::new()
+                .name("vt-store-decode".into())
+                .spawn(move || w.run())
+                .map_err(|e| Error::io(&self.path, e))?;
+            *worker = Some(handle);
+        }
+        drop(worker);
+        let mut q = codec.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+        if q.failed
+            .is_some_and(|(g, _)| g / codec.gop != i / codec.gop)
+        {
+            // A damaged frame elsewhere does not stop this group.
+            q.failed = None;
+        }
+        q.wants.push(i);
+        q.ahead = (i + 1 < self.len()).then_some(i + 1);
+        drop(q);
+        codec.shared.changed.notify_all();
+        Ok(Pending {
+            store: self,
+            codec,
+            frame: i,
+        })
+    }
+
+    fn damaged(&self, i: usize, what: &str) -> Error {
+        Error::Scene {
+            path: self.path.clone(),
+            message: format!("corrupted: frame {i}'s {what} does not decode"),
+        }
+    }
+}
+
+/// A frame asked of the decoding thread.
+struct Pending<'a> {
+    store: &'a ObjectStore,
+    codec: &'a Decoding,
+    frame: usize,
+}
+
+impl Pending<'_> {
+    /// The frame's planes, once decoded.
+    fn wait(&self) -> Result<std::sync::Arc<Vec<u8>>> {
+        let (shared, i) = (&self.codec.shared, self.frame);
+        let mut q = shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            let done = if let Some(planes) = q.cached(i) {
+                Ok(planes.clone())
+            } else if let Some((g, what)) = q.blocked(i, self.codec.gop) {
+                q.ahead = None;
+                Err(self.store.damaged(g, what))
+            } else if q.stop {
+                Err(self
+                    .store
+                    .damaged(i, "picture (the decoding thread stopped)"))
+            } else {
+                q = shared.changed.wait(q).unwrap_or_else(|e| e.into_inner());
+                continue;
+            };
+            return done;
+        }
+    }
+}
+
+impl Drop for Pending<'_> {
+    /// No longer waited for, whether it came or not.
+    fn drop(&mut self) {
+        let mut q = self
+            .codec
+            .shared
+            .queue
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        if let Some(at) = q.wants.iter().position(|&w| w == self.frame) {
+            q.wants.swap_remove(at);
+        }
+    }
 }
 
 /// One frame's object: box, mask bits of the box, and the RGB of set pixels.
@@ -515,398 +1254,6 @@ impl ObjectFrame<'_> {
                 i += 1;
             }
         }
-    }
-}
-
-impl ObjectStore {
-    /// Loads and validates a store.
-    pub fn load(path: &Path) -> Result<Self> {
-        let data =
-            crate::limits::read_bytes(path, crate::limits::MAX_OBJECT_STORE_BYTES, "object store")?;
-        Self::from_bytes(data, path)
-    }
-
-    /// Validates a store's bytes (every offset, box and pixel count checked, so no later access
-    /// can fail); `path` names it in errors.
-    pub fn from_bytes(data: Vec<u8>, path: &Path) -> Result<Self> {
-        let bad = |m: String| Error::Scene {
-            path: path.to_path_buf(),
-            message: m,
-        };
-        let version2 = data.len() >= 8 && &data[..8] == MAGIC_V2;
-        if data.len() >= 8 && data[..5] == MAGIC[..5] && !version2 && &data[..8] != MAGIC {
-            return Err(bad(format!(
-                "object store version '{}' is not one this vt reads (1 or 2); run vt analyze \
-                 again to re-create the scene",
-                String::from_utf8_lossy(&data[5..8]).trim_end_matches('\0')
-            )));
-        }
-        if data.len() < HEADER || (&data[..8] != MAGIC && !version2) {
-            return Err(bad("not a vt object store (bad magic)".into()));
-        }
-        let header = if version2 { HEADER_V2 } else { HEADER };
-        if data.len() < header + 24 || &data[data.len() - 8..] != END {
-            return Err(bad(
-                "corrupted or truncated object store (no end marker)".into()
-            ));
-        }
-        let u32_at = |o: usize| u32::from_le_bytes(data[o..o + 4].try_into().expect("4 bytes"));
-        let u64_at = |o: usize| u64::from_le_bytes(data[o..o + 8].try_into().expect("8 bytes"));
-        let (width, height) = (u32_at(8), u32_at(12));
-        let side = crate::limits::MAX_IMAGE_SIDE;
-        if width == 0 || height == 0 || width > side || height > side {
-            return Err(bad(format!(
-                "corrupted: frame size {width}x{height} (1 to {side} per side)"
-            )));
-        }
-        let n = u64_at(data.len() - 16) as usize;
-        let table_len = n
-            .checked_add(1)
-            .and_then(|k| k.checked_mul(8))
-            .filter(|&l| l.checked_add(16 + header).is_some_and(|t| t <= data.len()));
-        let Some(table_len) = table_len else {
-            return Err(bad(format!(
-                "corrupted: {n} frames do not fit in {} bytes",
-                data.len()
-            )));
-        };
-        let table_start = data.len() - 16 - table_len;
-        let offsets: Vec<u64> = (0..=n).map(|i| u64_at(table_start + 8 * i)).collect();
-        let min_record = if version2 { RECORD_HEAD_V2 + 1 } else { 16 };
-        if offsets
-            .windows(2)
-            .any(|w| w[1] < w[0].saturating_add(min_record as u64))
-            || offsets.first() != Some(&(header as u64))
-            || offsets[n] != table_start as u64
-        {
-            return Err(bad("corrupted: offset table does not match the file".into()));
-        }
-        let codec = if version2 {
-            let (gop, qp) = (u32_at(16), u32_at(20));
-            if !(1..=250).contains(&gop) || qp > 51 {
-                return Err(bad(format!(
-                    "corrupted: group of {gop} frames at quantiser {qp} (1 to 250, 0 to 51)"
-                )));
-            }
-            Some(Decoding {
-                gop: gop as usize,
-                qp: qp as u8,
-                state: Default::default(),
-            })
-        } else {
-            None
-        };
-        let store = Self {
-            path: path.to_path_buf(),
-            width,
-            height,
-            data,
-            offsets,
-            codec,
-        };
-        if store.codec.is_some() {
-            store.check_v2()?;
-            return Ok(store);
-        }
-        for i in 0..n {
-            let (x0, y0, x1, y1) = store.raw_bbox(i);
-            let ok = x0 <= x1 && y0 <= y1 && x1 <= width && y1 <= height;
-            // Sizes are at most MAX_IMAGE_SIDE^2 = 2^28 bits: no overflow.
-            let n_bits = ok.then(|| (x1 - x0) as usize * (y1 - y0) as usize);
-            let need = n_bits.map(|b| 16 + b.div_ceil(8));
-            let len = (store.offsets[i + 1] - store.offsets[i]) as usize;
-            if need.is_none_or(|need| len < need || !(len - need).is_multiple_of(3)) {
-                return Err(bad(format!("corrupted: frame {i} record is inconsistent")));
-            }
-            // Every set bit needs its RGB triple, no more, no less.
-            let (n_bits, need) = (n_bits.unwrap_or(0), need.unwrap_or(16));
-            let o = store.offsets[i] as usize + 16;
-            let bits = &store.data[o..o + n_bits.div_ceil(8)];
-            let full = n_bits / 8;
-            let mut set: usize = bits[..full].iter().map(|b| b.count_ones() as usize).sum();
-            if n_bits % 8 != 0 {
-                set += (bits[full] & ((1u8 << (n_bits % 8)) - 1)).count_ones() as usize;
-            }
-            if set * 3 != len - need {
-                return Err(bad(format!(
-                    "corrupted: frame {i} has {set} object pixels but {} colours",
-                    (len - need) / 3
-                )));
-            }
-        }
-        Ok(store)
-    }
-
-    /// Version 2's records: boxes inside the frame, masks that inflate to exactly their box's
-    /// bits, an access unit in every record (its content is checked when decoded).
-    fn check_v2(&self) -> Result<()> {
-        for i in 0..self.len() {
-            let bad = |m: &str| Error::Scene {
-                path: self.path.clone(),
-                message: format!("corrupted: frame {i} {m}"),
-            };
-            let (x0, y0, x1, y1) = self.raw_bbox(i);
-            if !(x0 <= x1 && y0 <= y1 && x1 <= self.width && y1 <= self.height) {
-                return Err(bad("has a box outside the frame"));
-            }
-            let (start, end) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
-            let mask_len = u32::from_le_bytes(
-                self.data[start + 16..start + 20]
-                    .try_into()
-                    .expect("4 bytes"),
-            ) as usize;
-            if mask_len >= end - start - RECORD_HEAD_V2 {
-                return Err(bad("record is inconsistent"));
-            }
-            let nb = ((x1 - x0) as usize * (y1 - y0) as usize).div_ceil(8);
-            let deflated = &self.data[start + RECORD_HEAD_V2..start + RECORD_HEAD_V2 + mask_len];
-            match miniz_oxide::inflate::decompress_to_vec_with_limit(deflated, nb) {
-                Ok(bits) if bits.len() == nb => {}
-                _ => return Err(bad("has a damaged mask")),
-            }
-        }
-        Ok(())
-    }
-
-    /// Version 2's record `i`: box, deflated mask bits, access unit.
-    fn record_v2(&self, i: usize) -> RecordV2<'_> {
-        let (start, end) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
-        let mask_len = u32::from_le_bytes(
-            self.data[start + 16..start + 20]
-                .try_into()
-                .expect("4 bytes"),
-        ) as usize;
-        let mask_end = start + RECORD_HEAD_V2 + mask_len;
-        (
-            self.raw_bbox(i),
-            &self.data[start + RECORD_HEAD_V2..mask_end],
-            &self.data[mask_end..end],
-        )
-    }
-
-    /// How the store keeps its pixels.
-    pub fn quality(&self) -> StoreQuality {
-        match &self.codec {
-            None => StoreQuality::Lossless,
-            Some(c) => StoreQuality::H264 { qp: c.qp },
-        }
-    }
-
-    /// Bytes of the file that decoding frame `i` alone reads (its record; version 2 also
-    /// decodes the frames before it in its group when they are not cached).
-    pub fn frame_bytes(&self, i: usize) -> usize {
-        (self.offsets[i + 1] - self.offsets[i]) as usize
-    }
-
-    /// The store's size in bytes.
-    pub fn byte_len(&self) -> usize {
-        self.data.len()
-    }
-
-    fn raw_bbox(&self, i: usize) -> (u32, u32, u32, u32) {
-        let o = self.offsets[i] as usize;
-        let g = |k: usize| {
-            u32::from_le_bytes(
-                self.data[o + 4 * k..o + 4 * k + 4]
-                    .try_into()
-                    .expect("4 bytes"),
-            )
-        };
-        (g(0), g(1), g(2), g(3))
-    }
-
-    /// Number of frames.
-    pub fn len(&self) -> usize {
-        self.offsets.len() - 1
-    }
-
-    /// True when the store has no frames.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// Frame size.
-    pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
-    }
-
-    /// Frame `i`'s object in a version 1 store (None in version 2, whose pixels need
-    /// decoding: use [`ObjectStore::decode_into`]). Panics when `i >= len()`.
-    pub fn frame(&self, i: usize) -> Option<ObjectFrame<'_>> {
-        self.codec.is_none().then(|| self.raw_frame(i))
-    }
-
-    fn raw_frame(&self, i: usize) -> ObjectFrame<'_> {
-        let bbox = self.raw_bbox(i);
-        let (o, end) = (self.offsets[i] as usize + 16, self.offsets[i + 1] as usize);
-        let nb = (((bbox.2 - bbox.0) * (bbox.3 - bbox.1)) as usize).div_ceil(8);
-        ObjectFrame {
-            bbox,
-            bits: &self.data[o..o + nb],
-            rgb: &self.data[o + nb..end],
-        }
-    }
-
-    /// Frame `i`'s mask as a full-size [`Mask`]. Panics when `i >= len()`.
-    pub fn mask(&self, i: usize) -> Mask {
-        let mut m = Mask::new(self.width, self.height);
-        if self.codec.is_none() {
-            self.raw_frame(i)
-                .for_each_pixel(|x, y, _| m.set(x, y, true));
-            return m;
-        }
-        let ((x0, y0, x1, y1), deflated, _) = self.record_v2(i);
-        let nb = ((x1 - x0) as usize * (y1 - y0) as usize).div_ceil(8);
-        let bits = miniz_oxide::inflate::decompress_to_vec_with_limit(deflated, nb)
-            .expect("masks are checked on loading");
-        let mut k = 0;
-        for y in y0..y1 {
-            for x in x0..x1 {
-                if bits[k / 8] >> (k % 8) & 1 == 1 {
-                    m.set(x, y, true);
-                }
-                k += 1;
-            }
-        }
-        m
-    }
-
-    /// Decodes frame `i` into a renderer patch (box-sized RGB + mask), reusing its storage.
-    /// Version 2 decodes from the frame's group start unless the decoder is already there (the
-    /// next frame in playback order) or the frame is cached. Panics when `i >= len()`; an error
-    /// is a damaged access unit.
-    pub fn decode_into(&self, i: usize, patch: &mut vt_core::render::ObjectPatch) -> Result<()> {
-        let Some(codec) = &self.codec else {
-            self.raw_frame(i).decode_into(patch);
-            return Ok(());
-        };
-        let ((x0, y0, x1, y1), deflated, _) = self.record_v2(i);
-        if x1 == x0 || y1 == y0 {
-            patch.reset(x0, y0, x1 - x0, y1 - y0);
-            return Ok(());
-        }
-        // Every byte of the box is written below: sized, not zeroed first.
-        let n = (x1 - x0) as usize * (y1 - y0) as usize;
-        (patch.x0, patch.y0, patch.width, patch.height) = (x0, y0, x1 - x0, y1 - y0);
-        patch.rgb.resize(3 * n, 0);
-        patch.mask.resize(n, 0);
-        // A poisoned lock only means an earlier decode panicked midway: start afresh.
-        let mut state = codec.state.lock().unwrap_or_else(|e| {
-            let mut s = e.into_inner();
-            *s = DecodeState::default();
-            s
-        });
-        let nb = ((x1 - x0) as usize * (y1 - y0) as usize).div_ceil(8);
-        state.bits.resize(nb, 0);
-        let inflated = miniz_oxide::inflate::decompress_slice_iter_to_slice(
-            &mut state.bits,
-            std::iter::once(deflated),
-            false,
-            true,
-        );
-        if inflated != Ok(nb) {
-            return Err(self.damaged(i, "mask"));
-        }
-        let at = self.decoded(codec, &mut state, i)?;
-        let state = &*state;
-        let planes = &state.cache[at].1;
-        let (pw, ph) = padded_size(self.width, self.height);
-        let (y_plane, chroma) = planes.split_at(pw * ph);
-        let (u_plane, v_plane) = chroma.split_at(pw * ph / 4);
-        let (bw, x0) = ((x1 - x0) as usize, x0 as usize);
-        // The box's bits, LSB first, as one byte per pixel.
-        for (m, &bits) in patch.mask.chunks_mut(8).zip(&state.bits) {
-            for (j, m) in m.iter_mut().enumerate() {
-                *m = bits >> j & 1;
-            }
-        }
-        // [`rgb_to_yuv420`]'s inverse, row by row (RGB 0 where the mask is).
-        for (r, (mask, rgb)) in patch
-            .mask
-            .chunks_exact(bw)
-            .zip(patch.rgb.chunks_exact_mut(3 * bw))
-            .enumerate()
-        {
-            let y = y0 as usize + r;
-            let c_row = (y / 2) * (pw / 2) + x0 / 2;
-            vt_core::yuv::masked_full_range_row_to_rgb(
-                &y_plane[y * pw + x0..y * pw + x0 + bw],
-                &u_plane[c_row..c_row + (bw + x0 % 2).div_ceil(2)],
-                &v_plane[c_row..c_row + (bw + x0 % 2).div_ceil(2)],
-                x0 % 2 == 1,
-                mask,
-                rgb,
-            );
-        }
-        Ok(())
-    }
-
-    fn damaged(&self, i: usize, what: &str) -> Error {
-        Error::Scene {
-            path: self.path.clone(),
-            message: format!("corrupted: frame {i}'s {what} does not decode"),
-        }
-    }
-
-    /// Makes sure frame `i` is in the cache; returns its place there.
-    fn decoded(&self, codec: &Decoding, state: &mut DecodeState, i: usize) -> Result<usize> {
-        if let Some(at) = state.cache.iter().position(|(f, _)| *f == i) {
-            return Ok(at);
-        }
-        let group_start = i - i % codec.gop;
-        let from = match state.next {
-            Some(n) if (group_start..=i).contains(&n) && state.decoder.is_some() => n,
-            _ => group_start,
-        };
-        let (pw, ph) = padded_size(self.width, self.height);
-        let DecodeState {
-            decoder,
-            next,
-            cache,
-            ..
-        } = state;
-        *next = None;
-        for f in from..=i {
-            if decoder.is_none() {
-                *decoder =
-                    Some(openh264::decoder::Decoder::new().map_err(|_| self.damaged(f, "frame"))?);
-            }
-            let dec = decoder.as_mut().expect("set above");
-            let (_, _, unit) = self.record_v2(f);
-            let yuv = match dec.decode(unit) {
-                Ok(Some(yuv)) => yuv,
-                _ => {
-                    *decoder = None;
-                    return Err(self.damaged(f, "picture"));
-                }
-            };
-            use openh264::formats::YUVSource;
-            if yuv.dimensions() != (pw, ph) {
-                *decoder = None;
-                return Err(self.damaged(f, "picture size"));
-            }
-            let mut buf = if cache.len() > codec.gop + 1 {
-                cache.pop_front().map(|(_, b)| b).unwrap_or_default()
-            } else {
-                Vec::new()
-            };
-            // The planes without their strides' padding: Y, then U, then V.
-            buf.clear();
-            let (sy, su, sv) = yuv.strides();
-            for (plane, stride, w, h) in [
-                (yuv.y(), sy, pw, ph),
-                (yuv.u(), su, pw / 2, ph / 2),
-                (yuv.v(), sv, pw / 2, ph / 2),
-            ] {
-                for row in 0..h {
-                    buf.extend_from_slice(&plane[row * stride..row * stride + w]);
-                }
-            }
-            cache.retain(|(g, _)| *g != f);
-            cache.push_back((f, buf));
-            *next = Some(f + 1);
-        }
-        Ok(cache.len() - 1)
     }
 }
 
@@ -1184,6 +1531,46 @@ mod tests {
             let fresh = ObjectStore::load(&path).unwrap();
             assert_eq!(decode(&fresh, i), sequential[i], "frame {i} alone");
         }
+    }
+
+    #[test]
+    fn version_2_reads_records_on_demand_from_its_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let frames = moving_frames(48, 32, 20);
+        let path = dir.path().join("o.bin");
+        write(&path, &frames, StoreQuality::default());
+        let bytes = std::fs::read(&path).unwrap();
+        let memory = ObjectStore::from_bytes(bytes.clone(), &path).unwrap();
+        let file = ObjectStore::load(&path).unwrap();
+        assert_eq!(file.byte_len(), bytes.len());
+        let (mut a, mut b) = Default::default();
+        // From the file: the same frames as from memory, from several threads at once.
+        std::thread::scope(|s| {
+            for t in 0..3 {
+                let file = &file;
+                s.spawn(move || {
+                    let mut patch = vt_core::render::ObjectPatch::default();
+                    for i in (t..20).chain((0..20).rev()) {
+                        file.decode_into(i, &mut patch).unwrap();
+                    }
+                });
+            }
+        });
+        for i in [0, 1, 2, 13, 7, 19, 8] {
+            memory.decode_into(i, &mut a).unwrap();
+            file.decode_into(i, &mut b).unwrap();
+            assert_eq!(patch_pixels(&a), patch_pixels(&b), "frame {i}");
+            assert_eq!(memory.mask(i), file.mask(i), "frame {i}");
+        }
+        // A file cut short after loading: an error naming it, not a panic.
+        std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+        let fresh = ObjectStore::from_bytes(bytes, &path).unwrap();
+        drop(fresh);
+        let err = (0..20)
+            .rev()
+            .find_map(|i| file.decode_into(i, &mut b).err())
+            .expect("the cut frames fail");
+        assert!(err.to_string().contains("o.bin"), "{err}");
     }
 
     #[test]
