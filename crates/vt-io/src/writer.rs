@@ -47,12 +47,38 @@ impl EncodeParams {
 
 /// An ffmpeg process encoding raw RGB frames into a temporary file that becomes the output on
 /// [`VideoWriter::finish`]. Dropped unfinished, ffmpeg is killed and the temporary removed.
+///
+/// Frames go to ffmpeg through a thread of the writer's own with a queue of [`QUEUED`] frames, so
+/// the caller renders the next frames while ffmpeg is still taking in one (a pipe holds 64 KiB,
+/// a small part of a frame: written directly, every frame waited for ffmpeg to read it whole).
 pub struct VideoWriter {
     output: Option<Output>,
     child: Arc<Mutex<Child>>,
-    stdin: Option<ChildStdin>,
+    /// Frames to the feeding thread; None once closed.
+    frames: Option<std::sync::mpsc::SyncSender<Vec<u8>>>,
+    /// Buffers the feeding thread has written, for the next frames.
+    spare: std::sync::mpsc::Receiver<Vec<u8>>,
+    /// The feeding thread: its write error, if any.
+    feeder: Option<std::thread::JoinHandle<std::io::Result<()>>>,
     stderr: Option<std::thread::JoinHandle<String>>,
     size: (u32, u32),
+}
+
+/// Frames queued for ffmpeg beyond the one being written.
+const QUEUED: usize = 2;
+
+/// Writes each queued frame to ffmpeg's input and hands its buffer back; closes the input when
+/// the queue closes, and stops at the first error.
+fn feed(
+    mut stdin: ChildStdin,
+    frames: std::sync::mpsc::Receiver<Vec<u8>>,
+    spare: std::sync::mpsc::SyncSender<Vec<u8>>,
+) -> std::io::Result<()> {
+    for frame in frames {
+        stdin.write_all(&frame)?;
+        let _ = spare.try_send(frame);
+    }
+    Ok(())
 }
 
 fn video_err(path: &Path, message: String) -> Error {
@@ -139,6 +165,24 @@ impl VideoWriter {
                 )
             })?;
         let stdin = child.stdin.take();
+        let (frames, queue) = std::sync::mpsc::sync_channel(QUEUED);
+        let (give_back, spare) = std::sync::mpsc::sync_channel(QUEUED + 1);
+        let feeder = stdin.map(|stdin| {
+            std::thread::Builder::new()
+                .name("vt-ffmpeg-feed".into())
+                .spawn(move || feed(stdin, queue, give_back))
+        });
+        let feeder = match feeder.transpose() {
+            Ok(f) => f,
+            Err(e) => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(video_err(
+                    target,
+                    format!("cannot start feeding ffmpeg: {e}"),
+                ));
+            }
+        };
         // Drain stderr on a thread so a chatty encoder never blocks on a full pipe.
         let stderr = child.stderr.take().map(|mut s| {
             std::thread::spawn(move || {
@@ -152,7 +196,9 @@ impl VideoWriter {
         Ok(Self {
             output: Some(output),
             child,
-            stdin,
+            frames: Some(frames),
+            spare,
+            feeder,
             stderr,
             size: (w, h),
         })
@@ -165,9 +211,24 @@ impl VideoWriter {
             .unwrap_or_default()
     }
 
-    /// Waits for ffmpeg; its last message when it failed.
+    /// Closes the queue and waits for the feeding thread (its write error, if any).
+    fn close_feed(&mut self) -> Option<std::io::Error> {
+        drop(self.frames.take());
+        self.feeder
+            .take()
+            .and_then(|t| t.join().unwrap_or_else(|_| Ok(())).err())
+    }
+
+    /// Waits for ffmpeg (after the frames queued for it); its last message when it failed.
     fn wait(&mut self) -> Result<Option<String>> {
-        drop(self.stdin.take());
+        if let Some(e) = self.close_feed() {
+            // ffmpeg stopped taking frames: its own status says why, below; a write error
+            // with a successful status is an error all the same.
+            let status = self.child.lock().unwrap_or_else(|e| e.into_inner()).wait();
+            if status.is_ok_and(|s| s.success()) {
+                return Ok(Some(e.to_string()));
+            }
+        }
         let status = self
             .child
             .lock()
@@ -197,11 +258,17 @@ impl VideoWriter {
                 ),
             ));
         }
-        let Some(stdin) = self.stdin.as_mut() else {
+        let Some(frames) = self.frames.as_ref() else {
             return Err(video_err(&self.target(), "ffmpeg already finished".into()));
         };
-        if let Err(e) = stdin.write_all(img.as_raw()) {
-            let why = self.wait()?.unwrap_or_else(|| e.to_string());
+        let mut buf = self.spare.try_recv().unwrap_or_default();
+        buf.clear();
+        buf.extend_from_slice(img.as_raw());
+        if frames.send(buf).is_err() {
+            // The feeding thread stopped: ffmpeg no longer reads.
+            let why = self
+                .wait()?
+                .unwrap_or_else(|| "it stopped reading frames".into());
             return Err(video_err(
                 &self.target(),
                 format!("ffmpeg stopped encoding ({why})"),
@@ -223,11 +290,15 @@ impl VideoWriter {
 impl Drop for VideoWriter {
     fn drop(&mut self) {
         if self.output.is_some() {
-            drop(self.stdin.take());
+            drop(self.frames.take());
             let mut c = self.child.lock().unwrap_or_else(|e| e.into_inner());
             let _ = c.kill();
             let _ = c.wait();
             drop(c);
+            // ffmpeg is gone: a write in progress fails, and the thread ends.
+            if let Some(t) = self.feeder.take() {
+                let _ = t.join();
+            }
             output::unregister_child(&self.child);
         }
         // `output` drops here and removes the temporary.
