@@ -537,6 +537,7 @@ impl crate::simd::Kernel for ShiftedRow<'_> {
         // Runs of CHUNK pixels through fixed-size buffers (so the loops vectorise), a pixel's
         // three channels de-interleaved by strided access, the mask a select.
         let mut al = [0f32; CHUNK];
+        let unit = gain == [1.0; 3];
         let (mut src, mut dst) = ([0u8; 3 * CHUNK], [0u8; 3 * CHUNK]);
         for start in (0..mask.len()).step_by(CHUNK) {
             let n = CHUNK.min(mask.len() - start);
@@ -564,6 +565,12 @@ impl crate::simd::Kernel for ShiftedRow<'_> {
                 &rgb[3 * start..3 * (start + n)],
                 &mut out[3 * start..3 * (start + n)],
             );
+            // Opaque pixels of unit gain (a single view's, inside its dynamic region):
+            // `1 * v + 0 * old` rounds to `v` itself, so the run is a copy.
+            if unit && set[..n].iter().all(|&s| s) && al[..n].iter().all(|&a| a == 1.0) {
+                o3.copy_from_slice(s3);
+                continue;
+            }
             src[..3 * n].copy_from_slice(s3);
             dst[..3 * n].copy_from_slice(o3);
             for c in 0..3 {
