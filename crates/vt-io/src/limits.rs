@@ -21,7 +21,8 @@ use crate::{Error, Result};
 pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 /// Largest scene.json.
 pub const MAX_SCENE_JSON_BYTES: u64 = 256 << 20;
-/// Largest moving-object store (loaded whole for rendering).
+/// Largest moving-object store (version 1 is loaded whole for rendering; version 2 keeps its
+/// index and reads each record when it is decoded).
 pub const MAX_OBJECT_STORE_BYTES: u64 = 8 << 30;
 /// Largest image file.
 pub const MAX_IMAGE_FILE_BYTES: u64 = 512 << 20;
