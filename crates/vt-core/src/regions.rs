@@ -72,7 +72,7 @@ impl RegionParams {
         if !(4..=256).contains(&self.tile) {
             return bad("regions.tile", self.tile.to_string(), "4 to 256 pixels");
         }
-        if self.scale == 0 || self.scale > self.tile || self.tile % self.scale != 0 {
+        if self.scale == 0 || self.scale > self.tile || !self.tile.is_multiple_of(self.scale) {
             return bad(
                 "regions.scale",
                 self.scale.to_string(),
@@ -277,7 +277,7 @@ fn lengths(max_length: usize, own: Option<usize>) -> Vec<usize> {
 /// start (`1 <= s`, `s + p <= n - 1`).
 fn periods(l: usize, min_period: usize, n: usize) -> Vec<usize> {
     (min_period.max(2)..=l)
-        .filter(|p| l % p == 0 && p + 2 <= n)
+        .filter(|p| l.is_multiple_of(*p) && p + 2 <= n)
         .collect()
 }
 

@@ -334,8 +334,9 @@ impl crate::simd::Kernel for RowKernel<'_> {
 
 /// One row of a full-range BT.601 4:2:0 picture (JPEG's matrix, the object store's pixels) to
 /// RGB where `mask` is non-zero, and 0 elsewhere, in 16-bit fixed point (JPEG's coefficients
-/// times 2^16, rounded; integer, so every machine gives the same bytes): `r = (y 2^16 + 91881 v
-/// + 2^15) >> 16` and so on, with `u`, `v` centred on 128. Chroma is each 2x2 block's own sample
+/// times 2^16, rounded; integer, so every machine gives the same bytes):
+/// `r = (y 2^16 + 91881 v + 2^15) >> 16` and so on, with `u`, `v` centred on 128. Chroma is each
+/// 2x2 block's own sample
 /// (nearest, not interpolated: on tree.avi, whose own chroma is per 2x2 block, bilinear
 /// upsampling lost 2.9 dB).
 ///
