@@ -3,7 +3,6 @@
 //! whole folder is one output, moved into place only when every step succeeded.
 
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
 use vt_core::analysis::AnalyzeParams;
 use vt_io::output::{Output, OutputKind};
@@ -56,17 +55,12 @@ pub fn demo(out: &Path, frames: usize, progress: &mut dyn Progress) -> Result<De
         params.height,
         out.join("textures").display()
     ));
-    progress.start("synth frames", Some((params.views * frames) as u64));
-    let counter = Mutex::new((&mut *progress, 0u64));
-    let tick = || {
-        let mut g = counter.lock().unwrap_or_else(|e| e.into_inner());
-        g.1 += 1;
-        let n = g.1;
-        g.0.at(n, None);
-    };
-    let written = vt_synth::files::write_textures(&data, &params, &tick);
-    drop(counter);
-    progress.finish();
+    let written = crate::progress::with_ticks(
+        progress,
+        "synth frames",
+        (params.views * frames) as u64,
+        |tick| vt_synth::files::write_textures(&data, &params, tick),
+    );
     written.map_err(|e| Error::Synth(e.to_string()))?;
 
     progress.note(&format!(

@@ -18,3 +18,25 @@ pub trait Progress: Send {
 pub struct Silent;
 
 impl Progress for Silent {}
+
+/// Runs `f` with a `Fn() + Sync` tick (what vt-synth's parallel writers call once per frame)
+/// that advances `progress` through a stage named `stage` of `total` steps.
+pub(crate) fn with_ticks<R>(
+    progress: &mut dyn Progress,
+    stage: &str,
+    total: u64,
+    f: impl FnOnce(&(dyn Fn() + Sync)) -> R,
+) -> R {
+    progress.start(stage, Some(total));
+    let counter = std::sync::Mutex::new((&mut *progress, 0u64));
+    let tick = || {
+        let mut g = counter.lock().unwrap_or_else(|e| e.into_inner());
+        g.1 += 1;
+        let n = g.1;
+        g.0.at(n, None);
+    };
+    let out = f(&tick);
+    drop(counter);
+    progress.finish();
+    out
+}

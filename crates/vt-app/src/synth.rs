@@ -2,7 +2,6 @@
 //! System A test needs, from one real clip.
 
 use std::path::PathBuf;
-use std::sync::Mutex;
 
 use vt_io::frames::ViewSource;
 use vt_synth::files::{write_real, RealFiles};
@@ -71,18 +70,13 @@ pub fn real(job: &SynthRealJob, progress: &mut dyn Progress) -> Result<SynthReal
         png: job.png,
     };
     let p = &job.params;
-    progress.start("synth real views", Some((p.views * p.frames) as u64));
-    let counter = Mutex::new((progress, 0u64));
-    let tick = || {
-        let mut g = counter.lock().unwrap_or_else(|e| e.into_inner());
-        g.1 += 1;
-        let n = g.1;
-        g.0.at(n, None);
-    };
     let source = job.source.display().to_string();
-    let written = write_real(&job.out, &scene, &source, &files, &tick);
-    let (progress, _) = counter.into_inner().unwrap_or_else(|e| e.into_inner());
-    progress.finish();
+    let written = crate::progress::with_ticks(
+        progress,
+        "synth real views",
+        (p.views * p.frames) as u64,
+        |tick| write_real(&job.out, &scene, &source, &files, tick),
+    );
     written.map_err(|e| Error::Synth(e.to_string()))?;
     Ok(SynthReal {
         size: scene.size(),
