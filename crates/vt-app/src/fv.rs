@@ -137,6 +137,11 @@ fn model_for(data: &FvData, d: &Dataset, progress: &mut dyn Progress) -> Result<
             line,
         });
     };
+    read_used(f, d)
+}
+
+/// The model in `vt fv hull`'s file `f`, checked against the data folder, with its line.
+fn read_used(f: &Path, d: &Dataset) -> Result<ModelUsed> {
     let t = Instant::now();
     let (model, h) = read_model(f, d)?;
     let line = format!(
@@ -497,25 +502,17 @@ pub fn eval(job: &EvalJob, progress: &mut dyn Progress) -> Result<Evaluated> {
     let (w, h) = d.size();
     let view = job.view.params(w, h)?;
     let read = match &job.data.model_file {
-        Some(f) => {
-            let t = Instant::now();
-            let (model, header) = read_model(f, &d)?;
-            let line = format!(
-                "model: read from {} in {:.2} s ({} surface voxels; building it took {:.2} s)",
-                f.display(),
-                t.elapsed().as_secs_f64(),
-                model.surface.len(),
-                header.build_secs
-            );
-            Some((f, model, header, line))
-        }
+        Some(f) => Some((f, read_used(f, &d)?)),
         None => None,
     };
     progress.start("leave one out", Some(job.leave_out.len() as u64));
     let mut reports = Vec::new();
     for (i, &k) in job.leave_out.iter().enumerate() {
         let (r, imgs) = match &read {
-            Some((f, model, header, _)) => d.leave_one_out_with(k, model, header, f, &view)?,
+            Some((f, used)) => {
+                let header = used.header.as_ref().expect("read from a file");
+                d.leave_one_out_with(k, &used.model, header, f, &view)?
+            }
             None => d
                 .leave_one_out(k, &job.data.model, &view)
                 .map_err(|e| Error::In {
@@ -541,7 +538,7 @@ pub fn eval(job: &EvalJob, progress: &mut dyn Progress) -> Result<Evaluated> {
         dataset: d,
         reports,
         summary,
-        model_line: read.map(|(.., line)| line),
+        model_line: read.map(|(_, used)| used.line),
         describe: view.describe(),
     })
 }
