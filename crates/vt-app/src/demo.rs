@@ -12,8 +12,10 @@ use crate::analyze::{AnalyzeJob, Analyzed};
 use crate::render::{RenderJob, Rendered};
 use crate::{Error, Progress, Result};
 
-/// Frames per view the demo accepts.
-pub const FRAMES: std::ops::RangeInclusive<usize> = 16..=2000;
+/// Frames per view the demo accepts. The scene's motion has a period of 24 frames, and a loop
+/// needs a whole period plus the loop search's margin (26 frames pass the truth check, 25 do
+/// not), so the lowest accepted count keeps a few frames to spare.
+pub const FRAMES: std::ops::RangeInclusive<usize> = 32..=2000;
 
 /// What [`demo`] made; paths are the final ones, under the demo's folder.
 pub struct Demo {

@@ -572,12 +572,14 @@ fn bad_input_gives_one_clear_line_and_leaves_no_scene() {
 }
 
 /// `vt demo` builds everything inside a temporary folder and moves it into place at the end:
-/// what it prints names the final paths, never the temporary ones.
+/// what it prints names the final paths, never the temporary ones. It runs at the fewest frames
+/// the demo accepts, so that count is known to pass the truth check; one fewer is refused.
 #[test]
 fn demo_prints_the_paths_it_leaves() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
-    let stdout = vt_ok(&["demo", "--out", s(&out), "--frames", "40"]);
+    let least = vt_app::demo::FRAMES.start().to_string();
+    let stdout = vt_ok(&["demo", "--out", s(&out), "--frames", &least]);
     assert!(
         !stdout.contains(".vt-tmp-"),
         "temporary path printed:\n{stdout}"
@@ -587,4 +589,11 @@ fn demo_prints_the_paths_it_leaves() {
         "{stdout}"
     );
     assert!(out.join("scene/scene.json").exists());
+    let fewer = (vt_app::demo::FRAMES.start() - 1).to_string();
+    let refused = tmp.path().join("refused");
+    vt_err(
+        &["demo", "--out", s(&refused), "--frames", &fewer],
+        &["--frames", &fewer],
+    );
+    assert!(!refused.exists());
 }
