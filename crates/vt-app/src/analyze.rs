@@ -319,9 +319,9 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             if let Some(res) = &v.region_loop {
                 let (r, q, one) = (&res.chosen, &res.quality, &res.single);
                 writeln!(f,
-                    "view {p}: per-region loop of {} frames, {} tiles of {} px, periods {:?}; energy {:.3e} (best single label {:.3e}); inside the dynamic region: worst step {:.2}x the median, tile wraps {:.2}x (90th percentile {:.2}x), sharpness {:.3} of the source's, {:.2} grey levels from the nearest source frame per tile; the thesis's loop measured alike: worst step {:.2}x, sharpness {:.3}; baked in {:.2} s",
+                    "view {p}: per-region loop of {} frames, {} tiles of {} px, periods {:?}; energy {:.3e} (best single label {:.3e}); inside the dynamic region: worst step {:.2}x the median, tile wraps {:.2}x (90th percentile {:.2}x), sharpness {:.3} of the source's ({:.3} near the tile wraps), {:.2} grey levels from the nearest source frame per tile; the thesis's loop measured alike: worst step {:.2}x, sharpness {:.3} ({:.3} near its wrap); baked in {:.2} s",
                     r.length, r.labels.len(), r.tile, r.periods, r.energy, r.single_energy,
-                    q.worst_step, q.tile_wrap, q.tile_wrap_p90, q.sharpness, q.source_error, one.worst_step, one.sharpness, res.secs
+                    q.worst_step, q.tile_wrap, q.tile_wrap_p90, q.sharpness, q.sharpness_near, q.source_error, one.worst_step, one.sharpness, one.sharpness_near, res.secs
                 )?;
             }
         }

@@ -104,6 +104,10 @@ pub struct AnalyzeArgs {
     /// With --loops regions: feather between tiles, pixels.
     #[arg(long, default_value_t = vt_core::regions::RegionParams::default().feather)]
     region_feather: u32,
+    /// With --loops regions: each tile's wrap mismatch spread over its period, low-passed by a
+    /// Gaussian of this many pixels (0: not low-passed), or off.
+    #[arg(long, default_value = "off")]
+    region_blend: String,
 }
 
 impl AnalyzeArgs {
@@ -114,6 +118,13 @@ impl AnalyzeArgs {
             m => Some(m.parse::<MotionModel>().map_err(|_| {
                 anyhow!("--model '{m}' is not auto, translation, similarity, affine or homography")
             })?),
+        };
+        let blend = match self.region_blend.as_str() {
+            "off" => None,
+            v => Some(
+                v.parse::<f32>()
+                    .map_err(|_| anyhow!("--region-blend '{v}' is not off or a sigma in pixels"))?,
+            ),
         };
         let params = AnalyzeParams {
             blur: GaussianParams {
@@ -148,6 +159,7 @@ impl AnalyzeArgs {
                 tile: self.region_tile,
                 spatial: self.region_spatial,
                 feather: self.region_feather,
+                blend,
                 ..Default::default()
             }),
             background: self.background.parse().map_err(|_| {

@@ -43,6 +43,10 @@ pub struct RegionParams {
     pub sweeps: usize,
     /// Most source frames considered (a window holding the thesis's loop).
     pub max_frames: usize,
+    /// The wrap correction ([`correction`]): the Gaussian sigma (pixels) of its spatial
+    /// low-pass, 0 for none; None: no correction (each tile's wrap is one step).
+    #[serde(default)]
+    pub blend: Option<f32>,
 }
 
 impl Default for RegionParams {
@@ -55,6 +59,7 @@ impl Default for RegionParams {
             feather: 8,
             sweeps: 12,
             max_frames: 128,
+            blend: None,
         }
     }
 }
@@ -95,6 +100,11 @@ impl RegionParams {
                 self.feather.to_string(),
                 "at most the tile side",
             );
+        }
+        if let Some(b) = self.blend {
+            if !(b.is_finite() && (0.0..=64.0).contains(&b)) {
+                return bad("regions.blend", b.to_string(), "0 to 64 pixels");
+            }
         }
         if !(4..=1000).contains(&self.max_frames) {
             return bad(
@@ -350,10 +360,24 @@ impl Problem {
         }
         let (la, lb) = (self.labels[a], self.labels[b]);
         let d = &self.edge_d[e];
-        let sum: f64 = (0..self.length)
-            .map(|t| d[la.frame(t) * self.n + lb.frame(t)] as f64)
-            .sum();
-        self.lambda * sum / self.length as f64
+        // The pair of frames shown repeats every lcm(pa, pb) frames (a divisor of `L`), so the
+        // mean over `L` is the mean over one such cycle.
+        let cycle = la.period / gcd(la.period, lb.period) * lb.period;
+        let (mut fa, mut fb) = (la.frame(0), lb.frame(0));
+        let (ea, eb) = (la.start + la.period, lb.start + lb.period);
+        let mut sum = 0f64;
+        for _ in 0..cycle {
+            sum += d[fa * self.n + fb] as f64;
+            fa += 1;
+            if fa == ea {
+                fa = la.start;
+            }
+            fb += 1;
+            if fb == eb {
+                fb = lb.start;
+            }
+        }
+        self.lambda * sum / cycle as f64
     }
 
     /// The energy of a labelling (one label index per tile).
@@ -423,7 +447,7 @@ impl Problem {
                             })
                             .sum::<f64>()
                 };
-                let costs: Vec<f64> = (0..nl).into_par_iter().map(|l| local(l, &lab)).collect();
+                let costs: Vec<f64> = (0..nl).map(|l| local(l, &lab)).collect();
                 let (best, &c) = costs
                     .iter()
                     .enumerate()
@@ -498,6 +522,8 @@ pub struct RegionLoop {
     pub solve_secs: f64,
     /// Output frame 0 shows the labels' time `phase` (see [`rotate`]).
     pub phase: usize,
+    /// The wrap correction's sigma ([`RegionParams::blend`]).
+    pub blend: Option<f32>,
 }
 
 /// Chooses the per-region loop of `frames` (the view's source frames, `first` the number of
@@ -523,26 +549,31 @@ pub fn solve(
     let r = reduce(frames, alpha, params.scale);
     let tile_r = (params.tile / params.scale) as usize;
     let strips = Strips::new(&r, tile_r);
+    // Each loop length is its own problem: solved side by side, the lowest energy kept (the
+    // first of equals, in the order of `lengths`).
+    let solved: Vec<(f64, f64, Problem, Vec<usize>)> = lengths(params.max_length, own)
+        .into_par_iter()
+        .filter_map(|l| {
+            let pb = Problem::new(&r, tile_r, l, min_period, params.spatial as f64, &strips)?;
+            let single = pb.single();
+            let single_e = pb.energy(&single);
+            // ICM from the best single label and from each tile's own best label; the lower.
+            let lab = [single, pb.independent()]
+                .into_iter()
+                .map(|init| {
+                    let lab = pb.icm(init, params.sweeps);
+                    (pb.energy(&lab), lab)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .expect("two starts");
+            let (e, lab) = lab;
+            Some((e, single_e, pb, lab))
+        })
+        .collect();
     let mut best: Option<(f64, f64, Problem, Vec<usize>)> = None;
-    for l in lengths(params.max_length, own) {
-        let Some(pb) = Problem::new(&r, tile_r, l, min_period, params.spatial as f64, &strips)
-        else {
-            continue;
-        };
-        let single = pb.single();
-        let single_e = pb.energy(&single);
-        // ICM from the best single label and from each tile's own best label; the lower.
-        let lab = [single, pb.independent()]
-            .into_iter()
-            .map(|init| {
-                let lab = pb.icm(init, params.sweeps);
-                (pb.energy(&lab), lab)
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .expect("two starts");
-        let (e, lab) = lab;
-        if best.as_ref().is_none_or(|b| e < b.0) {
-            best = Some((e, single_e, pb, lab));
+    for s in solved {
+        if best.as_ref().is_none_or(|b| s.0 < b.0) {
+            best = Some(s);
         }
     }
     let Some((energy, single_energy, pb, lab)) = best else {
@@ -567,7 +598,15 @@ pub fn solve(
         periods,
         solve_secs: started.elapsed().as_secs_f64(),
         phase: 0,
+        blend: params.blend,
     })
+}
+
+fn gcd(mut a: usize, mut b: usize) -> usize {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
 }
 
 /// Per pixel along one axis: the two tiles blended and the second's weight.
@@ -589,7 +628,8 @@ fn axis_blend(len: u32, tile: u32, count: usize, feather: u32) -> Vec<(usize, us
 }
 
 /// The baked loop: `L + 1` frames (frame `L` is frame 0 again) and their masks, each pixel's
-/// colour the feathered mix of its tiles' source frames, its mask bit its own tile's.
+/// colour the feathered mix of its tiles' source frames, its mask bit its own tile's; with
+/// `rl.blend`, plus the wrap correction of [`correction`].
 pub fn compose(
     frames: &[RgbImage],
     masks: &[Mask],
@@ -605,7 +645,11 @@ pub fn compose(
         .map(|t| {
             let t = (t + rl.phase) % rl.length;
             let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
-            let img = RgbImage::from_fn(w, h, |x, y| {
+            let corr = rl
+                .blend
+                .map(|sigma| correction(frames, rl, &bx, &by, t, sigma));
+            let mut img = RgbImage::new(w, h);
+            for (i, (x, y, px)) in img.enumerate_pixels_mut().enumerate() {
                 let (cx, ox, ax) = bx[x as usize];
                 let (cy, oy, ay) = by[y as usize];
                 let parts = [
@@ -623,8 +667,13 @@ pub fn compose(
                         }
                     }
                 }
-                image::Rgb(acc.map(|v| v.round().clamp(0.0, 255.0) as u8))
-            });
+                if let Some(corr) = &corr {
+                    for c in 0..3 {
+                        acc[c] += corr[3 * i + c];
+                    }
+                }
+                *px = image::Rgb(acc.map(|v| v.round().clamp(0.0, 255.0) as u8));
+            }
             let mask = Mask::from_fn(w, h, |x, y| {
                 let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
                 masks[f].get(x, y)
@@ -633,6 +682,119 @@ pub fn compose(
         })
         .collect();
     out.into_iter().unzip()
+}
+
+/// The wrap correction of output time `t` (labels' time), `3 * w * h` values to add.
+///
+/// A tile looping `(s, p)` shows `V(s + k)` at cycle position `k`; at its wrap `V(s)` follows
+/// `V(s + p - 1)` where the source goes on to `V(s + p)`, so its temporal gradients differ from
+/// the source's by `D = V(s + p) - V(s)` at that one step. The least-squares fit of a cyclic
+/// sequence to the source's gradients (the temporal Poisson equation, screened to keep the
+/// mean) spreads `D` evenly over the cycle: `c_k = D ((p - 1) / 2 - k) / p` added at position
+/// `k`, so every step carries `-D / p` and the wrap no longer one `D`. Pixels mixing tiles mix
+/// their tiles' corrections with the same weights; the field is then low-passed by a Gaussian
+/// of `sigma` pixels (0: none), which keeps only its smooth part (after Liao, Finch and Hoppe
+/// 2015, whose multigrid solve makes a spatially smooth correction): what it removes of `D`,
+/// the fine detail, stays at the wrap, so the frames keep the source's detail.
+pub fn correction(
+    frames: &[RgbImage],
+    rl: &RegionLoop,
+    bx: &[(usize, usize, f32)],
+    by: &[(usize, usize, f32)],
+    t: usize,
+    sigma: f32,
+) -> Vec<f32> {
+    let (w, h) = frames[0].dimensions();
+    let cols = rl.grid.0;
+    // Per tile: its wrap's frames and this time's ramp.
+    let ramp: Vec<(usize, usize, f32)> = rl
+        .labels
+        .iter()
+        .map(|l| {
+            let p = l.period;
+            let k = l.frame(t) - l.start;
+            (
+                l.start,
+                l.start + p,
+                ((p - 1) as f32 / 2.0 - k as f32) / p as f32,
+            )
+        })
+        .collect();
+    let mut out = vec![0f32; 3 * (w * h) as usize];
+    for y in 0..h {
+        let (cy, oy, ay) = by[y as usize];
+        for x in 0..w {
+            let (cx, ox, ax) = bx[x as usize];
+            let parts = [
+                (cy * cols + cx, (1.0 - ax) * (1.0 - ay)),
+                (cy * cols + ox, ax * (1.0 - ay)),
+                (oy * cols + cx, (1.0 - ax) * ay),
+                (oy * cols + ox, ax * ay),
+            ];
+            let i = 3 * (y * w + x) as usize;
+            for (tile, wt) in parts {
+                if wt > 0.0 {
+                    let (s, e, r) = ramp[tile];
+                    let (a, b) = (frames[s].get_pixel(x, y), frames[e].get_pixel(x, y));
+                    for c in 0..3 {
+                        out[i + c] += wt * r * (b[c] as f32 - a[c] as f32);
+                    }
+                }
+            }
+        }
+    }
+    if sigma > 0.0 {
+        blur_planes(&mut out, w as usize, h as usize, sigma);
+    }
+    out
+}
+
+/// Separable Gaussian blur of interleaved RGB `f32` values, border reflected (reflect-101).
+fn blur_planes(v: &mut [f32], w: usize, h: usize, sigma: f32) {
+    let r = (3.0 * sigma).ceil() as isize;
+    let k: Vec<f32> = (-r..=r)
+        .map(|i| (-0.5 * (i as f32 / sigma).powi(2)).exp())
+        .collect();
+    let sum: f32 = k.iter().sum();
+    let k: Vec<f32> = k.iter().map(|x| x / sum).collect();
+    let reflect = |i: isize, n: usize| -> usize {
+        let n = n as isize;
+        if n == 1 {
+            return 0;
+        }
+        let mut i = i;
+        while i < 0 || i >= n {
+            i = if i < 0 { -i } else { 2 * (n - 1) - i };
+        }
+        i as usize
+    };
+    let mut tmp = vec![0f32; v.len()];
+    for y in 0..h {
+        for x in 0..w {
+            let mut acc = [0f32; 3];
+            for (j, kv) in k.iter().enumerate() {
+                let xx = reflect(x as isize + j as isize - r, w);
+                let i = 3 * (y * w + xx);
+                for c in 0..3 {
+                    acc[c] += kv * v[i + c];
+                }
+            }
+            tmp[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&acc);
+        }
+    }
+    for y in 0..h {
+        for x in 0..w {
+            let mut acc = [0f32; 3];
+            for (j, kv) in k.iter().enumerate() {
+                let yy = reflect(y as isize + j as isize - r, h);
+                let i = 3 * (yy * w + x);
+                for c in 0..3 {
+                    acc[c] += kv * tmp[i + c];
+                }
+            }
+            v[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&acc);
+        }
+    }
 }
 
 /// Rotates a baked loop (`L + 1` frames, the last the first again) so that its frame 0 is the
@@ -645,7 +807,8 @@ pub fn rotate<T: Clone>(baked: &mut Vec<T>, rl: &mut RegionLoop, by: usize) {
     rl.phase = (rl.phase + by) % l;
 }
 
-/// A single loop as a [`RegionLoop`] (every tile the same label), to measure the thesis's loop
+/// A single loop as a [`RegionLoop`] (every tile the same label, output frame 0 its start), to
+/// measure the thesis's loop
 /// as the per-region ones are.
 pub fn single_loop(label: Label, frame: (u32, u32), tile: u32) -> RegionLoop {
     let grid = (
@@ -661,7 +824,8 @@ pub fn single_loop(label: Label, frame: (u32, u32), tile: u32) -> RegionLoop {
         single_energy: 0.0,
         periods: vec![label.period],
         solve_secs: 0.0,
-        phase: label.period - label.start % label.period,
+        phase: label.start % label.period,
+        blend: None,
     }
 }
 
@@ -683,8 +847,14 @@ pub struct Quality {
     /// Mean gradient energy of the baked frames over that of the source frames.
     pub sharpness: f64,
     /// Mean absolute error (grey levels) of each baked frame to the nearest source frame,
-    /// tile by tile (the nearest frame may differ per tile), weighted by the dynamic region.
+    /// tile by tile (the nearest frame may differ per tile), weighted by the dynamic region;
+    /// the nearest among the frames the tile and its eight neighbours show at that time, so
+    /// an upper bound of the distance to the nearest source frame of all.
     pub source_error: f64,
+    /// Sharpness near the jumps: per tile, the mean gradient energy of the baked frames from
+    /// one before to two after each of its wraps over that of its source frames (weighted
+    /// sums over the tiles as [`Quality::source_error`]); 1 = as sharp as the source.
+    pub sharpness_near: f64,
 }
 
 fn grey(p: &image::Rgb<u8>) -> f32 {
@@ -707,6 +877,27 @@ fn gradient_energy(f: &RgbImage, wt: &[f32]) -> f64 {
             sum += a * (gx * gx + gy * gy) as f64;
             n += a;
         }
+    }
+    sum / n.max(1e-9)
+}
+
+/// Mean gradient energy (as [`gradient_energy`]) over `px` (full-resolution pixel indices).
+fn tile_gradient(f: &RgbImage, px: &[usize], wt: &[f32]) -> f64 {
+    let (w, h) = (f.width() as usize, f.height() as usize);
+    let raw = f.as_raw();
+    let g = |i: usize| {
+        0.299 * raw[3 * i] as f32 + 0.587 * raw[3 * i + 1] as f32 + 0.114 * raw[3 * i + 2] as f32
+    };
+    let (mut sum, mut n) = (0f64, 0f64);
+    for &i in px {
+        let a = wt[i] as f64;
+        if a == 0.0 || i % w + 1 >= w || i / w + 1 >= h {
+            continue;
+        }
+        let v = g(i);
+        let (gx, gy) = (g(i + 1) - v, g(i + w) - v);
+        sum += a * (gx * gx + gy * gy) as f64;
+        n += a;
     }
     sum / n.max(1e-9)
 }
@@ -776,51 +967,80 @@ pub fn quality(
                 .push((y * w + x) as usize);
         }
     }
-    let per_tile: Vec<(f64, f64, f64, f64)> = tile_px
+    let rows = rl.labels.len() / cols;
+    let at = |t: usize| (t + rl.phase) % l;
+    // Per tile: its wrap ratio, its source error, its gradient energy near its wraps and in
+    // the source, and its share of the dynamic region.
+    let per_tile: Vec<(f64, f64, f64, f64, f64)> = tile_px
         .par_iter()
         .zip(&rl.labels)
-        .map(|(px, lab)| {
+        .enumerate()
+        .map(|(ti, (px, lab))| {
             let share: f64 = px.iter().map(|&i| wt[i] as f64).sum::<f64>();
             if share < 0.1 * px.len() as f64 {
-                return (0.0, 0.0, 0.0, share);
+                return (0.0, 0.0, 0.0, 0.0, share);
             }
             let mut ordinary = Vec::new();
             let mut wraps = Vec::new();
+            let mut near = vec![false; l];
             for t in 0..l {
                 let (s, n) = mad(&baked[t], &baked[t + 1], px, &wt);
                 let step = s / n.max(1e-9);
-                if lab.frame(t + 1) == lab.frame(t) + 1 {
+                if lab.frame(at(t + 1)) == lab.frame(at(t)) + 1 {
                     ordinary.push(step);
                 } else {
                     wraps.push(step);
+                    for k in [t + l - 1, t, t + 1, t + 2] {
+                        near[k % l] = true;
+                    }
                 }
             }
             let med = median(ordinary).max(crate::seam::MIN_UNIT);
             let wrap = wraps.iter().sum::<f64>() / wraps.len().max(1) as f64 / med;
-
-            // Nearest source frame per baked frame, inside the tile.
-            let err: f64 = baked[..l]
-                .iter()
-                .map(|b| {
-                    source
-                        .iter()
-                        .map(|s| {
-                            let (e, n) = mad(b, s, px, &wt);
+            // Per baked frame, the nearest of the source frames the tile and its eight
+            // neighbours show at that time (an upper bound of the distance to the nearest
+            // source frame of all).
+            let (tx, ty) = (ti % cols, ti / cols);
+            let err: f64 = (0..l)
+                .map(|t| {
+                    let mut cand: Vec<usize> = (ty.saturating_sub(1)..(ty + 2).min(rows))
+                        .flat_map(|y| {
+                            (tx.saturating_sub(1)..(tx + 2).min(cols))
+                                .map(move |x| rl.labels[y * cols + x].frame(at(t)))
+                        })
+                        .collect();
+                    cand.sort_unstable();
+                    cand.dedup();
+                    cand.iter()
+                        .map(|&f| {
+                            let (e, n) = mad(&baked[t], &source[f], px, &wt);
                             e / n.max(1e-9)
                         })
                         .fold(f64::INFINITY, f64::min)
                 })
                 .sum::<f64>()
                 / l as f64;
-            (wrap, wrap, err, share)
+            let ge_near = {
+                let v: Vec<f64> = (0..l)
+                    .filter(|&t| near[t])
+                    .map(|t| tile_gradient(&baked[t], px, &wt))
+                    .collect();
+                v.iter().sum::<f64>() / v.len().max(1) as f64
+            };
+            let ge_src = source
+                .iter()
+                .map(|f| tile_gradient(f, px, &wt))
+                .sum::<f64>()
+                / source.len() as f64;
+            (wrap, err, ge_near, ge_src, share)
         })
         .collect();
-    let total: f64 = per_tile.iter().filter(|t| t.0 > 0.0).map(|t| t.3).sum();
+    let total: f64 = per_tile.iter().filter(|t| t.0 > 0.0).map(|t| t.4).sum();
     let quantile = |q: f64| -> f64 {
         let mut v: Vec<(f64, f64)> = per_tile
             .iter()
             .filter(|t| t.0 > 0.0)
-            .map(|t| (t.1, t.3))
+            .map(|t| (t.0, t.4))
             .collect();
         v.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut acc = 0.0;
@@ -832,11 +1052,11 @@ pub fn quality(
         }
         v.last().map_or(0.0, |x| x.0)
     };
-    let wmean = |k: fn(&(f64, f64, f64, f64)) -> f64| {
+    let wmean = |k: fn(&(f64, f64, f64, f64, f64)) -> f64| {
         per_tile
             .iter()
             .filter(|t| t.0 > 0.0)
-            .map(|t| k(t) * t.3)
+            .map(|t| k(t) * t.4)
             .sum::<f64>()
             / total.max(1e-9)
     };
@@ -849,7 +1069,8 @@ pub fn quality(
         tile_wrap: quantile(0.5),
         tile_wrap_p90: quantile(0.9),
         sharpness: ge(&baked[..l]) / ge(source).max(1e-9),
-        source_error: wmean(|t| t.2),
+        source_error: wmean(|t| t.1),
+        sharpness_near: wmean(|t| t.2) / wmean(|t| t.3).max(1e-9),
     }
 }
 

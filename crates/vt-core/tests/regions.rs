@@ -193,3 +193,50 @@ fn icm_reaches_the_brute_force_optimum_on_a_tiny_case() {
         );
     }
 }
+
+#[test]
+fn the_wrap_correction_removes_a_drift_that_never_repeats() {
+    // A texture repeating every 6 frames under a brightness drift of 1 grey level per frame:
+    // no frame repeats, and a 6-frame loop's wrap steps back 6 levels at once. The temporal
+    // Poisson correction spreads that step over the cycle (c_k = D ((p - 1) / 2 - k) / p with
+    // D = 6 everywhere), which cancels the drift exactly: the baked loop is the texture alone
+    // plus one constant, at every pixel, frame and low-pass sigma.
+    let (w, h, n, p) = (32u32, 32u32, 30usize, 6usize);
+    let tex = |k: usize, x: u32, y: u32| 60 + texel(5, k % p, x, y) / 4;
+    let frames: Vec<RgbImage> = (0..n)
+        .map(|i| {
+            RgbImage::from_fn(w, h, |x, y| {
+                let v = tex(i, x, y) + i as u8;
+                Rgb([v, v, v])
+            })
+        })
+        .collect();
+    let masks: Vec<Mask> = (0..n).map(|_| Mask::new(w, h)).collect();
+    let start = 7;
+    for blend in [None, Some(0.0), Some(3.0)] {
+        let mut rl = vt_core::regions::single_loop(Label { start, period: p }, (w, h), 16);
+        rl.blend = blend;
+        let (baked, _) = compose(&frames, &masks, &rl, 4);
+        assert_eq!(baked.len(), p + 1);
+        // Output frame t shows source frame start + t (the loop starts at its start).
+        let offsets: Vec<i32> = (0..p)
+            .flat_map(|t| {
+                let b = &baked[t];
+                (0..h).flat_map(move |y| {
+                    (0..w).map(move |x| b.get_pixel(x, y)[0] as i32 - tex(start + t, x, y) as i32)
+                })
+            })
+            .collect();
+        let (lo, hi) = (offsets.iter().min().unwrap(), offsets.iter().max().unwrap());
+        match blend {
+            // Without the correction the drift stays: offsets start..start + p - 1.
+            None => assert_eq!((*lo, *hi), (start as i32, (start + p - 1) as i32)),
+            // With it, one constant (start + 2.5 rounded up).
+            Some(_) => assert_eq!(
+                (*lo, *hi),
+                (start as i32 + 3, start as i32 + 3),
+                "{blend:?}"
+            ),
+        }
+    }
+}
