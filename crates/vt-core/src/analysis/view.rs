@@ -374,8 +374,9 @@ pub(super) fn analyze_view(
     let mut region_loop = None;
     if let (true, Some(rp)) = (bake, params.regions.as_ref()) {
         let t_bake = Instant::now();
-        // The source window (at most `max_frames`, holding the thesis's loop's start).
-        let span = rp.max_frames.min(n1);
+        // The source window (at most `max_frames`, or the thesis's loop and its neighbours when
+        // longer, holding that loop's start).
+        let span = rp.max_frames.max(best_loop.len() + 2).min(n1);
         let first = best_loop.start.min(n1 - span);
         let (src, src_masks) = (&held[first..first + span], &masks[first..first + span]);
         let mut rl = crate::regions::solve(
