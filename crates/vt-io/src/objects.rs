@@ -156,38 +156,52 @@ fn pack_box(
     }
 }
 
-/// Rounds to the nearest level, clamped. (Not `f32::round`, a library call on baseline x86-64:
-/// a value clamped to 0..=255 rounds by adding a half and truncating.)
-#[inline]
-fn to_u8(x: f32) -> u8 {
-    (x.clamp(0.0, 255.0) + 0.5) as u8
-}
-
 /// RGB to full-range BT.601 4:2:0 (JPEG's matrix, all 256 levels: a limited range would cost
 /// a quantisation of its own): luma per pixel, chroma from each 2x2 block's mean colour.
-/// `rgb` is `width` x `height` with even sides; `out` gets the Y, U and V planes.
+/// `rgb` is `width` x `height` with even sides; `out` gets the Y, U and V planes. Integer
+/// arithmetic with the coefficients in 1/2^16 (each level within one of the exact matrix's
+/// rounding; two rows at a time, so the chroma of a row pair reads pixels already in cache).
 fn rgb_to_yuv420(rgb: &[u8], width: usize, height: usize, out: &mut Vec<u8>) {
-    let luma = |p: &[u8]| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
-    out.clear();
-    out.extend(rgb.chunks_exact(3).map(|p| to_u8(luma(p))));
+    const S: i32 = 16;
+    const HALF: i32 = 1 << (S - 1);
+    // 0.299, 0.587, 0.114; -0.168736, -0.331264, 0.5; 0.5, -0.418688, -0.081312 (x 2^16).
+    const Y: [i32; 3] = [19595, 38470, 7471];
+    const U: [i32; 3] = [-11058, -21710, 32768];
+    const V: [i32; 3] = [32768, -27440, -5328];
     let (cw, ch) = (width / 2, height / 2);
-    let mut v_plane = Vec::with_capacity(cw * ch);
+    out.clear();
+    out.resize(width * height + 2 * cw * ch, 0);
+    let (luma, chroma) = out.split_at_mut(width * height);
+    let (u_plane, v_plane) = chroma.split_at_mut(cw * ch);
+    let stride = 3 * width;
     for cy in 0..ch {
-        for cx in 0..cw {
-            let mut m = [0f32; 3];
-            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                let at = 3 * ((2 * cy + dy) * width + 2 * cx + dx);
-                for k in 0..3 {
-                    m[k] += 0.25 * rgb[at + k] as f32;
-                }
+        let rows = &rgb[2 * cy * stride..(2 * cy + 2) * stride];
+        let (r0, r1) = rows.split_at(stride);
+        let (l0, l1) = luma[2 * cy * width..(2 * cy + 2) * width].split_at_mut(width);
+        for (src, dst) in [(r0, l0), (r1, l1)] {
+            for (p, y) in src.chunks_exact(3).zip(dst.iter_mut()) {
+                let v = Y[0] * p[0] as i32 + Y[1] * p[1] as i32 + Y[2] * p[2] as i32;
+                *y = ((v + HALF) >> S).clamp(0, 255) as u8;
             }
-            let u = 128.0 - 0.168_736 * m[0] - 0.331_264 * m[1] + 0.5 * m[2];
-            let v = 128.0 + 0.5 * m[0] - 0.418_688 * m[1] - 0.081_312 * m[2];
-            out.push(to_u8(u));
-            v_plane.push(to_u8(v));
+        }
+        let us = &mut u_plane[cy * cw..(cy + 1) * cw];
+        let vs = &mut v_plane[cy * cw..(cy + 1) * cw];
+        for (((a, b), u), v) in r0
+            .chunks_exact(6)
+            .zip(r1.chunks_exact(6))
+            .zip(us.iter_mut())
+            .zip(vs.iter_mut())
+        {
+            // Sums of the four pixels per channel: the mean is the sum / 4, folded into the shift.
+            let m =
+                [0, 1, 2].map(|k| a[k] as i32 + a[k + 3] as i32 + b[k] as i32 + b[k + 3] as i32);
+            let cu = U[0] * m[0] + U[1] * m[1] + U[2] * m[2];
+            let cv = V[0] * m[0] + V[1] * m[1] + V[2] * m[2];
+            let round = |c: i32| (((c + (HALF << 2)) >> (S + 2)) + 128).clamp(0, 255) as u8;
+            *u = round(cu);
+            *v = round(cv);
         }
     }
-    out.extend_from_slice(&v_plane);
 }
 
 /// Version 2's encoder state.
@@ -1931,6 +1945,45 @@ mod tests {
         }
         let psnr = 10.0 * (255.0f64.powi(2) / (se / count).max(1e-12)).log10();
         assert!(psnr > 35.0, "{encoder:?}: {psnr:.2} dB");
+    }
+
+    #[test]
+    fn yuv_conversion_is_the_full_range_matrix() {
+        // Every level within one of the exact matrix, rounded (corners of the cube included).
+        let (w, h) = (10usize, 6usize);
+        let mut rng = vt_core::rng::Rng::new(7);
+        let mut rgb: Vec<u8> = (0..3 * w * h).map(|_| rng.next_u64() as u8).collect();
+        rgb[..6].copy_from_slice(&[255, 255, 255, 0, 0, 0]);
+        rgb[3 * w..3 * w + 6].copy_from_slice(&[255, 0, 0, 0, 0, 255]);
+        let mut out = Vec::new();
+        rgb_to_yuv420(&rgb, w, h, &mut out);
+        assert_eq!(out.len(), w * h * 3 / 2);
+        let near = |got: u8, want: f64, what: &str| {
+            assert!(
+                (got as f64 - want.clamp(0.0, 255.0)).abs() <= 1.0,
+                "{what}: {got} vs {want}"
+            );
+        };
+        for i in 0..w * h {
+            let p = &rgb[3 * i..3 * i + 3];
+            let y = 0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64;
+            near(out[i], y, &format!("Y {i}"));
+        }
+        for cy in 0..h / 2 {
+            for cx in 0..w / 2 {
+                let mut m = [0f64; 3];
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    for k in 0..3 {
+                        m[k] += 0.25 * rgb[3 * ((2 * cy + dy) * w + 2 * cx + dx) + k] as f64;
+                    }
+                }
+                let u = 128.0 - 0.168_736 * m[0] - 0.331_264 * m[1] + 0.5 * m[2];
+                let v = 128.0 + 0.5 * m[0] - 0.418_688 * m[1] - 0.081_312 * m[2];
+                let c = cy * w / 2 + cx;
+                near(out[w * h + c], u, &format!("U {c}"));
+                near(out[w * h + w * h / 4 + c], v, &format!("V {c}"));
+            }
+        }
     }
 
     #[test]
