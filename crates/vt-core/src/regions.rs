@@ -31,7 +31,9 @@ use crate::{Error, Mask, Result};
 pub struct RegionParams {
     /// Tile side, full-resolution pixels.
     pub tile: u32,
-    /// Reduction of the frames the labels are chosen on (block mean of `scale` x `scale`).
+    /// Reduction of the frames the labels are chosen on (block mean of `scale` x `scale`), at
+    /// least: doubled for large frames while it divides the tile side, to at most 32,768
+    /// reduced pixels.
     pub scale: u32,
     /// Longest baked loop, frames.
     pub max_length: usize,
@@ -144,6 +146,10 @@ pub struct Reduced {
     pub weight: Vec<f32>,
 }
 
+/// Most pixels of the reduced frames the labels are chosen on (320 x 240 at scale 2 holds
+/// 19,200; 768 x 576 is reduced by 4 to 27,648).
+const MAX_REDUCED: usize = 32_768;
+
 /// Weight of pixels outside the dynamic region (labels there stay defined).
 const OUTSIDE: f32 = 0.02;
 
@@ -214,8 +220,9 @@ pub struct Problem {
     pub unary: Vec<f64>,
     /// Neighbouring tile pairs `(a, b)`, `a < b`.
     pub edges: Vec<(usize, usize)>,
-    /// Per edge, the `n x n` weighted difference of source frames on the edge's strip.
-    edge_d: Vec<Vec<f32>>,
+    /// Per edge, the `n x n` weighted difference of source frames on the edge's strip (shared
+    /// by the lengths).
+    edge_d: std::sync::Arc<Vec<Vec<f32>>>,
     /// Frames considered.
     n: usize,
     /// The spatial weight.
@@ -291,6 +298,33 @@ fn periods(l: usize, min_period: usize, n: usize) -> Vec<usize> {
         .collect()
 }
 
+/// Per tile and period `p` (indexed by `p`; empty where not asked for): the weighted difference
+/// of source frames `i` and `i + p` on the tile, for `i` in `0..n - p`. Shared by every loop
+/// length whose periods include `p`.
+pub struct Temporal(Vec<Vec<Vec<f32>>>);
+
+impl Temporal {
+    /// The differences of `r` tiled by `tile_r` reduced pixels, for the periods `ps`.
+    pub fn new(r: &Reduced, tile_r: usize, ps: &[usize]) -> Self {
+        let n = r.frames.len();
+        let (_, tile_px) = tiles(r.size, tile_r);
+        Self(
+            tile_px
+                .par_iter()
+                .map(|px| {
+                    let mut per = vec![Vec::new(); n];
+                    for &p in ps {
+                        if p < n {
+                            per[p] = (0..n - p).map(|i| diff(r, i, i + p, px)).collect();
+                        }
+                    }
+                    per
+                })
+                .collect(),
+        )
+    }
+}
+
 impl Problem {
     /// Builds the problem for loop length `length` over `r` (source frames `0..n`), tiles of
     /// `tile_r` reduced pixels, periods at least `min_period`. None if no period fits.
@@ -301,6 +335,21 @@ impl Problem {
         min_period: usize,
         lambda: f64,
         strips: &Strips,
+    ) -> Option<Self> {
+        let n = r.frames.len();
+        let temporal = Temporal::new(r, tile_r, &periods(length, min_period, n));
+        Self::with(r, tile_r, length, min_period, lambda, strips, &temporal)
+    }
+
+    /// [`Problem::new`] from differences already computed (holding this length's periods).
+    pub fn with(
+        r: &Reduced,
+        tile_r: usize,
+        length: usize,
+        min_period: usize,
+        lambda: f64,
+        strips: &Strips,
+        temporal: &Temporal,
     ) -> Option<Self> {
         let n = r.frames.len();
         let ps = periods(length, min_period, n);
@@ -316,22 +365,16 @@ impl Problem {
                 })
             })
             .collect();
-        let ((cols, rows), tile_px) = tiles(r.size, tile_r);
-        let tl = tile_px.len();
+        let ((cols, rows), _) = tiles(r.size, tile_r);
+        let tl = cols * rows;
         // Temporal costs per tile, period and start.
-        let unary: Vec<f64> = tile_px
+        let unary: Vec<f64> = temporal
+            .0
             .par_iter()
-            .flat_map_iter(|px| {
-                let per: Vec<Vec<f32>> = ps
-                    .iter()
-                    .map(|&p| (0..n - p).map(|i| diff(r, i, i + p, px)).collect())
-                    .collect();
+            .flat_map_iter(|per| {
                 labels
                     .iter()
-                    .map(|l| {
-                        let k = ps.iter().position(|&p| p == l.period).expect("listed");
-                        (per[k][l.start] + per[k][l.start - 1]) as f64
-                    })
+                    .map(|l| (per[l.period][l.start] + per[l.period][l.start - 1]) as f64)
                     .collect::<Vec<f64>>()
             })
             .collect();
@@ -397,6 +440,16 @@ impl Problem {
         unary + pair
     }
 
+    /// A lower bound of [`Problem::energy`] over all labellings: each tile's lowest temporal
+    /// cost, summed.
+    pub fn energy_bound(&self) -> f64 {
+        let nl = self.labels.len();
+        self.unary
+            .chunks(nl)
+            .map(|u| u.iter().cloned().fold(f64::INFINITY, f64::min))
+            .sum()
+    }
+
     /// The label with the lowest total temporal cost, for every tile (the best single loop
     /// among the labels).
     pub fn single(&self) -> Vec<usize> {
@@ -430,24 +483,37 @@ impl Problem {
     /// sweep changes nothing or `sweeps` sweeps. Never raises the energy.
     pub fn icm(&self, mut lab: Vec<usize>, sweeps: usize) -> Vec<usize> {
         let nl = self.labels.len();
+        // Per tile and neighbour: the neighbour's label the costs were computed for, and the
+        // spatial cost of each of this tile's labels against it (recomputed only when the
+        // neighbour's label changed).
+        let mut cache: Vec<Vec<(usize, Vec<f64>)>> = self
+            .adj
+            .iter()
+            .map(|a| vec![(usize::MAX, Vec::new()); a.len()])
+            .collect();
+        let mut costs = vec![0f64; nl];
         for _ in 0..sweeps {
             let mut changed = false;
             for t in 0..lab.len() {
-                let local = |l: usize, lab: &[usize]| -> f64 {
-                    self.unary[t * nl + l]
-                        + self.adj[t]
-                            .iter()
-                            .map(|&(e, o)| {
-                                let (a, b) = if self.edges[e].0 == t {
-                                    (l, lab[o])
+                for (j, &(e, o)) in self.adj[t].iter().enumerate() {
+                    let slot = &mut cache[t][j];
+                    if slot.0 != lab[o] {
+                        let first = self.edges[e].0 == t;
+                        slot.1 = (0..nl)
+                            .map(|l| {
+                                if first {
+                                    self.pair(e, l, lab[o])
                                 } else {
-                                    (lab[o], l)
-                                };
-                                self.pair(e, a, b)
+                                    self.pair(e, lab[o], l)
+                                }
                             })
-                            .sum::<f64>()
-                };
-                let costs: Vec<f64> = (0..nl).map(|l| local(l, &lab)).collect();
+                            .collect();
+                        slot.0 = lab[o];
+                    }
+                }
+                for (l, c) in costs.iter_mut().enumerate() {
+                    *c = self.unary[t * nl + l] + cache[t].iter().map(|(_, v)| v[l]).sum::<f64>();
+                }
                 let (best, &c) = costs
                     .iter()
                     .enumerate()
@@ -471,7 +537,7 @@ pub struct Strips {
     /// Neighbouring tiles `(a, b)`.
     pub edges: Vec<(usize, usize)>,
     /// Per edge, `n x n` weighted differences on its strip.
-    d: Vec<Vec<f32>>,
+    d: std::sync::Arc<Vec<Vec<f32>>>,
 }
 
 impl Strips {
@@ -496,7 +562,7 @@ impl Strips {
             .collect();
         Self {
             edges: strips.into_iter().map(|(e, _)| e).collect(),
-            d,
+            d: std::sync::Arc::new(d),
         }
     }
 }
@@ -546,36 +612,82 @@ pub fn solve(
             why: "a loop needs a few frames".into(),
         });
     }
-    let r = reduce(frames, alpha, params.scale);
-    let tile_r = (params.tile / params.scale) as usize;
+    // Larger frames are reduced further (the scale doubled while it divides the tile side) so
+    // that the reduced frames hold at most `MAX_REDUCED` pixels.
+    let (w, h) = frames[0].dimensions();
+    let mut scale = params.scale;
+    while (w.div_ceil(scale) * h.div_ceil(scale)) as usize > MAX_REDUCED
+        && params.tile.is_multiple_of(2 * scale)
+    {
+        scale *= 2;
+    }
+    let r = reduce(frames, alpha, scale);
+    let tile_r = (params.tile / scale) as usize;
     let strips = Strips::new(&r, tile_r);
-    // Each loop length is its own problem: solved side by side, the lowest energy kept (the
-    // first of equals, in the order of `lengths`).
-    let solved: Vec<(f64, f64, Problem, Vec<usize>)> = lengths(params.max_length, own)
-        .into_par_iter()
-        .filter_map(|l| {
-            let pb = Problem::new(&r, tile_r, l, min_period, params.spatial as f64, &strips)?;
-            let single = pb.single();
-            let single_e = pb.energy(&single);
-            // ICM from the best single label and from each tile's own best label; the lower.
-            let lab = [single, pb.independent()]
-                .into_iter()
-                .map(|init| {
-                    let lab = pb.icm(init, params.sweeps);
-                    (pb.energy(&lab), lab)
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .expect("two starts");
-            let (e, lab) = lab;
-            Some((e, single_e, pb, lab))
+    // Each loop length is its own problem. Every labelling's energy is at least the sum of its
+    // tiles' lowest temporal costs (the spatial costs are not negative), so the lengths are
+    // solved in the order of that bound, and one whose bound is no lower than the best energy
+    // reached is skipped: its ICM could not do better (the result is that of solving all,
+    // the first of equal energies in the order of `lengths` kept).
+    let ls = lengths(params.max_length, own);
+    let mut all_periods: Vec<usize> = ls
+        .iter()
+        .flat_map(|&l| periods(l, min_period, r.frames.len()))
+        .collect();
+    all_periods.sort_unstable();
+    all_periods.dedup();
+    let temporal = Temporal::new(&r, tile_r, &all_periods);
+    let problems: Vec<(usize, Problem, f64)> = ls
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, l)| {
+            let pb = Problem::with(
+                &r,
+                tile_r,
+                l,
+                min_period,
+                params.spatial as f64,
+                &strips,
+                &temporal,
+            )?;
+            let bound = pb.energy_bound();
+            Some((i, pb, bound))
         })
         .collect();
-    let mut best: Option<(f64, f64, Problem, Vec<usize>)> = None;
-    for s in solved {
-        if best.as_ref().is_none_or(|b| s.0 < b.0) {
-            best = Some(s);
+    let mut order: Vec<usize> = (0..problems.len()).collect();
+    order.sort_by(|&a, &b| problems[a].2.total_cmp(&problems[b].2).then(a.cmp(&b)));
+    // (energy, single-label energy, index into problems, labels)
+    let mut best: Option<(f64, f64, usize, Vec<usize>)> = None;
+    for k in order {
+        let (i, pb, bound) = &problems[k];
+        if let Some(b) = &best {
+            if *bound > b.0 || (*bound == b.0 && *i > problems[b.2].0) {
+                continue;
+            }
+        }
+        let single = pb.single();
+        let single_e = pb.energy(&single);
+        // ICM from the best single label and from each tile's own best label; the lower.
+        let indep = pb.independent();
+        let (a, b) = rayon::join(
+            || {
+                let lab = pb.icm(single, params.sweeps);
+                (pb.energy(&lab), lab)
+            },
+            || {
+                let lab = pb.icm(indep, params.sweeps);
+                (pb.energy(&lab), lab)
+            },
+        );
+        let (e, lab) = if b.0 < a.0 { b } else { a };
+        let better = best
+            .as_ref()
+            .is_none_or(|b| e < b.0 || (e == b.0 && *i < problems[b.2].0));
+        if better {
+            best = Some((e, single_e, k, lab));
         }
     }
+    let best = best.map(|(e, se, k, lab)| (e, se, &problems[k].1, lab));
     let Some((energy, single_energy, pb, lab)) = best else {
         return Err(Error::TooFewFrames {
             what: "per-region loops".into(),
@@ -645,34 +757,64 @@ pub fn compose(
         .map(|t| {
             let t = (t + rl.phase) % rl.length;
             let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
+            // Per tile: the frame shown and, with the correction, its wrap's two frames and
+            // this time's ramp (see [`correction`]).
+            let shown: Vec<(usize, usize, usize, f32)> = rl
+                .labels
+                .iter()
+                .map(|l| {
+                    let p = l.period;
+                    let k = l.frame(t) - l.start;
+                    let r = ((p - 1) as f32 / 2.0 - k as f32) / p as f32;
+                    (l.frame(t), l.start, l.start + p, r)
+                })
+                .collect();
+            let raw: Vec<&[u8]> = frames.iter().map(|f| f.as_raw().as_slice()).collect();
+            // Unsmoothed, the correction is added pixel by pixel below; smoothed, as a field.
+            let inline = rl.blend == Some(0.0);
             let corr = rl
                 .blend
+                .filter(|&s| s > 0.0)
                 .map(|sigma| correction(frames, rl, &bx, &by, t, sigma));
             let mut img = RgbImage::new(w, h);
-            for (i, (x, y, px)) in img.enumerate_pixels_mut().enumerate() {
-                let (cx, ox, ax) = bx[x as usize];
-                let (cy, oy, ay) = by[y as usize];
-                let parts = [
-                    (src(cx, cy), (1.0 - ax) * (1.0 - ay)),
-                    (src(ox, cy), ax * (1.0 - ay)),
-                    (src(cx, oy), (1.0 - ax) * ay),
-                    (src(ox, oy), ax * ay),
-                ];
-                let mut acc = [0f32; 3];
-                for (f, wt) in parts {
-                    if wt > 0.0 {
-                        let p = frames[f].get_pixel(x, y);
-                        for c in 0..3 {
-                            acc[c] += wt * p[c] as f32;
+            let out = img.as_mut();
+            for y in 0..h as usize {
+                let (cy, oy, ay) = by[y];
+                for x in 0..w as usize {
+                    let (cx, ox, ax) = bx[x];
+                    let parts = [
+                        (cy * cols + cx, (1.0 - ax) * (1.0 - ay)),
+                        (cy * cols + ox, ax * (1.0 - ay)),
+                        (oy * cols + cx, (1.0 - ax) * ay),
+                        (oy * cols + ox, ax * ay),
+                    ];
+                    let i = 3 * (y * w as usize + x);
+                    let mut acc = [0f32; 3];
+                    for (tile, wt) in parts {
+                        if wt > 0.0 {
+                            let (f, s, e, r) = shown[tile];
+                            let p = &raw[f][i..i + 3];
+                            if inline {
+                                let (a, b) = (&raw[s][i..i + 3], &raw[e][i..i + 3]);
+                                for c in 0..3 {
+                                    acc[c] += wt * (p[c] as f32 + r * (b[c] as f32 - a[c] as f32));
+                                }
+                            } else {
+                                for c in 0..3 {
+                                    acc[c] += wt * p[c] as f32;
+                                }
+                            }
                         }
                     }
-                }
-                if let Some(corr) = &corr {
+                    if let Some(corr) = &corr {
+                        for c in 0..3 {
+                            acc[c] += corr[i + c];
+                        }
+                    }
                     for c in 0..3 {
-                        acc[c] += corr[3 * i + c];
+                        out[i + c] = acc[c].round().clamp(0.0, 255.0) as u8;
                     }
                 }
-                *px = image::Rgb(acc.map(|v| v.round().clamp(0.0, 255.0) as u8));
             }
             let mask = Mask::from_fn(w, h, |x, y| {
                 let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
