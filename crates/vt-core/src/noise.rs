@@ -140,13 +140,13 @@ pub struct NoiseModel {
 /// Evenly spaced sample of at most `cap` frames out of a stream of unknown length: keeps every
 /// `stride`-th frame, doubling the stride (and dropping every other kept frame) when full.
 #[derive(Debug, Clone)]
-pub struct FrameSample {
+pub struct FrameSample<T = RgbImage> {
     cap: usize,
     stride: usize,
-    frames: Vec<RgbImage>,
+    frames: Vec<T>,
 }
 
-impl FrameSample {
+impl<T> FrameSample<T> {
     /// An empty sample holding at most `cap` (>= 2) frames.
     pub fn new(cap: usize) -> Self {
         Self {
@@ -166,8 +166,8 @@ impl FrameSample {
         index.is_multiple_of(stride)
     }
 
-    /// Offers frame `index` (frames must come in order from 0).
-    pub fn offer(&mut self, index: usize, frame: &RgbImage) {
+    /// Offers frame `index` (frames must come in order from 0), made by `make` if kept.
+    pub fn offer_with(&mut self, index: usize, make: impl FnOnce() -> T) {
         if !index.is_multiple_of(self.stride) {
             return;
         }
@@ -182,17 +182,35 @@ impl FrameSample {
                 return;
             }
         }
-        self.frames.push(frame.clone());
+        self.frames.push(make());
     }
 
     /// The sampled frames, in order.
-    pub fn frames(&self) -> &[RgbImage] {
+    pub fn frames(&self) -> &[T] {
         &self.frames
     }
 
     /// Takes the frames out.
-    pub fn into_frames(self) -> Vec<RgbImage> {
+    pub fn into_frames(self) -> Vec<T> {
         self.frames
+    }
+}
+
+impl FrameSample<usize> {
+    /// The indices a sample of at most `cap` frames keeps from `n` frames offered in order.
+    pub fn indices(n: usize, cap: usize) -> Vec<usize> {
+        let mut s = Self::new(cap);
+        for i in 0..n {
+            s.offer_with(i, || i);
+        }
+        s.into_frames()
+    }
+}
+
+impl FrameSample<RgbImage> {
+    /// Offers frame `index` (frames must come in order from 0).
+    pub fn offer(&mut self, index: usize, frame: &RgbImage) {
+        self.offer_with(index, || frame.clone());
     }
 }
 
@@ -236,12 +254,48 @@ pub fn noise_model(
             why: "the noise model needs frames".into(),
         });
     }
+    let rows: Vec<Vec<u8>> = sample
+        .iter()
+        .map(|f| {
+            let mut row = Vec::with_capacity(n_px);
+            max_abs_diff(f, background, &mut row);
+            row
+        })
+        .collect();
+    noise_model_from_diffs(w, h, &rows, params)
+}
+
+/// [`noise_model`] from the sample frames' differences to the background, one
+/// [`max_abs_diff`] row per frame (so a caller can drop each frame once its row is made).
+pub fn noise_model_from_diffs(
+    w: u32,
+    h: u32,
+    rows: &[Vec<u8>],
+    params: &NoiseParams,
+) -> Result<NoiseModel> {
+    params.check()?;
+    let n_px = w as usize * h as usize;
+    if rows.is_empty() {
+        return Err(Error::InvalidParameter {
+            name: "noise sample",
+            value: "0 frames".into(),
+            why: "the noise model needs frames".into(),
+        });
+    }
+    if rows.iter().any(|r| r.len() != n_px) {
+        return Err(Error::InvalidParameter {
+            name: "noise sample",
+            value: format!(
+                "rows of {:?} pixels",
+                rows.iter().map(Vec::len).collect::<Vec<_>>()
+            ),
+            why: format!("one difference per pixel of {w}x{h}"),
+        });
+    }
     // Per pixel, the sample's differences: pixel-major so each pixel's median is one slice.
-    let n = sample.len();
+    let n = rows.len();
     let mut diffs = vec![0u8; n_px * n];
-    let mut row = Vec::with_capacity(n_px);
-    for (t, f) in sample.iter().enumerate() {
-        max_abs_diff(f, background, &mut row);
+    for (t, row) in rows.iter().enumerate() {
         for (i, &d) in row.iter().enumerate() {
             diffs[i * n + t] = d;
         }
@@ -536,6 +590,74 @@ mod tests {
                 assert_eq!(wanted, kept, "cap {cap}, frame {i}");
             }
         }
+    }
+
+    #[test]
+    fn indices_are_the_frames_a_sample_keeps() {
+        for (n, cap) in [
+            (0usize, 4usize),
+            (1, 2),
+            (17, 4),
+            (200, 48),
+            (720, 48),
+            (33, 128),
+        ] {
+            let mut s = FrameSample::new(cap);
+            for i in 0..n {
+                s.offer(
+                    i,
+                    &RgbImage::from_pixel(1, 1, image::Rgb([i as u8, (i >> 8) as u8, 0])),
+                );
+            }
+            let kept: Vec<usize> = s
+                .frames()
+                .iter()
+                .map(|f| f.get_pixel(0, 0).0[0] as usize + 256 * f.get_pixel(0, 0).0[1] as usize)
+                .collect();
+            assert_eq!(FrameSample::indices(n, cap), kept, "{n} frames, cap {cap}");
+        }
+    }
+
+    #[test]
+    fn the_model_from_difference_rows_is_the_model_from_frames() {
+        let bg = RgbImage::from_fn(9, 7, |x, y| {
+            image::Rgb([(10 * x) as u8, (20 * y) as u8, 90])
+        });
+        let mut rng = crate::rng::Rng::new(3);
+        let frames: Vec<RgbImage> = (0..12)
+            .map(|_| {
+                let mut f = bg.clone();
+                for p in f.pixels_mut() {
+                    for c in p.0.iter_mut() {
+                        *c = c.saturating_add((rng.next_u64() % 9) as u8);
+                    }
+                }
+                f
+            })
+            .collect();
+        let params = NoiseParams::default();
+        let a = noise_model(&bg, &frames, &params).unwrap();
+        let rows: Vec<Vec<u8>> = frames
+            .iter()
+            .map(|f| {
+                let mut r = Vec::new();
+                max_abs_diff(f, &bg, &mut r);
+                r
+            })
+            .collect();
+        let b = noise_model_from_diffs(9, 7, &rows, &params).unwrap();
+        assert_eq!((a.sigma0, &a.thresholds), (b.sigma0, &b.thresholds));
+        assert_eq!(a.alpha, b.alpha);
+        assert!(noise_model_from_diffs(
+            9,
+            7,
+            &rows[..1]
+                .iter()
+                .map(|r| r[1..].to_vec())
+                .collect::<Vec<_>>(),
+            &params
+        )
+        .is_err());
     }
 
     #[test]

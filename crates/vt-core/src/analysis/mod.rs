@@ -18,7 +18,8 @@ use crate::loops::{check_loop_input, loops_from_pair_costs, pair_costs, Loop, Lo
 use crate::median::{temporal_median, temporal_median_frames, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};
 use crate::noise::{
-    noise_mask, noise_model, pair_change, FrameSample, MotionKept, NoiseModel, NoiseParams,
+    max_abs_diff, noise_mask, noise_model_from_diffs, pair_change, FrameSample, MotionKept,
+    NoiseModel, NoiseParams,
 };
 use crate::parallax::{BackgroundMode, PairParallax, ParallaxFigures};
 use crate::register::RegisterParams;

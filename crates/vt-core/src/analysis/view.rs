@@ -37,6 +37,12 @@ impl Streamed {
     }
 }
 
+/// The noise model's sample: frames kept as they streamed, or indices into the frame cache.
+enum Sample {
+    Kept(FrameSample),
+    Cached(Vec<usize>),
+}
+
 pub(super) fn analyze_view(
     p: usize,
     src: &mut dyn FrameSource,
@@ -136,12 +142,15 @@ pub(super) fn analyze_view(
                 .map(|i| frames[i].as_ref())
                 .collect();
             let background = temporal_median_frames(&refs).map_err(too_many)?;
-            streamed.median = None;
-            streamed.every_frame = false;
-            for (j, f) in frames.iter().enumerate() {
-                streamed.take(j, f.as_ref())?;
-            }
-            (background, streamed.noise)
+            // The noise sample: the frames a streamed sample would keep, read from the cache
+            // when blurred (no copies).
+            let sample = streamed.noise.is_some().then(|| {
+                Sample::Cached(FrameSample::indices(
+                    frames.len(),
+                    params.noise.sample_frames,
+                ))
+            });
+            (background, sample)
         }
         None => {
             let background = match (streamed.median, streamed.all) {
@@ -149,7 +158,7 @@ pub(super) fn analyze_view(
                 (None, Some(acc)) => acc.median()?,
                 (None, None) => unreachable!("streamed frames go to a sample or the accumulator"),
             };
-            (background, streamed.noise)
+            (background, streamed.noise.map(Sample::Kept))
         }
     };
     let bg_blur = gaussian_blur(&background, &params.blur)?;
@@ -158,12 +167,29 @@ pub(super) fn analyze_view(
     let model: Option<NoiseModel> = match sample {
         Some(s) => {
             let t = Instant::now();
-            let blurred: Vec<RgbImage> = s
-                .into_frames()
-                .par_iter()
-                .map(|f| gaussian_blur(f, &params.blur))
-                .collect::<Result<_>>()?;
-            let m = noise_model(&bg_blur, &blurred, &params.noise)?;
+            // Each frame blurred and dropped once its differences to the background are made
+            // (a byte per pixel: a third of the blurred frame).
+            let diff = |f: &RgbImage| -> Result<Vec<u8>> {
+                let mut row = Vec::new();
+                max_abs_diff(&gaussian_blur(f, &params.blur)?, &bg_blur, &mut row);
+                Ok(row)
+            };
+            let rows: Vec<Vec<u8>> = match s {
+                Sample::Kept(s) => s
+                    .into_frames()
+                    .into_par_iter()
+                    .map(|f| diff(&f))
+                    .collect::<Result<_>>()?,
+                Sample::Cached(at) => {
+                    let frames = cache.as_deref().expect("a cached sample has its cache");
+                    at.into_par_iter()
+                        .map(|i| diff(frames[i].as_ref().rgb(&mut RgbImage::new(0, 0))))
+                        .collect::<Result<_>>()?
+                }
+            };
+            let (w, h) = bg_blur.dimensions();
+            let m = noise_model_from_diffs(w, h, &rows, &params.noise)?;
+            drop(rows);
             timings.masks += t.elapsed();
             Some(m)
         }
