@@ -4,10 +4,10 @@ use super::*;
 
 /// Pass 1's consumers of frames that do not stay in the cache.
 pub(super) struct Streamed {
-    /// The noise model's sample.
-    noise: Option<FrameSample>,
-    /// The median's sample (None: every frame).
-    median: Option<FrameSample>,
+    /// The noise model's sample, in the source's form (4:2:0 video frames: half of RGB).
+    noise: Option<FrameSample<Frame>>,
+    /// The median's sample (None: every frame), in the source's form.
+    median: Option<FrameSample<Frame>>,
     /// The every-frame median, once frames stream.
     all: Option<MedianAccumulator>,
     every_frame: bool,
@@ -16,18 +16,14 @@ pub(super) struct Streamed {
 }
 
 impl Streamed {
-    /// Frame `i`, in order; converted to RGB only if something keeps it.
+    /// Frame `i`, in order; copied only if a sample keeps it, converted to RGB only for the
+    /// every-frame median.
     fn take(&mut self, i: usize, frame: FrameRef<'_>) -> Result<()> {
-        let wanted = self.noise.as_ref().is_some_and(|s| s.wants(i))
-            || self.median.as_ref().is_some_and(|s| s.wants(i));
-        if !(wanted || self.every_frame) {
-            return Ok(());
-        }
-        let rgb = frame.rgb(&mut self.rgb);
         for s in [&mut self.noise, &mut self.median].into_iter().flatten() {
-            s.offer(i, rgb);
+            s.offer_with(i, || frame.to_owned());
         }
         if self.every_frame {
+            let rgb = frame.rgb(&mut self.rgb);
             let (w, h) = rgb.dimensions();
             self.all
                 .get_or_insert_with(|| MedianAccumulator::new(w, h))
@@ -39,7 +35,7 @@ impl Streamed {
 
 /// The noise model's sample: frames kept as they streamed, or indices into the frame cache.
 enum Sample {
-    Kept(FrameSample),
+    Kept(FrameSample<Frame>),
     Cached(Vec<usize>),
 }
 
@@ -154,7 +150,10 @@ pub(super) fn analyze_view(
         }
         None => {
             let background = match (streamed.median, streamed.all) {
-                (Some(s), _) => temporal_median(s.frames()).map_err(too_many)?,
+                (Some(s), _) => {
+                    let refs: Vec<FrameRef<'_>> = s.frames().iter().map(Frame::as_ref).collect();
+                    temporal_median_frames(&refs).map_err(too_many)?
+                }
                 (None, Some(acc)) => acc.median()?,
                 (None, None) => unreachable!("streamed frames go to a sample or the accumulator"),
             };
@@ -178,7 +177,7 @@ pub(super) fn analyze_view(
                 Sample::Kept(s) => s
                     .into_frames()
                     .into_par_iter()
-                    .map(|f| diff(&f))
+                    .map(|f| diff(f.as_ref().rgb(&mut RgbImage::new(0, 0))))
                     .collect::<Result<_>>()?,
                 Sample::Cached(at) => {
                     let frames = cache.as_deref().expect("a cached sample has its cache");
