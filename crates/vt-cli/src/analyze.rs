@@ -62,7 +62,7 @@ pub struct AnalyzeArgs {
     #[arg(long, default_value_t = vt_core::analysis::DEFAULT_MEDIAN_FRAMES)]
     median_frames: usize,
     /// Keep a view's frames in memory between the two passes when they fit in this many MiB.
-    #[arg(long, default_value_t = 768)]
+    #[arg(long, default_value_t = vt_core::analysis::DEFAULT_CACHE_MB)]
     cache_mb: usize,
     /// Per-pixel noise-model masks: moving where |frame - bg| > K noise deviations of that pixel
     /// (0 = off: the global --threshold, the thesis).

@@ -104,7 +104,7 @@ pub(super) fn analyze_view(
         match cache.as_mut() {
             Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.to_owned()),
             _ => {
-                for (j, f) in cache.take().unwrap_or_default().iter().enumerate() {
+                for (j, f) in cache.take().unwrap_or_default().into_iter().enumerate() {
                     streamed.take(j, f.as_ref()).map_err(too_many)?;
                 }
                 streamed.take(i, frame).map_err(too_many)?;
