@@ -1852,6 +1852,40 @@ mod tests {
     }
 
     #[test]
+    fn both_encoders_store_frames_smaller_than_a_macroblock() {
+        // 9x5: padded to 16x16 for the encoder, cropped back when decoded.
+        let frames = moving_frames(9, 5, 11);
+        let dir = tempfile::tempdir().unwrap();
+        for encoder in [H264Encoder::OpenH264, H264Encoder::X264] {
+            if encoder == H264Encoder::X264 && !x264_available() {
+                continue;
+            }
+            let path = dir.path().join(format!("o_{encoder:?}.bin"));
+            let mut w =
+                ObjectWriter::create_with_encoder(&path, 9, 5, StoreQuality::default(), encoder)
+                    .unwrap();
+            for (m, raw) in &frames {
+                w.push(m, raw).unwrap();
+            }
+            assert_eq!(w.len(), 11);
+            w.finish().unwrap();
+            let store = ObjectStore::load(&path).unwrap();
+            let mut patch = vt_core::render::ObjectPatch::default();
+            for (i, (m, raw)) in frames.iter().enumerate().rev() {
+                store.decode_into(i, &mut patch).unwrap();
+                let pixels = patch_pixels(&patch);
+                assert_eq!(pixels.len() as u64, m.count_ones(), "{encoder:?} frame {i}");
+                for (x, y, c) in pixels {
+                    let want = raw.get_pixel(x, y).0;
+                    for k in 0..3 {
+                        assert!(c[k].abs_diff(want[k]) < 40, "{encoder:?} {i} ({x}, {y})");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn random_access_equals_sequential_decoding() {
         for encoder in [H264Encoder::OpenH264, H264Encoder::X264] {
             if encoder == H264Encoder::X264 && !x264_available() {
