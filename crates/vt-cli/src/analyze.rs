@@ -106,7 +106,7 @@ pub struct AnalyzeArgs {
     region_feather: u32,
     /// With --loops regions: each tile's wrap mismatch spread over its period, low-passed by a
     /// Gaussian of this many pixels (0: not low-passed), or off.
-    #[arg(long, default_value = "off")]
+    #[arg(long, default_value = "0")]
     region_blend: String,
 }
 
