@@ -34,6 +34,7 @@ pub fn flag_of(name: &str) -> Option<&'static str> {
         "regions.tile" => "--region-tile",
         "regions.spatial" => "--region-spatial",
         "regions.feather" => "--region-feather",
+        "regions.blend" => "--region-blend",
         _ => return None,
     })
 }
