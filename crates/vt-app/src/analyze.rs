@@ -316,6 +316,12 @@ impl std::fmt::Display for AnalysisSummary<'_> {
         scene.seam_score
     )?;
         for (p, v) in a.views.iter().enumerate() {
+            if let Some(bytes) = v.regions_over_cache {
+                writeln!(f,
+                    "view {p}: no per-region loop: its {} frames need {} MiB held as RGB, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
+                    v.n_frames, bytes.div_ceil(1 << 20), bytes.div_ceil(1 << 20)
+                )?;
+            }
             if let Some(res) = &v.region_loop {
                 let (r, q, one) = (&res.chosen, &res.quality, &res.single);
                 writeln!(f,

@@ -240,3 +240,43 @@ fn the_wrap_correction_removes_a_drift_that_never_repeats() {
         }
     }
 }
+
+/// The analysis makes per-region loops when asked and the view's frames fit the frame cache;
+/// when they do not, the view keeps the thesis's loop and says how many bytes it would need
+/// (printed by `vt analyze`), rather than dropping the request silently.
+#[test]
+fn the_analysis_says_when_per_region_loops_do_not_fit_the_cache() {
+    use vt_core::analysis::{analyze, AnalyzeParams, FrameSource, MemorySource, Quiet};
+    let (w, h, n) = (64u32, 32u32, 40usize);
+    let run = |cache_bytes: usize| {
+        let mut src = MemorySource {
+            name: "two periods".into(),
+            frames: two_periods(n, w, h, 32, 5, 7),
+        };
+        let params = AnalyzeParams {
+            regions: Some(RegionParams {
+                tile: 16,
+                scale: 2,
+                max_length: 35,
+                feather: 4,
+                ..Default::default()
+            }),
+            cache_bytes,
+            loops: vt_core::loops::LoopParams {
+                window: 3,
+                min_length: 10,
+            },
+            ..Default::default()
+        };
+        let mut sources: Vec<&mut dyn FrameSource> = vec![&mut src];
+        analyze(&mut sources, &[], &params, &mut Quiet).unwrap()
+    };
+    let fits = run(AnalyzeParams::default().cache_bytes);
+    let v = &fits.views[0];
+    assert!(v.region_loop.is_some());
+    assert_eq!(v.regions_over_cache, None);
+    let over = run(1 << 10);
+    let v = &over.views[0];
+    assert!(v.region_loop.is_none());
+    assert_eq!(v.regions_over_cache, Some((n as u64) * 3 * (w * h) as u64));
+}

@@ -516,6 +516,10 @@ pub struct ViewResult {
     /// The per-region loop baked into this view's frames (then `masks` are the baked frames'
     /// and `best_loop` is `(0, L)`), with its measured quality; None: the thesis's loop.
     pub region_loop: Option<RegionResult>,
+    /// Per-region loops were asked for but not made for this view: the bytes its frames would
+    /// hold as RGB, over the cache budget ([`AnalyzeParams::cache_bytes`]); it keeps the thesis's
+    /// loop. None when they were made or not asked for.
+    pub regions_over_cache: Option<u64>,
 }
 
 /// A view's per-region loop ([`crate::regions`]) and what it measures, beside the thesis's

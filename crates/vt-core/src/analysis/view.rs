@@ -220,10 +220,11 @@ pub(super) fn analyze_view(
     };
     // Per-region loops need the view's frames as RGB: kept (instead of written) in pass 2 when
     // they fit the cache budget.
-    let bake = params.regions.is_some()
-        && cache.is_some()
-        && (n1 as u64).saturating_mul(3 * bg_blur.width() as u64 * bg_blur.height() as u64)
-            <= params.cache_bytes as u64;
+    let held_bytes =
+        (n1 as u64).saturating_mul(3 * bg_blur.width() as u64 * bg_blur.height() as u64);
+    let bake =
+        params.regions.is_some() && cache.is_some() && held_bytes <= params.cache_bytes as u64;
+    let regions_over_cache = (params.regions.is_some() && !bake).then_some(held_bytes);
     let mut held: Vec<RgbImage> = Vec::new();
     let mut kept = MotionKept::new();
     let with_thumbs = params.appearance > 0.0;
@@ -506,5 +507,6 @@ pub(super) fn analyze_view(
         dynamic_alpha: model.and_then(|m| m.alpha),
         motion_kept: kept.share(),
         region_loop,
+        regions_over_cache,
     })
 }
