@@ -36,7 +36,6 @@ pub(crate) fn with_ticks<R>(
         g.0.at(n, None);
     };
     let out = f(&tick);
-    drop(counter);
     progress.finish();
     out
 }

@@ -576,7 +576,9 @@ mod tests {
                 let nc = (n + odd as usize).div_ceil(2);
                 let us: Vec<u8> = (0..nc).map(|_| rng.next_u64() as u8).collect();
                 let vs: Vec<u8> = (0..nc).map(|_| rng.next_u64() as u8).collect();
-                let mask: Vec<u8> = (0..n).map(|_| (rng.next_u64() % 3 > 0) as u8).collect();
+                let mask: Vec<u8> = (0..n)
+                    .map(|_| !rng.next_u64().is_multiple_of(3) as u8)
+                    .collect();
                 let mut rgb = vec![7u8; 3 * n];
                 masked_full_range_row_to_rgb(&ys, &us, &vs, odd, &mask, &mut rgb);
                 for i in 0..n {

@@ -7,6 +7,9 @@ use vt_core::regions::{compose, quality, reduce, solve, Label, Problem, RegionPa
 use vt_core::rng::mix_at;
 use vt_core::Mask;
 
+/// Two tiles' indices and the pixels either side of the edge they share.
+type Edge = (usize, usize, Vec<(u32, u32)>);
+
 /// Random texture per phase: pixel (x, y) at phase `k` of a region with `seed`.
 fn texel(seed: u64, k: usize, x: u32, y: u32) -> u8 {
     (mix_at(seed, (k as u64) << 32 | (y as u64) << 16 | x as u64) >> 56) as u8
@@ -148,7 +151,7 @@ fn icm_reaches_the_brute_force_optimum_on_a_tiny_case() {
                     + d(l.start - 1, l.start + l.period - 1, &px);
             }
             // Edges: the pixel columns/rows either side of each shared edge.
-            let edges: [(usize, usize, Vec<(u32, u32)>); 4] = [
+            let edges: [Edge; 4] = [
                 (0, 1, (0..4).flat_map(|y| [(3, y), (4, y)]).collect()),
                 (2, 3, (4..8).flat_map(|y| [(3, y), (4, y)]).collect()),
                 (0, 2, (0..4).flat_map(|x| [(x, 3), (x, 4)]).collect()),

@@ -216,7 +216,7 @@ impl VideoWriter {
         drop(self.frames.take());
         self.feeder
             .take()
-            .and_then(|t| t.join().unwrap_or_else(|_| Ok(())).err())
+            .and_then(|t| t.join().unwrap_or(Ok(())).err())
     }
 
     /// Waits for ffmpeg (after the frames queued for it); its last message when it failed.

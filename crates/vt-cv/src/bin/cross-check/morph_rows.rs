@@ -28,10 +28,13 @@ pub(super) fn truth_disparity(scene: &str, view: usize) -> Result<Option<image::
     Ok(Some(image::open(&path)?.to_luma8()))
 }
 
+/// PSNR (dB) of the plane warp, vt-core's morph and OpenCV's.
+type MorphScores = (f64, f64, f64);
+
 /// PSNR of the plane warp, vt-core's morph and OpenCV's at q = k + 0.5 between views 2k and
 /// 2k + 2, against view 2k + 1 ([`vt_cv::cases::morph_scores`], which the report shares), and
 /// on the plane where the truth's disparity is known (plane warp, vt-core).
-fn scores(scene: &str, k: usize) -> Result<((f64, f64, f64), Option<(f64, f64)>)> {
+fn scores(scene: &str, k: usize) -> Result<(MorphScores, Option<(f64, f64)>)> {
     let (a, b, truth) = (
         load(scene, 2 * k)?,
         load(scene, 2 * k + 2)?,
