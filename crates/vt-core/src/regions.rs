@@ -893,52 +893,36 @@ pub fn correction(
     out
 }
 
-/// Separable Gaussian blur of interleaved RGB `f32` values, border reflected (reflect-101).
+/// Separable Gaussian blur of interleaved RGB `f32` values, border reflected (reflect-101):
+/// the kernel and border of [`crate::blur`], on floats.
 fn blur_planes(v: &mut [f32], w: usize, h: usize, sigma: f32) {
-    let r = (3.0 * sigma).ceil() as isize;
-    let k: Vec<f32> = (-r..=r)
-        .map(|i| (-0.5 * (i as f32 / sigma).powi(2)).exp())
+    let r = (3.0 * sigma).ceil() as usize;
+    let k: Vec<f32> = crate::blur::gaussian_kernel(2 * r + 1, sigma as f64)
+        .expect("an odd size and a finite sigma")
+        .into_iter()
+        .map(|x| x as f32)
         .collect();
-    let sum: f32 = k.iter().sum();
-    let k: Vec<f32> = k.iter().map(|x| x / sum).collect();
-    let reflect = |i: isize, n: usize| -> usize {
-        let n = n as isize;
-        if n == 1 {
-            return 0;
-        }
-        let mut i = i;
-        while i < 0 || i >= n {
-            i = if i < 0 { -i } else { 2 * (n - 1) - i };
-        }
-        i as usize
-    };
     let mut tmp = vec![0f32; v.len()];
-    for y in 0..h {
-        for x in 0..w {
-            let mut acc = [0f32; 3];
-            for (j, kv) in k.iter().enumerate() {
-                let xx = reflect(x as isize + j as isize - r, w);
-                let i = 3 * (y * w + xx);
-                for c in 0..3 {
-                    acc[c] += kv * v[i + c];
+    // One pass along x (step 1 pixel, `w` of them per line) or y (step `w`, `h` of them).
+    let pass = |src: &[f32], dst: &mut [f32], along_x: bool| {
+        let (len, stride) = if along_x { (w, 1) } else { (h, w) };
+        for y in 0..h {
+            for x in 0..w {
+                let (pos, base) = if along_x { (x, y * w) } else { (y, x) };
+                let mut acc = [0f32; 3];
+                for (j, kv) in k.iter().enumerate() {
+                    let at = crate::blur::reflect101(pos as isize + j as isize - r as isize, len);
+                    let i = 3 * (base + at * stride);
+                    for c in 0..3 {
+                        acc[c] += kv * src[i + c];
+                    }
                 }
+                dst[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&acc);
             }
-            tmp[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&acc);
         }
-    }
-    for y in 0..h {
-        for x in 0..w {
-            let mut acc = [0f32; 3];
-            for (j, kv) in k.iter().enumerate() {
-                let yy = reflect(y as isize + j as isize - r, h);
-                let i = 3 * (yy * w + x);
-                for c in 0..3 {
-                    acc[c] += kv * tmp[i + c];
-                }
-            }
-            v[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&acc);
-        }
-    }
+    };
+    pass(v, &mut tmp, true);
+    pass(&tmp, v, false);
 }
 
 /// Rotates a baked loop (`L + 1` frames, the last the first again) so that its frame 0 is the
