@@ -122,6 +122,29 @@ pub struct ViewSeams {
     pub to_prev: Option<f64>,
 }
 
+/// `count` frames of `lo..hi` to measure steps from, for a view whose frames decode in groups
+/// of `group` (all of them when there are few): the groups' first frames first, then their
+/// second frames, and so on, each set evenly spread; in order. A step from a group's first frame
+/// decodes two frames, where one from the middle of a group decodes half the group.
+fn sample_steps(lo: usize, hi: usize, count: usize, group: usize) -> Vec<usize> {
+    let n = hi.saturating_sub(lo);
+    if n <= count {
+        return (lo..hi).collect();
+    }
+    let group = group.max(1);
+    let mut picked = Vec::with_capacity(count);
+    for offset in 0..group {
+        let set: Vec<usize> = (lo..hi).filter(|i| i % group == offset).collect();
+        let want = (count - picked.len()).min(set.len());
+        picked.extend((0..want).map(|k| set[k * set.len() / want]));
+        if picked.len() == count {
+            break;
+        }
+    }
+    picked.sort_unstable();
+    picked
+}
+
 /// Per view, the seam scores of its loop wrap and its switches, measured on frames the renderer
 /// makes with `params` (crossfade and dissolve off: they act over several frames of a render, see
 /// [`SeamMeter`] for those), sampling at most `samples` ordinary steps and switches per view.
@@ -157,15 +180,6 @@ pub fn measure_seams(
         renderer.render_into(objects, q, &choice(pb, fb), &mut b)?;
         Ok(frame_step(&a, &b))
     };
-    // `count` values evenly spread over `range` (all of them when it is short).
-    let spread = |lo: usize, hi: usize, count: usize| -> Vec<usize> {
-        let n = hi.saturating_sub(lo);
-        if n <= count {
-            (lo..hi).collect()
-        } else {
-            (0..count).map(|k| lo + k * n / count).collect()
-        }
-    };
     let views = &scene.views;
     let mut out = Vec::with_capacity(views.len());
     for (p, v) in views.iter().enumerate() {
@@ -173,7 +187,7 @@ pub fn measure_seams(
         let q = p as f64;
         // Ordinary steps i -> i + 1 for i in m+1..n.
         let mut ordinary = Vec::new();
-        for i in spread(m + 1, n, samples) {
+        for i in sample_steps(m + 1, n, samples, objects.group(p)) {
             ordinary.push(step((p, i), (p, i + 1), q)?);
         }
         let unit = median(&mut ordinary);
@@ -185,7 +199,7 @@ pub fn measure_seams(
         let mut switch = |table: &[Option<usize>], to: usize, q: f64| -> Result<Option<f64>> {
             let frames = views[to].to_next.len().max(views[to].to_prev.len());
             let mut scores = Vec::new();
-            for s in spread(m + 1, n + 1, samples) {
+            for s in sample_steps(m + 1, n + 1, samples, objects.group(p)) {
                 let Some(Some(t)) = table.get(s) else {
                     continue;
                 };
@@ -222,6 +236,22 @@ mod tests {
 
     fn grey(v: u8) -> RgbImage {
         RgbImage::from_pixel(4, 2, image::Rgb([v; 3]))
+    }
+
+    #[test]
+    fn steps_are_sampled_from_the_starts_of_decoding_groups_first() {
+        // Without groups: evenly spread, as before groups were known.
+        assert_eq!(sample_steps(1, 11, 5, 1), vec![1, 3, 5, 7, 9]);
+        assert_eq!(sample_steps(3, 6, 5, 8), vec![3, 4, 5]);
+        // 1..200 in groups of 8: 24 group starts (8..=192), then 8 second frames, spread.
+        let got = sample_steps(1, 200, 32, 8);
+        assert_eq!(got.len(), 32);
+        assert!(got.windows(2).all(|w| w[0] < w[1]));
+        assert!(got.iter().all(|&i| (1..200).contains(&i)));
+        assert_eq!(got.iter().filter(|&&i| i % 8 == 0).count(), 24);
+        assert_eq!(got.iter().filter(|&&i| i % 8 == 1).count(), 8);
+        // Spread over the whole range, not bunched at its start.
+        assert!(got.iter().filter(|&&i| i % 8 == 1).any(|&i| i > 150));
     }
 
     #[test]

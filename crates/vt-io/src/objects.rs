@@ -1314,6 +1314,12 @@ impl ObjectStore {
         }
     }
 
+    /// Frames per group of pictures: frame `i` decodes from frame `i - i % group()` on (1 for a
+    /// lossless store, whose frames stand alone).
+    pub fn group(&self) -> usize {
+        self.codec.as_ref().map_or(1, |c| c.gop)
+    }
+
     /// Bytes of the file that decoding frame `i` alone reads (its record; version 2 also
     /// decodes the frames before it in its group when they are not cached).
     pub fn frame_bytes(&self, i: usize) -> usize {
@@ -1648,6 +1654,10 @@ impl vt_core::render::ObjectFrames for SceneObjects {
         store
             .decode_into(frame, patch)
             .map_err(|e| vt_core::Error::external(format!("view {view}"), e))
+    }
+
+    fn group(&self, view: usize) -> usize {
+        self.stores.get(view).map_or(1, ObjectStore::group)
     }
 }
 

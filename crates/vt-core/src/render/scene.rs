@@ -139,4 +139,11 @@ impl ObjectPatch {
 pub trait ObjectFrames {
     /// Decodes frame `frame` of view `view` into `patch` (reusing its storage).
     fn decode_into(&self, view: usize, frame: usize, patch: &mut ObjectPatch) -> Result<()>;
+
+    /// Frames of `view` decode in groups of this many, each from a frame whose number is a
+    /// multiple of it (a compressed store's group of pictures): a frame costs the decoding of
+    /// its group's earlier frames too, unless they were just decoded. 1: every frame on its own.
+    fn group(&self, _view: usize) -> usize {
+        1
+    }
 }
