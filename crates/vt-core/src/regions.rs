@@ -759,18 +759,7 @@ pub fn compose(
         .map(|t| {
             let t = (t + rl.phase) % rl.length;
             let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
-            // Per tile: the frame shown and, with the correction, its wrap's two frames and
-            // this time's ramp (see [`correction`]).
-            let shown: Vec<(usize, usize, usize, f32)> = rl
-                .labels
-                .iter()
-                .map(|l| {
-                    let p = l.period;
-                    let k = l.frame(t) - l.start;
-                    let r = ((p - 1) as f32 / 2.0 - k as f32) / p as f32;
-                    (l.frame(t), l.start, l.start + p, r)
-                })
-                .collect();
+            let shown = ramps(rl, t);
             let raw: Vec<&[u8]> = frames.iter().map(|f| f.as_raw().as_slice()).collect();
             // Unsmoothed, the correction is added pixel by pixel below; smoothed, as a field.
             let inline = rl.blend == Some(0.0);
@@ -781,18 +770,10 @@ pub fn compose(
             let mut img = RgbImage::new(w, h);
             let out = img.as_mut();
             for y in 0..h as usize {
-                let (cy, oy, ay) = by[y];
                 for x in 0..w as usize {
-                    let (cx, ox, ax) = bx[x];
-                    let parts = [
-                        (cy * cols + cx, (1.0 - ax) * (1.0 - ay)),
-                        (cy * cols + ox, ax * (1.0 - ay)),
-                        (oy * cols + cx, (1.0 - ax) * ay),
-                        (oy * cols + ox, ax * ay),
-                    ];
                     let i = 3 * (y * w as usize + x);
                     let mut acc = [0f32; 3];
-                    for (tile, wt) in parts {
+                    for (tile, wt) in tile_weights(bx[x], by[y], cols) {
                         if wt > 0.0 {
                             let (f, s, e, r) = shown[tile];
                             let p = &raw[f][i..i + 3];
@@ -828,6 +809,36 @@ pub fn compose(
     out.into_iter().unzip()
 }
 
+/// Per tile at labels' time `t`: the source frame shown, its wrap's two frames `s` and `s + p`,
+/// and the share `((p - 1) / 2 - k) / p` of their difference the correction adds at cycle
+/// position `k` (see [`correction`]).
+fn ramps(rl: &RegionLoop, t: usize) -> Vec<(usize, usize, usize, f32)> {
+    rl.labels
+        .iter()
+        .map(|l| {
+            let p = l.period;
+            let k = l.frame(t) - l.start;
+            let r = ((p - 1) as f32 / 2.0 - k as f32) / p as f32;
+            (l.frame(t), l.start, l.start + p, r)
+        })
+        .collect()
+}
+
+/// The four tiles a pixel mixes and their weights, from its column's and row's
+/// [`axis_blend`] entries, on a grid `cols` tiles wide.
+fn tile_weights(
+    (cx, ox, ax): (usize, usize, f32),
+    (cy, oy, ay): (usize, usize, f32),
+    cols: usize,
+) -> [(usize, f32); 4] {
+    [
+        (cy * cols + cx, (1.0 - ax) * (1.0 - ay)),
+        (cy * cols + ox, ax * (1.0 - ay)),
+        (oy * cols + cx, (1.0 - ax) * ay),
+        (oy * cols + ox, ax * ay),
+    ]
+}
+
 /// The wrap correction of output time `t` (labels' time), `3 * w * h` values to add.
 ///
 /// A tile looping `(s, p)` shows `V(s + k)` at cycle position `k`; at its wrap `V(s)` follows
@@ -850,35 +861,14 @@ pub fn correction(
 ) -> Vec<f32> {
     let (w, h) = frames[0].dimensions();
     let cols = rl.grid.0;
-    // Per tile: its wrap's frames and this time's ramp.
-    let ramp: Vec<(usize, usize, f32)> = rl
-        .labels
-        .iter()
-        .map(|l| {
-            let p = l.period;
-            let k = l.frame(t) - l.start;
-            (
-                l.start,
-                l.start + p,
-                ((p - 1) as f32 / 2.0 - k as f32) / p as f32,
-            )
-        })
-        .collect();
+    let ramp = ramps(rl, t);
     let mut out = vec![0f32; 3 * (w * h) as usize];
     for y in 0..h {
-        let (cy, oy, ay) = by[y as usize];
         for x in 0..w {
-            let (cx, ox, ax) = bx[x as usize];
-            let parts = [
-                (cy * cols + cx, (1.0 - ax) * (1.0 - ay)),
-                (cy * cols + ox, ax * (1.0 - ay)),
-                (oy * cols + cx, (1.0 - ax) * ay),
-                (oy * cols + ox, ax * ay),
-            ];
             let i = 3 * (y * w + x) as usize;
-            for (tile, wt) in parts {
+            for (tile, wt) in tile_weights(bx[x as usize], by[y as usize], cols) {
                 if wt > 0.0 {
-                    let (s, e, r) = ramp[tile];
+                    let (_, s, e, r) = ramp[tile];
                     let (a, b) = (frames[s].get_pixel(x, y), frames[e].get_pixel(x, y));
                     for c in 0..3 {
                         out[i + c] += wt * r * (b[c] as f32 - a[c] as f32);
