@@ -233,13 +233,7 @@ impl VideoSource {
             .stderr(Stdio::piped())
             .spawn()
             .map_err(|e| self.src_err(missing_tool("ffmpeg", &self.path, e).to_string()))?;
-        // Drain stderr on a thread so a chatty decoder can never block on a full pipe.
-        let mut stderr = child.stderr.take().expect("stderr was piped");
-        let err_thread = std::thread::spawn(move || {
-            let mut s = String::new();
-            let _ = stderr.read_to_string(&mut s);
-            s
-        });
+        let err_thread = crate::video::drain(child.stderr.take().expect("stderr was piped"));
         let mut stdout = child.stdout.take().expect("stdout was piped");
         let mut buf = vec![0u8; frame_bytes];
         let mut n = 0usize;

@@ -382,7 +382,7 @@ impl X264 {
             .spawn()?;
         let stdin = child.stdin.take();
         let mut stdout = child.stdout.take().expect("stdout was piped");
-        let mut err = child.stderr.take().expect("stderr was piped");
+        let err = child.stderr.take().expect("stderr was piped");
         let (send, units) = std::sync::mpsc::channel();
         let reader = std::thread::Builder::new()
             .name("vt-store-x264".into())
@@ -399,12 +399,7 @@ impl X264 {
                     }
                 }
             })?;
-        let stderr = std::thread::spawn(move || {
-            use std::io::Read;
-            let mut s = String::new();
-            let _ = err.read_to_string(&mut s);
-            s
-        });
+        let stderr = crate::video::drain(err);
         Ok(Self {
             child,
             stdin,

@@ -29,6 +29,16 @@ fn spawn_err(tool: &str, path: &Path, e: std::io::Error) -> Error {
     )
 }
 
+/// Reads a child's stderr to its end on a thread of its own (so a chatty ffmpeg never blocks on
+/// a full pipe); the thread returns what it said.
+pub(crate) fn drain(mut stderr: impl Read + Send + 'static) -> std::thread::JoinHandle<String> {
+    std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stderr.read_to_string(&mut s);
+        s
+    })
+}
+
 /// Whether the `ffmpeg` program runs (`ffmpeg -version` succeeds).
 pub fn ffmpeg_available() -> bool {
     Command::new("ffmpeg")
@@ -152,12 +162,7 @@ pub fn encode_h264(
         .stderr(Stdio::piped())
         .spawn()
         .map_err(|e| spawn_err("ffmpeg", path, e))?;
-    let mut stderr = child.stderr.take().expect("stderr was piped");
-    let err_thread = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = stderr.read_to_string(&mut s);
-        s
-    });
+    let err_thread = drain(child.stderr.take().expect("stderr was piped"));
     let mut result = Ok(());
     {
         let mut stdin = child.stdin.take().expect("stdin was piped");

@@ -3,7 +3,7 @@
 //! generated palette), a PNG-frame folder, and
 //! single images.
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::{Arc, Mutex};
@@ -183,14 +183,7 @@ impl VideoWriter {
                 ));
             }
         };
-        // Drain stderr on a thread so a chatty encoder never blocks on a full pipe.
-        let stderr = child.stderr.take().map(|mut s| {
-            std::thread::spawn(move || {
-                let mut text = String::new();
-                let _ = s.read_to_string(&mut text);
-                text
-            })
-        });
+        let stderr = child.stderr.take().map(crate::video::drain);
         let child = Arc::new(Mutex::new(child));
         output::register_child(&child);
         Ok(Self {
