@@ -486,7 +486,7 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                                 period: v.best_loop.len(),
                             },
                             (w, h),
-                            16,
+                            RegionParams::default().tile,
                         );
                         let blank: Vec<vt_core::Mask> =
                             src.iter().map(|_| vt_core::Mask::new(w, h)).collect();
