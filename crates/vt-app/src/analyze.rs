@@ -318,16 +318,22 @@ impl std::fmt::Display for AnalysisSummary<'_> {
         for (p, v) in a.views.iter().enumerate() {
             if let Some(bytes) = v.regions_over_cache {
                 writeln!(f,
-                    "view {p}: no per-region loop: its {} frames need {} MiB held as RGB, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
+                    "view {p}: no per-region loop: its {} frames and the baked loop need {} MiB held as RGB, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
                     v.n_frames, bytes.div_ceil(1 << 20), bytes.div_ceil(1 << 20)
+                )?;
+            }
+            if let Some(res) = &v.region_rejected {
+                writeln!(f,
+                    "view {p}: per-region loop not kept: its tile wraps, {:.2}x their ordinary step (90th percentile {:.2}x), are no better than the thesis's loop's {:.2}x ({:.2}x) measured alike inside the dynamic region; it keeps the thesis's loop (--loops regions keeps it anyway); tried in {:.2} s",
+                    res.quality.tile_wrap, res.quality.tile_wrap_p90, res.single.tile_wrap, res.single.tile_wrap_p90, res.secs
                 )?;
             }
             if let Some(res) = &v.region_loop {
                 let (r, q, one) = (&res.chosen, &res.quality, &res.single);
                 writeln!(f,
-                    "view {p}: per-region loop of {} frames, {} tiles of {} px, periods {:?}; energy {:.3e} (best single label {:.3e}); inside the dynamic region: worst step {:.2}x the median, tile wraps {:.2}x (90th percentile {:.2}x), sharpness {:.3} of the source's ({:.3} near the tile wraps), {:.2} grey levels from the nearest source frame per tile; the thesis's loop measured alike: worst step {:.2}x, sharpness {:.3} ({:.3} near its wrap); baked in {:.2} s",
+                    "view {p}: per-region loop of {} frames, {} tiles of {} px, periods {:?}; energy {:.3e} (best single label {:.3e}); inside the dynamic region: worst step {:.2}x the median, tile wraps {:.2}x (90th percentile {:.2}x), sharpness {:.3} of the source's ({:.3} near the tile wraps), {:.2} grey levels from the nearest source frame per tile; the thesis's loop measured alike: worst step {:.2}x, tile wraps {:.2}x ({:.2}x), sharpness {:.3} ({:.3} near its wrap); baked in {:.2} s",
                     r.length, r.labels.len(), r.tile, r.periods, r.energy, r.single_energy,
-                    q.worst_step, q.tile_wrap, q.tile_wrap_p90, q.sharpness, q.sharpness_near, q.source_error, one.worst_step, one.sharpness, one.sharpness_near, res.secs
+                    q.worst_step, q.tile_wrap, q.tile_wrap_p90, q.sharpness, q.sharpness_near, q.source_error, one.worst_step, one.tile_wrap, one.tile_wrap_p90, one.sharpness, one.sharpness_near, res.secs
                 )?;
             }
         }

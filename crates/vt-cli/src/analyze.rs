@@ -91,20 +91,21 @@ pub struct AnalyzeArgs {
     /// larger files) or lossless (raw RGB, tens of times the video's size).
     #[arg(long, default_value_t = vt_io::objects::StoreQuality::default())]
     store_quality: vt_io::objects::StoreQuality,
-    /// Loops per view: single (the thesis's one loop (m, n), eq. 1) or regions (each tile its
-    /// own start and period, baked offline into one seamless loop of length L; issue 23).
-    #[arg(long, default_value = "single", value_parser = ["single", "regions"])]
+    /// Loops per view: regions (each tile its own start and period, baked offline into one
+    /// seamless loop of length L), single (the thesis's one loop (m, n), eq. 1), or auto: per
+    /// region where that measures better than the thesis's loop and fits --cache-mb.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "single", "regions"])]
     loops: String,
-    /// With --loops regions: tile side, pixels.
+    /// Per-region loops: tile side, pixels.
     #[arg(long, default_value_t = vt_core::regions::RegionParams::default().tile)]
     region_tile: u32,
-    /// With --loops regions: weight of the spatial consistency between neighbouring tiles.
+    /// Per-region loops: weight of the spatial consistency between neighbouring tiles.
     #[arg(long, default_value_t = vt_core::regions::RegionParams::default().spatial)]
     region_spatial: f32,
-    /// With --loops regions: feather between tiles, pixels.
+    /// Per-region loops: feather between tiles, pixels.
     #[arg(long, default_value_t = vt_core::regions::RegionParams::default().feather)]
     region_feather: u32,
-    /// With --loops regions: each tile's wrap mismatch spread over its period, low-passed by a
+    /// Per-region loops: each tile's wrap mismatch spread over its period, low-passed by a
     /// Gaussian of this many pixels (0: not low-passed), or off.
     #[arg(long, default_value = "0")]
     region_blend: String,
@@ -155,11 +156,12 @@ impl AnalyzeArgs {
                 ..Default::default()
             },
             register: Default::default(),
-            regions: (self.loops == "regions").then(|| vt_core::regions::RegionParams {
+            regions: (self.loops != "single").then(|| vt_core::regions::RegionParams {
                 tile: self.region_tile,
                 spatial: self.region_spatial,
                 feather: self.region_feather,
                 blend,
+                only_if_better: self.loops == "auto",
                 ..Default::default()
             }),
             background: self.background.parse().map_err(|_| {

@@ -20,6 +20,8 @@
 //! feathering each tile into its neighbours over `feather` pixels; masks follow each pixel's own
 //! tile. Everything is computed offline: the renderer plays the baked frames as any loop.
 
+use std::borrow::Borrow;
+
 use image::RgbImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -51,6 +53,11 @@ pub struct RegionParams {
     /// correction (each tile's wrap is one step).
     #[serde(default)]
     pub blend: Option<f32>,
+    /// Keep the baked loop only where it measures better than the thesis's loop on the same
+    /// frames ([`Quality::better_than`]); the view keeps its thesis loop otherwise
+    /// (`vt analyze --loops auto`, the default). False: always bake (`--loops regions`).
+    #[serde(default)]
+    pub only_if_better: bool,
 }
 
 impl Default for RegionParams {
@@ -64,6 +71,7 @@ impl Default for RegionParams {
             sweeps: 12,
             max_frames: 128,
             blend: Some(0.0),
+            only_if_better: false,
         }
     }
 }
@@ -702,8 +710,12 @@ pub fn solve(
     let mut periods: Vec<usize> = labels.iter().map(|l| l.period).collect();
     periods.sort_unstable();
     periods.dedup();
+    // The periods used all divide the length; the output repeats after their least common
+    // multiple, which is all the baked loop needs to hold.
+    let length = periods.iter().fold(1, |l, &p| l / gcd(l, p) * p);
+    debug_assert!(pb.length.is_multiple_of(length));
     Ok(RegionLoop {
-        length: pb.length,
+        length,
         tile: params.tile,
         grid: pb.grid,
         labels,
@@ -975,6 +987,26 @@ pub struct Quality {
     pub sharpness_near: f64,
 }
 
+impl Quality {
+    /// Whether a loop measuring `self` is better than one measuring `other` (the thesis's loop
+    /// measured alike): its tiles' wraps, the median [`Quality::tile_wrap`], at most 90% of the
+    /// other's. A loop about as good as the thesis's keeps the thesis's (exact repeats stay
+    /// exact; the 90th percentile is not used: tiles the object crosses only now and then have
+    /// a median step near zero, and their ratios are noise, 6-12x on exact synthetic loops).
+    pub fn better_than(&self, other: &Quality) -> bool {
+        self.tile_wrap < 0.9 * other.tile_wrap
+    }
+}
+
+/// The frames a single-label loop from [`single_loop`] plays, as [`compose`] would make them
+/// without feather or correction (`L + 1` of them, the last the first again), borrowed from
+/// `frames`.
+pub fn single_frames<'a>(frames: &'a [RgbImage], rl: &RegionLoop) -> Vec<&'a RgbImage> {
+    (0..=rl.length)
+        .map(|t| &frames[rl.labels[0].frame((t + rl.phase) % rl.length)])
+        .collect()
+}
+
 fn grey(p: &image::Rgb<u8>) -> f32 {
     0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32
 }
@@ -1048,8 +1080,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Measures `baked` (from [`compose`]) against `source` inside the dynamic region `alpha`.
-pub fn quality(
-    baked: &[RgbImage],
+pub fn quality<B: Borrow<RgbImage> + Sync>(
+    baked: &[B],
     source: &[RgbImage],
     rl: &RegionLoop,
     alpha: Option<&image::GrayImage>,
@@ -1065,11 +1097,11 @@ pub fn quality(
     let mut steps: Vec<f64> = (0..l)
         .into_par_iter()
         .map(|t| {
-            let (s, n) = mad(&baked[t], &baked[t + 1], &all, &wt);
+            let (s, n) = mad(baked[t].borrow(), baked[t + 1].borrow(), &all, &wt);
             s / n.max(1e-9)
         })
         .collect();
-    let (s, n) = mad(&baked[l], &baked[1.min(l)], &all, &wt);
+    let (s, n) = mad(baked[l].borrow(), baked[1.min(l)].borrow(), &all, &wt);
     steps.push(s / n.max(1e-9));
     let med = median(steps.clone()).max(1e-9);
     let smoothest = (0..l)
@@ -1102,7 +1134,7 @@ pub fn quality(
             let mut wraps = Vec::new();
             let mut near = vec![false; l];
             for t in 0..l {
-                let (s, n) = mad(&baked[t], &baked[t + 1], px, &wt);
+                let (s, n) = mad(baked[t].borrow(), baked[t + 1].borrow(), px, &wt);
                 let step = s / n.max(1e-9);
                 if lab.frame(at(t + 1)) == lab.frame(at(t)) + 1 {
                     ordinary.push(step);
@@ -1131,7 +1163,7 @@ pub fn quality(
                     cand.dedup();
                     cand.iter()
                         .map(|&f| {
-                            let (e, n) = mad(&baked[t], &source[f], px, &wt);
+                            let (e, n) = mad(baked[t].borrow(), &source[f], px, &wt);
                             e / n.max(1e-9)
                         })
                         .fold(f64::INFINITY, f64::min)
@@ -1141,7 +1173,7 @@ pub fn quality(
             let ge_near = {
                 let v: Vec<f64> = (0..l)
                     .filter(|&t| near[t])
-                    .map(|t| tile_gradient(&baked[t], px, &wt))
+                    .map(|t| tile_gradient(baked[t].borrow(), px, &wt))
                     .collect();
                 v.iter().sum::<f64>() / v.len().max(1) as f64
             };
@@ -1178,15 +1210,17 @@ pub fn quality(
             .sum::<f64>()
             / total.max(1e-9)
     };
-    let ge = |v: &[RgbImage]| {
+    let ge = |v: &[&RgbImage]| {
         v.par_iter().map(|f| gradient_energy(f, &wt)).sum::<f64>() / v.len() as f64
     };
+    let baked: Vec<&RgbImage> = baked[..l].iter().map(|f| f.borrow()).collect();
+    let source: Vec<&RgbImage> = source.iter().collect();
     Quality {
         smoothest,
         worst_step,
         tile_wrap: quantile(0.5),
         tile_wrap_p90: quantile(0.9),
-        sharpness: ge(&baked[..l]) / ge(source).max(1e-9),
+        sharpness: ge(&baked) / ge(&source).max(1e-9),
         source_error: wmean(|t| t.1),
         sharpness_near: wmean(|t| t.2) / wmean(|t| t.3).max(1e-9),
     }

@@ -278,8 +278,111 @@ fn the_analysis_says_when_per_region_loops_do_not_fit_the_cache() {
     let v = &fits.views[0];
     assert!(v.region_loop.is_some());
     assert_eq!(v.regions_over_cache, None);
-    let over = run(1 << 10);
+    let frame = 3 * (w * h) as usize;
+    // Room for the frames and a baked loop of 20 (the shortest loop is 10): the loop length is
+    // capped to what fits.
+    let capped = run((n + 1 + 20) * frame);
+    let v = &capped.views[0];
+    let res = v.region_loop.as_ref().expect("a loop of at most 20 fits");
+    assert!(res.chosen.length <= 20, "{}", res.chosen.length);
+    assert_eq!(v.n_frames, res.chosen.length + 1);
+    // No room for a loop of 10: the thesis's loop, and the budget that would have done.
+    let over = run((n + 1 + 9) * frame);
     let v = &over.views[0];
     assert!(v.region_loop.is_none());
-    assert_eq!(v.regions_over_cache, Some((n as u64) * 3 * (w * h) as u64));
+    assert_eq!(
+        v.regions_over_cache,
+        Some((n + 35 + 1) as u64 * frame as u64)
+    );
+}
+
+/// `n` frames of `w x h` in which a sinusoid moves smoothly, each of the vertical bands
+/// `x < splits[k]` repeating every `periods[k]` frames (a wrong wrap jumps, an ordinary step is
+/// small); plus sensor noise of `0..noise` grey levels and a brightening of `drift` grey levels
+/// per frame, neither of which repeats.
+fn waves(
+    n: usize,
+    (w, h): (u32, u32),
+    splits: &[u32],
+    periods: &[usize],
+    (noise, drift): (u8, f64),
+) -> Vec<RgbImage> {
+    (0..n)
+        .map(|i| {
+            RgbImage::from_fn(w, h, |x, y| {
+                let band = splits.iter().position(|&s| x < s).unwrap_or(splits.len());
+                let p = periods[band];
+                let phase = (x + 2 * y) as f64 / 12.0 + (i % p) as f64 / p as f64;
+                let e = texel(9, i, x, y) % noise.max(1);
+                let v = (100.0 + 20.0 * (std::f64::consts::TAU * phase).sin() + drift * i as f64)
+                    as u8
+                    + e;
+                Rgb([v, v / 2, 255 - v])
+            })
+        })
+        .collect()
+}
+
+/// The default (`--loops auto`): per-region loops only where they measure better than the
+/// thesis's loop. An exact repeat keeps its exact loop (nothing is tried); a wave brightening
+/// as it moves (light changing during the shot: no frame repeats, and every loop wraps back
+/// to a darker frame) gets the per-region loop, whose wrap correction spreads that step over
+/// the cycle; one wave under sensor noise (no exact repeat, but the
+/// thesis's loop wraps as smoothly as any) keeps the thesis's loop.
+#[test]
+fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
+    use vt_core::analysis::{analyze, AnalyzeParams, FrameSource, MemorySource, Quiet};
+    let (w, h) = (96u32, 32u32);
+    let run = |frames: Vec<RgbImage>, max_length: usize| {
+        let mut src = MemorySource {
+            name: "two periods".into(),
+            frames,
+        };
+        let mut params = AnalyzeParams::default();
+        params.loops = vt_core::loops::LoopParams {
+            window: 3,
+            min_length: 5,
+        };
+        let rp = params
+            .regions
+            .as_mut()
+            .expect("per-region loops are on by default");
+        assert!(rp.only_if_better);
+        (rp.tile, rp.feather, rp.max_length) = (16, 4, max_length);
+        let mut sources: Vec<&mut dyn FrameSource> = vec![&mut src];
+        analyze(&mut sources, &[], &params, &mut Quiet).unwrap()
+    };
+    // 45 frames hold the common period: the thesis's loop is exact and stays.
+    let exact = run(waves(45, (w, h), &[48], &[5, 7], (0, 0.0)), 35);
+    let v = &exact.views[0];
+    assert_eq!(v.best_loop.cost, 0);
+    assert_eq!(v.best_loop.len() % 35, 0);
+    assert!(v.region_loop.is_none() && v.region_rejected.is_none());
+    assert_eq!(v.n_frames, 45);
+    // A wave brightening by 3 grey levels a frame: the per-region loop.
+    let split = run(waves(30, (w, h), &[], &[6], (0, 3.0)), 35);
+    let v = &split.views[0];
+    let res = v
+        .region_loop
+        .as_ref()
+        .expect("the per-region loop is better");
+    assert!(res.quality.better_than(&res.single));
+    // The thesis's loop jumps back to darker frames; the per-region loop does not.
+    assert!(res.single.tile_wrap > 1.5, "{:?}", res.single);
+    assert!(res.quality.tile_wrap < 1.2, "{:?}", res.quality);
+    let l = res.chosen.length;
+    assert_eq!(
+        (v.best_loop.start, v.best_loop.end, v.n_frames),
+        (0, l, l + 1)
+    );
+    // One wave under noise: the thesis's loop stays, the per-region one measured and said.
+    let kept = run(waves(30, (w, h), &[], &[6], (6, 0.0)), 35);
+    let v = &kept.views[0];
+    let res = v
+        .region_rejected
+        .as_ref()
+        .expect("the thesis's loop is as good");
+    assert!(!res.quality.better_than(&res.single));
+    assert!(v.region_loop.is_none());
+    assert_eq!(v.n_frames, 30);
 }

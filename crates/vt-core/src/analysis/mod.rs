@@ -255,8 +255,9 @@ pub struct AnalyzeParams {
     /// the plane.
     #[serde(default)]
     pub background: BackgroundMode,
-    /// Per-region loops baked into one seamless loop per view ([`crate::regions`]); None: the
-    /// thesis's one loop (m, n) per view. Needs a view's frames to fit `cache_bytes` as RGB
+    /// Per-region loops baked into one seamless loop per view ([`crate::regions`]), by default
+    /// only where they measure better than the thesis's loop; None: the thesis's one loop
+    /// (m, n) per view. Needs a view's frames and the baked loop to fit `cache_bytes` as RGB
     /// (otherwise that view keeps its one loop).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub regions: Option<crate::regions::RegionParams>,
@@ -396,7 +397,10 @@ impl Default for AnalyzeParams {
             cache_bytes: default_cache(),
             register: RegisterParams::default(),
             background: BackgroundMode::Auto,
-            regions: None,
+            regions: Some(crate::regions::RegionParams {
+                only_if_better: true,
+                ..Default::default()
+            }),
         }
     }
 }
@@ -516,9 +520,13 @@ pub struct ViewResult {
     /// The per-region loop baked into this view's frames (then `masks` are the baked frames'
     /// and `best_loop` is `(0, L)`), with its measured quality; None: the thesis's loop.
     pub region_loop: Option<RegionResult>,
-    /// Per-region loops were asked for but not made for this view: the bytes its frames would
-    /// hold as RGB, over the cache budget ([`AnalyzeParams::cache_bytes`]); it keeps the thesis's
-    /// loop. None when they were made or not asked for.
+    /// The per-region loop made and measured but not kept, no better than the thesis's loop
+    /// ([`crate::regions::RegionParams::only_if_better`]); the view keeps the thesis's loop.
+    pub region_rejected: Option<RegionResult>,
+    /// Per-region loops were asked for but not made for this view: the cache budget
+    /// ([`AnalyzeParams::cache_bytes`]) they would need, for its frames and the longest baked
+    /// loop held as RGB; it keeps the thesis's loop. None when they were made or not asked
+    /// for.
     pub regions_over_cache: Option<u64>,
 }
 

@@ -218,13 +218,21 @@ pub(super) fn analyze_view(
             None => foreground_mask(blurred, &bg_blur, &params.mask),
         }
     };
-    // Per-region loops need the view's frames as RGB: kept (instead of written) in pass 2 when
-    // they fit the cache budget.
-    let held_bytes =
-        (n1 as u64).saturating_mul(3 * bg_blur.width() as u64 * bg_blur.height() as u64);
-    let bake =
-        params.regions.is_some() && cache.is_some() && held_bytes <= params.cache_bytes as u64;
-    let regions_over_cache = (params.regions.is_some() && !bake).then_some(held_bytes);
+    // Per-region loops need the view's frames as RGB, kept (instead of written) in pass 2, and
+    // the baked loop's `L + 1` frames beside them: made when both fit the cache budget, the
+    // loop length capped by the room the held frames leave (at least the shortest loop).
+    let frame_rgb = 3 * bg_blur.width() as u64 * bg_blur.height() as u64;
+    let room = (params.cache_bytes as u64 / frame_rgb).saturating_sub(n1 as u64 + 1);
+    let region_params = params.regions.map(|rp| crate::regions::RegionParams {
+        max_length: rp.max_length.min(room as usize),
+        ..rp
+    });
+    let bake = cache.is_some()
+        && region_params.is_some_and(|rp| rp.max_length >= params.loops.min_length.max(2));
+    let regions_over_cache = match params.regions {
+        Some(rp) if !bake => Some((n1 as u64 + rp.max_length as u64 + 1) * frame_rgb),
+        _ => None,
+    };
     let mut held: Vec<RgbImage> = Vec::new();
     let mut kept = MotionKept::new();
     let with_thumbs = params.appearance > 0.0;
@@ -398,21 +406,26 @@ pub(super) fn analyze_view(
     let mut best_loop = loops[0];
     let mut n_frames = n1;
     let mut region_loop = None;
-    if let (true, Some(rp)) = (bake, params.regions.as_ref()) {
+    let mut regions_worse = None;
+    let mut made = None;
+    // Asked only where better: a loop whose wrap costs nothing (an exact repeat) has no seam
+    // to remove.
+    let exact = best_loop.cost == 0 && region_params.is_some_and(|rp| rp.only_if_better);
+    if let (true, Some(rp)) = (bake && !exact, region_params.as_ref()) {
         let t_bake = Instant::now();
         // The source window (at most `max_frames`, or the thesis's loop and its neighbours when
         // longer, holding that loop's start).
         let span = rp.max_frames.max(best_loop.len() + 2).min(n1);
         let first = best_loop.start.min(n1 - span);
         let (src, src_masks) = (&held[first..first + span], &masks[first..first + span]);
-        let mut rl = crate::regions::solve(
+        let rl = crate::regions::solve(
             src,
             alpha,
             Some(best_loop.len()),
             params.loops.min_length,
             rp,
         )?;
-        let (mut baked, mut baked_masks) = crate::regions::compose(src, src_masks, &rl, rp.feather);
+        let (baked, baked_masks) = crate::regions::compose(src, src_masks, &rl, rp.feather);
         let quality = crate::regions::quality(&baked, src, &rl, alpha);
         // The thesis's loop, measured the same way.
         let own = crate::regions::Label {
@@ -420,12 +433,28 @@ pub(super) fn analyze_view(
             period: best_loop.len(),
         };
         let one = crate::regions::single_loop(own, bg_blur.dimensions(), rp.tile);
-        let single = crate::regions::quality(
-            &crate::regions::compose(src, src_masks, &one, 0).0,
-            src,
-            &one,
-            alpha,
-        );
+        let single =
+            crate::regions::quality(&crate::regions::single_frames(src, &one), src, &one, alpha);
+        if rp.only_if_better && !quality.better_than(&single) {
+            regions_worse = Some(RegionResult {
+                chosen: rl,
+                quality,
+                single,
+                secs: t_bake.elapsed().as_secs_f64(),
+            });
+        } else {
+            made = Some((rl, baked, baked_masks, quality, single, t_bake, first));
+        }
+    }
+    if made.is_none() && bake {
+        // The thesis's loop stays: the held frames go to the store as pass 2 would have sent
+        // them.
+        for (i, (f, m)) in held.iter().zip(&masks).enumerate() {
+            observer.object_frame(p, i, &shown(m), f)?;
+        }
+        drop(held);
+    } else if let Some((mut rl, mut baked, mut baked_masks, quality, single, t_bake, first)) = made
+    {
         // The player's wrap onto the smoothest step of the cycle.
         let by = quality.smoothest;
         crate::regions::rotate(&mut baked_masks, &mut rl.clone(), by);
@@ -507,6 +536,7 @@ pub(super) fn analyze_view(
         dynamic_alpha: model.and_then(|m| m.alpha),
         motion_kept: kept.share(),
         region_loop,
+        region_rejected: regions_worse,
         regions_over_cache,
     })
 }

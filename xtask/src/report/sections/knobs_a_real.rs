@@ -411,9 +411,16 @@ fn window(ctx: &mut Ctx) -> Result<Vec<Curve>> {
 /// frames `vt render` shows: the thesis's one loop per view, per-region loops, and per-region
 /// loops with the wrap correction at two low-pass widths.
 fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
-    use vt_core::regions::{compose, quality, single_loop, Label, Quality, RegionParams};
+    use vt_core::regions::{quality, single_frames, single_loop, Label, Quality, RegionParams};
     let options: Vec<(&str, Option<RegionParams>)> = vec![
-        ("thesis: one loop (m, n) per view", None),
+        ("thesis: one loop (m, n) per view (--loops single)", None),
+        (
+            "regions where they measure better, else the thesis's (--loops auto)",
+            Some(RegionParams {
+                only_if_better: true,
+                ..Default::default()
+            }),
+        ),
         (
             "regions, no wrap correction",
             Some(RegionParams {
@@ -475,9 +482,10 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                 .views
                 .iter()
                 .enumerate()
-                .map(|(p, v)| match &v.region_loop {
-                    Some(res) => res.quality,
-                    None => {
+                .map(|(p, v)| match (&v.region_loop, &v.region_rejected) {
+                    (Some(res), _) => res.quality,
+                    (None, Some(res)) => res.single,
+                    (None, None) => {
                         let src = &frames[p];
                         let (w, h) = src[0].dimensions();
                         let one = single_loop(
@@ -488,10 +496,8 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                             (w, h),
                             RegionParams::default().tile,
                         );
-                        let blank: Vec<vt_core::Mask> =
-                            src.iter().map(|_| vt_core::Mask::new(w, h)).collect();
                         quality(
-                            &compose(src, &blank, &one, 0).0,
+                            &single_frames(src, &one),
                             src,
                             &one,
                             v.dynamic_alpha.as_ref(),
