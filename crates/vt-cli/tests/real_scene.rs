@@ -63,10 +63,109 @@ fn play(
         .collect()
 }
 
+/// The default loop on tree.avi (68 frames, a hand entering from frame 54; no frame repeats):
+/// a per-region loop whose rendered wrap is no larger than an ordinary rendered step (the
+/// thesis's loop wraps at about 1.9 of them, below), every frame close to a real one, and as
+/// sharp as the source around the wrap.
+#[test]
+fn tree_default_loop_wraps_as_it_steps() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = tree();
+    let source = decode(&tree);
+    let mut wraps = Vec::new();
+    for loops in ["auto", "single"] {
+        let out = tmp.path().join(loops);
+        let mut args = vec!["analyze", s(&tree), "--out", s(&out), "--min-length", "20"];
+        if loops == "single" {
+            args.extend(["--loops", "single"]);
+        }
+        let stdout = vt_ok(&args);
+        assert_eq!(
+            stdout.contains("per-region loop of"),
+            loops == "auto",
+            "{stdout}"
+        );
+        let scene = LoadedScene::open(&out).unwrap();
+        let frames = play(&scene, RenderParams::default(), |_| 0.0, 64);
+        let (wrap, step) = wrap_and_step(&frames, 0);
+        // Each rendered frame's distance to real content: per 16 px tile the mean absolute
+        // difference to the nearest source frame (a per-region loop shows different source
+        // times in different tiles), averaged over the tiles; and the gradient energy of the
+        // frames just before and after each wrap over the source's.
+        let (w, h) = source[0].dimensions();
+        let tile_err = |f: &RgbImage, tx: u32, ty: u32| {
+            let (x1, y1) = ((tx + 16).min(w), (ty + 16).min(h));
+            source
+                .iter()
+                .map(|g| {
+                    let mut e = 0u64;
+                    for y in ty..y1 {
+                        for x in tx..x1 {
+                            let (a, b) = (f.get_pixel(x, y), g.get_pixel(x, y));
+                            e += (0..3).map(|c| a[c].abs_diff(b[c]) as u64).sum::<u64>();
+                        }
+                    }
+                    e as f64 / (3 * (x1 - tx) * (y1 - ty)) as f64
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let per_frame: Vec<f64> = frames
+            .iter()
+            .map(|(_, f)| {
+                let tiles: Vec<f64> = (0..h)
+                    .step_by(16)
+                    .flat_map(|ty| (0..w).step_by(16).map(move |tx| (tx, ty)))
+                    .map(|(tx, ty)| tile_err(f, tx, ty))
+                    .collect();
+                tiles.iter().sum::<f64>() / tiles.len() as f64
+            })
+            .collect();
+        let nearest = per_frame.iter().sum::<f64>() / per_frame.len() as f64;
+        let worst_frame = per_frame.iter().cloned().fold(0.0, f64::max);
+        let energy = |f: &RgbImage| {
+            let g = image::imageops::grayscale(f);
+            let (w, h) = g.dimensions();
+            let mut e = 0f64;
+            for y in 0..h - 1 {
+                for x in 0..w - 1 {
+                    let v = g.get_pixel(x, y)[0] as f64;
+                    e += (g.get_pixel(x + 1, y)[0] as f64 - v).powi(2)
+                        + (g.get_pixel(x, y + 1)[0] as f64 - v).powi(2);
+                }
+            }
+            e
+        };
+        let src_energy = source[..54].iter().map(energy).sum::<f64>() / 54.0;
+        let near: Vec<f64> = frames
+            .windows(2)
+            .filter(|w| w[1].0.step == Step::Wrap)
+            .flat_map(|w| [energy(&w[0].1), energy(&w[1].1)])
+            .collect();
+        let sharp = near.iter().sum::<f64>() / near.len() as f64 / src_energy;
+        if verbose() {
+            eprintln!(
+                "tree.avi --loops {loops}: wrap {:.2} ordinary steps, {nearest:.2} grey levels from the nearest source frame per tile (worst frame {worst_frame:.2}), sharpness at the wraps {sharp:.3} of the source's",
+                wrap / step
+            );
+        }
+        wraps.push(wrap / step);
+        if loops == "auto" {
+            assert!(wrap <= step, "wrap {wrap:.3} vs ordinary step {step:.3}");
+            assert!(
+                nearest <= 2.0,
+                "{nearest:.2} grey levels from the source frames"
+            );
+            assert!(sharp >= 0.95, "sharpness at the wraps {sharp:.3}");
+        }
+    }
+    assert!(wraps[1] > 1.5, "the thesis's loop wraps at {:.2}", wraps[1]);
+}
+
 #[test]
 fn tree_single_view_keeps_the_motion() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("tree-scene");
+    // The thesis's loop: rendered frames are its source frames.
     let stdout = vt_ok(&[
         "analyze",
         s(&tree()),
@@ -74,6 +173,8 @@ fn tree_single_view_keeps_the_motion() {
         s(&out),
         "--min-length",
         "30",
+        "--loops",
+        "single",
     ]);
     assert!(stdout.contains("motion kept"), "{stdout}");
     let json = read_json(&out.join("scene.json"));

@@ -407,11 +407,21 @@ fn mad(a: &RgbImage, b: &RgbImage) -> f64 {
 
 #[test]
 fn crossfade_softens_real_loop_wraps() {
-    // tree.avi's loops are real, imperfect seams: the wrap is a visible jump without crossfade.
+    // tree.avi's thesis loops are real, imperfect seams: the wrap is a visible jump without
+    // crossfade. (The default per-region loop wraps within an ordinary step: real_scene.rs.)
     let tmp = tempfile::tempdir().unwrap();
     let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
     let dir = tmp.path().join("tree");
-    vt_ok(&["analyze", s(&tree), "--out", s(&dir), "--min-length", "20"]);
+    vt_ok(&[
+        "analyze",
+        s(&tree),
+        "--out",
+        s(&dir),
+        "--min-length",
+        "20",
+        "--loops",
+        "single",
+    ]);
     let loaded = LoadedScene::open(&dir).unwrap();
     // Largest frame-to-frame change within 2 frames of each wrap, and the median ordinary step.
     let measure = |crossfade: usize| {

@@ -766,19 +766,23 @@ pub fn compose(
     let (cols, rows) = rl.grid;
     let bx = axis_blend(w, rl.tile, cols, feather);
     let by = axis_blend(h, rl.tile, rows, feather);
+    let spread = match rl.blend {
+        Some(_) => spreads(frames, rl),
+        None => vec![1; rl.labels.len()],
+    };
     let out: Vec<(RgbImage, Mask)> = (0..=rl.length)
         .into_par_iter()
         .map(|t| {
             let t = (t + rl.phase) % rl.length;
             let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
-            let shown = ramps(rl, t);
+            let shown = ramps(rl, &spread, t);
             let raw: Vec<&[u8]> = frames.iter().map(|f| f.as_raw().as_slice()).collect();
             // Unsmoothed, the correction is added pixel by pixel below; smoothed, as a field.
             let inline = rl.blend == Some(0.0);
             let corr = rl
                 .blend
                 .filter(|&s| s > 0.0)
-                .map(|sigma| correction(frames, rl, &bx, &by, t, sigma));
+                .map(|sigma| correction(frames, rl, &spread, (&bx, &by), t, sigma));
             let mut img = RgbImage::new(w, h);
             let out = img.as_mut();
             for y in 0..h as usize {
@@ -824,17 +828,64 @@ pub fn compose(
 /// Per tile at labels' time `t`: the source frame shown, its wrap's two frames `s` and `s + p`,
 /// and the share `((p - 1) / 2 - k) / p` of their difference the correction adds at cycle
 /// position `k` (see [`correction`]).
-fn ramps(rl: &RegionLoop, t: usize) -> Vec<(usize, usize, usize, f32)> {
+fn ramps(rl: &RegionLoop, spread: &[usize], t: usize) -> Vec<(usize, usize, usize, f32)> {
     rl.labels
         .iter()
-        .map(|l| {
+        .zip(spread)
+        .map(|(l, &k_len)| {
             let p = l.period;
             let k = l.frame(t) - l.start;
-            let r = ((p - 1) as f32 / 2.0 - k as f32) / p as f32;
-            (l.frame(t), l.start, l.start + p, r)
+            // Over the whole cycle (k_len = p): ((p - 1) / 2 - k) / p. Over the k_len frames
+            // around the wrap: the same ramp, flat (zero) in the middle of the cycle.
+            let h = (k_len.max(1) - 1) as f32 / 2.0;
+            let front = (h - k as f32).max(0.0);
+            let back = (h - (p - 1 - k) as f32).max(0.0);
+            (
+                l.frame(t),
+                l.start,
+                l.start + p,
+                (front - back) / k_len.max(1) as f32,
+            )
         })
         .collect()
 }
+
+/// Per tile, the frames its wrap correction is spread over: enough that each carries at most
+/// [`SPREAD_STEP`] of the tile's median ordinary step (a tile whose wrap mismatch is already
+/// that small gets none), at most its whole cycle. The less it is spread, the closer the
+/// frames stay to the source's.
+pub fn spreads(frames: &[RgbImage], rl: &RegionLoop) -> Vec<usize> {
+    let (w, h) = frames[0].dimensions();
+    let (cols, _) = rl.grid;
+    let tile_mad = |a: &RgbImage, b: &RgbImage, i: usize| {
+        let (tx, ty) = ((i % cols) as u32 * rl.tile, (i / cols) as u32 * rl.tile);
+        let (x1, y1) = ((tx + rl.tile).min(w), (ty + rl.tile).min(h));
+        let (ra, rb) = (a.as_raw(), b.as_raw());
+        let mut sum = 0u64;
+        for y in ty..y1 {
+            let row = 3 * (y * w) as usize;
+            for i in row + 3 * tx as usize..row + 3 * x1 as usize {
+                sum += ra[i].abs_diff(rb[i]) as u64;
+            }
+        }
+        sum as f64 / (3 * (x1 - tx) * (y1 - ty)) as f64
+    };
+    rl.labels
+        .par_iter()
+        .enumerate()
+        .map(|(i, l)| {
+            let d = tile_mad(&frames[l.start + l.period], &frames[l.start], i);
+            let steps: Vec<f64> = (l.start..l.start + l.period - 1)
+                .map(|f| tile_mad(&frames[f + 1], &frames[f], i))
+                .collect();
+            let step = median(steps).max(crate::seam::MIN_UNIT);
+            ((d / (SPREAD_STEP * step)).ceil() as usize).clamp(1, l.period)
+        })
+        .collect()
+}
+
+/// What a frame of a spread wrap correction may add, in units of the tile's ordinary step.
+pub const SPREAD_STEP: f64 = 0.75;
 
 /// The four tiles a pixel mixes and their weights, from its column's and row's
 /// [`axis_blend`] entries, on a grid `cols` tiles wide.
@@ -866,14 +917,14 @@ fn tile_weights(
 pub fn correction(
     frames: &[RgbImage],
     rl: &RegionLoop,
-    bx: &[(usize, usize, f32)],
-    by: &[(usize, usize, f32)],
+    spread: &[usize],
+    (bx, by): (&[(usize, usize, f32)], &[(usize, usize, f32)]),
     t: usize,
     sigma: f32,
 ) -> Vec<f32> {
     let (w, h) = frames[0].dimensions();
     let cols = rl.grid.0;
-    let ramp = ramps(rl, t);
+    let ramp = ramps(rl, spread, t);
     let mut out = vec![0f32; 3 * (w * h) as usize];
     for y in 0..h {
         for x in 0..w {

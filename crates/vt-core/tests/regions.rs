@@ -199,13 +199,15 @@ fn icm_reaches_the_brute_force_optimum_on_a_tiny_case() {
 
 #[test]
 fn the_wrap_correction_removes_a_drift_that_never_repeats() {
-    // A texture repeating every 6 frames under a brightness drift of 1 grey level per frame:
-    // no frame repeats, and a 6-frame loop's wrap steps back 6 levels at once. The temporal
-    // Poisson correction spreads that step over the cycle (c_k = D ((p - 1) / 2 - k) / p with
-    // D = 6 everywhere), which cancels the drift exactly: the baked loop is the texture alone
-    // plus one constant, at every pixel, frame and low-pass sigma.
+    // A faint texture (0 or 1 grey level) repeating every 6 frames under a brightness drift of
+    // 1 grey level per frame: no frame repeats, and a 6-frame loop's wrap steps back 6 levels
+    // at once, 6 ordinary steps. The temporal Poisson correction spreads that step over the
+    // whole cycle (c_k = D ((p - 1) / 2 - k) / p with D = 6 everywhere; spread over fewer
+    // frames, each would carry more than SPREAD_STEP of an ordinary step), which cancels the
+    // drift exactly: the baked loop is the texture alone plus one constant, at every pixel,
+    // frame and low-pass sigma.
     let (w, h, n, p) = (32u32, 32u32, 30usize, 6usize);
-    let tex = |k: usize, x: u32, y: u32| 60 + texel(5, k % p, x, y) / 4;
+    let tex = |k: usize, x: u32, y: u32| 60 + texel(5, k % p, x, y) / 128;
     let frames: Vec<RgbImage> = (0..n)
         .map(|i| {
             RgbImage::from_fn(w, h, |x, y| {
@@ -241,6 +243,32 @@ fn the_wrap_correction_removes_a_drift_that_never_repeats() {
                 "{blend:?}"
             ),
         }
+    }
+}
+
+/// A wrap mismatch smaller than the tile's ordinary step is left alone (the correction is not
+/// spread at all): the baked frames are the source's.
+#[test]
+fn a_wrap_within_an_ordinary_step_is_not_corrected() {
+    let (w, h, n, p, start) = (32u32, 32u32, 30usize, 6usize, 7usize);
+    // A strong texture (steps of tens of grey levels) under a drift of 1 level per frame.
+    let frames: Vec<RgbImage> = (0..n)
+        .map(|i| {
+            RgbImage::from_fn(w, h, |x, y| {
+                let v = 60 + texel(5, i % p, x, y) / 4 + i as u8;
+                Rgb([v, v, v])
+            })
+        })
+        .collect();
+    let masks: Vec<Mask> = (0..n).map(|_| Mask::new(w, h)).collect();
+    let mut rl = vt_core::regions::single_loop(Label { start, period: p }, (w, h), 16);
+    rl.blend = Some(0.0);
+    assert!(vt_core::regions::spreads(&frames, &rl)
+        .iter()
+        .all(|&k| k == 1));
+    let (baked, _) = compose(&frames, &masks, &rl, 4);
+    for t in 0..p {
+        assert_eq!(baked[t], frames[start + t], "frame {t}");
     }
 }
 
