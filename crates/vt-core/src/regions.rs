@@ -48,8 +48,9 @@ pub struct RegionParams {
     /// Most source frames considered (a window holding the thesis's loop).
     pub max_frames: usize,
     /// The wrap correction ([`correction`]): the Gaussian sigma (pixels) of its spatial
-    /// low-pass, 0 for none (the default: on tree.avi it brings the tiles' wraps from 1.83x to
-    /// 1.02x their ordinary step, where sigma 1 and 2 keep 1.56x and 1.75x); None: no
+    /// low-pass, 0 for none (the default: on tree.avi's frames 0-53 it brings the tiles' wraps
+    /// from 1.83x to 1.11x their ordinary step, measured before the correction was spread over
+    /// only the frames it needs ([`spreads`]): sigma 1 and 2 kept 1.56x and 1.75x); None: no
     /// correction (each tile's wrap is one step).
     #[serde(default)]
     pub blend: Option<f32>,
