@@ -322,6 +322,12 @@ impl std::fmt::Display for AnalysisSummary<'_> {
                     v.n_frames, bytes.div_ceil(1 << 20), bytes.div_ceil(1 << 20)
                 )?;
             }
+            if let Some(q) = &v.region_not_needed {
+                writeln!(f,
+                    "view {p}: no per-region loop needed: the thesis's loop's tiles wrap at {:.2}x their ordinary step (90th percentile {:.2}x), inside the dynamic region",
+                    q.tile_wrap, q.tile_wrap_p90
+                )?;
+            }
             if let Some(res) = &v.region_rejected {
                 writeln!(f,
                     "view {p}: per-region loop not kept: its tile wraps, {:.2}x their ordinary step (90th percentile {:.2}x), are no better than the thesis's loop's {:.2}x ({:.2}x) measured alike inside the dynamic region; it keeps the thesis's loop (--loops regions keeps it anyway); tried in {:.2} s",

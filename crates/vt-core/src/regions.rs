@@ -736,8 +736,12 @@ fn gcd(mut a: usize, mut b: usize) -> usize {
     a
 }
 
+/// One pixel's place along one axis: its tile, the tile it blends with, and the second's
+/// weight.
+pub type AxisBlend = (usize, usize, f32);
+
 /// Per pixel along one axis: the two tiles blended and the second's weight.
-fn axis_blend(len: u32, tile: u32, count: usize, feather: u32) -> Vec<(usize, usize, f32)> {
+fn axis_blend(len: u32, tile: u32, count: usize, feather: u32) -> Vec<AxisBlend> {
     (0..len)
         .map(|x| {
             let c = (x / tile) as usize;
@@ -919,7 +923,7 @@ pub fn correction(
     frames: &[RgbImage],
     rl: &RegionLoop,
     spread: &[usize],
-    (bx, by): (&[(usize, usize, f32)], &[(usize, usize, f32)]),
+    (bx, by): (&[AxisBlend], &[AxisBlend]),
     t: usize,
     sigma: f32,
 ) -> Vec<f32> {
@@ -1049,7 +1053,13 @@ impl Quality {
     /// The 90th percentile is not used: tiles the object crosses only now and then have a
     /// median step near zero, and their ratios are noise (6-12x on exact synthetic loops).
     pub fn better_than(&self, other: &Quality) -> bool {
-        other.tile_wrap > 1.25 && self.tile_wrap < 0.9 * other.tile_wrap
+        other.shows() && self.tile_wrap < 0.9 * other.tile_wrap
+    }
+
+    /// Whether this loop's wraps show: its tiles' median wrap over 1.25 ordinary steps (see
+    /// [`Quality::better_than`]).
+    pub fn shows(&self) -> bool {
+        self.tile_wrap > 1.25
     }
 }
 

@@ -352,11 +352,12 @@ fn waves(
 }
 
 /// The default (`--loops auto`): per-region loops only where they measure better than the
-/// thesis's loop. An exact repeat keeps its exact loop (nothing is tried); a wave brightening
+/// thesis's loop. An exact repeat keeps its exact loop (measured, nothing else tried); a wave
+/// brightening
 /// as it moves (light changing during the shot: no frame repeats, and every loop wraps back
 /// to a darker frame) gets the per-region loop, whose wrap correction spreads that step over
 /// the cycle; one wave under sensor noise (no exact repeat, but the
-/// thesis's loop wraps as smoothly as any) keeps the thesis's loop.
+/// thesis's loop wraps as it steps) keeps the thesis's loop without trying.
 #[test]
 fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
     use vt_core::analysis::{analyze, AnalyzeParams, FrameSource, MemorySource, Quiet};
@@ -366,10 +367,12 @@ fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
             name: "two periods".into(),
             frames,
         };
-        let mut params = AnalyzeParams::default();
-        params.loops = vt_core::loops::LoopParams {
-            window: 3,
-            min_length: 5,
+        let mut params = AnalyzeParams {
+            loops: vt_core::loops::LoopParams {
+                window: 3,
+                min_length: 5,
+            },
+            ..Default::default()
         };
         let rp = params
             .regions
@@ -386,6 +389,8 @@ fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
     assert_eq!(v.best_loop.cost, 0);
     assert_eq!(v.best_loop.len() % 35, 0);
     assert!(v.region_loop.is_none() && v.region_rejected.is_none());
+    let q = v.region_not_needed.expect("the thesis's loop is measured");
+    assert!(!q.shows(), "{q:?}");
     assert_eq!(v.n_frames, 45);
     // A wave brightening by 3 grey levels a frame: the per-region loop.
     let split = run(waves(30, (w, h), &[], &[6], (0, 3.0)), 35);
@@ -403,14 +408,11 @@ fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
         (v.best_loop.start, v.best_loop.end, v.n_frames),
         (0, l, l + 1)
     );
-    // One wave under noise: the thesis's loop stays, the per-region one measured and said.
+    // One wave under noise: the thesis's loop wraps as it steps and stays.
     let kept = run(waves(30, (w, h), &[], &[6], (6, 0.0)), 35);
     let v = &kept.views[0];
-    let res = v
-        .region_rejected
-        .as_ref()
-        .expect("the thesis's loop is as good");
-    assert!(!res.quality.better_than(&res.single));
-    assert!(v.region_loop.is_none());
+    let q = v.region_not_needed.expect("the thesis's loop is measured");
+    assert!(!q.shows(), "{q:?}");
+    assert!(v.region_loop.is_none() && v.region_rejected.is_none());
     assert_eq!(v.n_frames, 30);
 }

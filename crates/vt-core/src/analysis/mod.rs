@@ -523,6 +523,9 @@ pub struct ViewResult {
     /// The per-region loop made and measured but not kept, no better than the thesis's loop
     /// ([`crate::regions::RegionParams::only_if_better`]); the view keeps the thesis's loop.
     pub region_rejected: Option<RegionResult>,
+    /// Per-region loops were asked for where better, and not tried: the thesis's loop, measured
+    /// as they would be, already wraps as it steps ([`crate::regions::Quality::shows`]).
+    pub region_not_needed: Option<crate::regions::Quality>,
     /// Per-region loops were asked for but not made for this view: the cache budget
     /// ([`AnalyzeParams::cache_bytes`]) they would need, for its frames and the longest baked
     /// loop held as RGB; it keeps the thesis's loop. None when they were made or not asked

@@ -408,26 +408,15 @@ pub(super) fn analyze_view(
     let mut region_loop = None;
     let mut regions_worse = None;
     let mut made = None;
-    // Asked only where better: a loop whose wrap costs nothing (an exact repeat) has no seam
-    // to remove.
-    let exact = best_loop.cost == 0 && region_params.is_some_and(|rp| rp.only_if_better);
-    if let (true, Some(rp)) = (bake && !exact, region_params.as_ref()) {
+    let mut thesis_smooth = None;
+    if let (true, Some(rp)) = (bake, region_params.as_ref()) {
         let t_bake = Instant::now();
         // The source window (at most `max_frames`, or the thesis's loop and its neighbours when
         // longer, holding that loop's start).
         let span = rp.max_frames.max(best_loop.len() + 2).min(n1);
         let first = best_loop.start.min(n1 - span);
         let (src, src_masks) = (&held[first..first + span], &masks[first..first + span]);
-        let rl = crate::regions::solve(
-            src,
-            alpha,
-            Some(best_loop.len()),
-            params.loops.min_length,
-            rp,
-        )?;
-        let (baked, baked_masks) = crate::regions::compose(src, src_masks, &rl, rp.feather);
-        let quality = crate::regions::quality(&baked, src, &rl, alpha);
-        // The thesis's loop, measured the same way.
+        // The thesis's loop, measured as the per-region loop will be.
         let own = crate::regions::Label {
             start: best_loop.start + 1 - first,
             period: best_loop.len(),
@@ -435,15 +424,31 @@ pub(super) fn analyze_view(
         let one = crate::regions::single_loop(own, bg_blur.dimensions(), rp.tile);
         let single =
             crate::regions::quality(&crate::regions::single_frames(src, &one), src, &one, alpha);
-        if rp.only_if_better && !quality.better_than(&single) {
-            regions_worse = Some(RegionResult {
-                chosen: rl,
-                quality,
-                single,
-                secs: t_bake.elapsed().as_secs_f64(),
-            });
+        // Asked only where better: a thesis's loop that already wraps as it steps (an exact
+        // repeat among them; not every loop whose eq. (1) cost is 0: a looped clip's own jump
+        // can fall inside it) is kept without trying.
+        if rp.only_if_better && !crate::regions::Quality::shows(&single) {
+            thesis_smooth = Some(single);
         } else {
-            made = Some((rl, baked, baked_masks, quality, single, t_bake, first));
+            let rl = crate::regions::solve(
+                src,
+                alpha,
+                Some(best_loop.len()),
+                params.loops.min_length,
+                rp,
+            )?;
+            let (baked, baked_masks) = crate::regions::compose(src, src_masks, &rl, rp.feather);
+            let quality = crate::regions::quality(&baked, src, &rl, alpha);
+            if rp.only_if_better && !quality.better_than(&single) {
+                regions_worse = Some(RegionResult {
+                    chosen: rl,
+                    quality,
+                    single,
+                    secs: t_bake.elapsed().as_secs_f64(),
+                });
+            } else {
+                made = Some((rl, baked, baked_masks, quality, single, t_bake, first));
+            }
         }
     }
     if made.is_none() && bake {
@@ -537,6 +542,7 @@ pub(super) fn analyze_view(
         motion_kept: kept.share(),
         region_loop,
         region_rejected: regions_worse,
+        region_not_needed: thesis_smooth,
         regions_over_cache,
     })
 }
