@@ -85,12 +85,32 @@ pub fn analyze(job: &AnalyzeJob, progress: &mut dyn Progress) -> Result<Analyzed
     let started = Instant::now();
     job.check()?;
     let m = job.views.len();
-    let mut sources: Vec<ViewSource> = job
-        .views
-        .iter()
-        .enumerate()
-        .map(|(view, path)| ViewSource::open(path).map_err(|cause| Error::OpenView { view, cause }))
-        .collect::<Result<_>>()?;
+    // The views are probed side by side (an ffprobe each, which reads the video's packets for
+    // its real frame rate: mostly the program's start-up).
+    let opened: Vec<Result<(ViewSource, Option<f64>)>> = std::thread::scope(|scope| {
+        let probes: Vec<_> = job
+            .views
+            .iter()
+            .enumerate()
+            .map(|(view, path)| {
+                scope.spawn(move || {
+                    ViewSource::open_timed(path).map_err(|cause| Error::OpenView { view, cause })
+                })
+            })
+            .collect();
+        probes
+            .into_iter()
+            .map(|p| {
+                p.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            })
+            .collect()
+    });
+    let (mut sources, rates): (Vec<ViewSource>, Vec<Option<f64>>) = opened
+        .into_iter()
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     // Sizes are known before decoding: refuse mismatched views before any work.
     let size = vt_io::frames::common_size(&job.views, &sources)?;
     let points = match &job.points {
@@ -100,9 +120,7 @@ pub fn analyze(job: &AnalyzeJob, progress: &mut dyn Progress) -> Result<Analyzed
     let mut inputs: Vec<&Path> = job.views.iter().map(PathBuf::as_path).collect();
     inputs.extend(job.points.as_deref());
     let dir = Output::dir(&job.out, OutputKind::Scene, &inputs)?;
-    let fps = job
-        .fps
-        .or_else(|| vt_io::video::views_frame_rate(&job.views));
+    let fps = job.fps.or_else(|| vt_io::video::views_frame_rate(rates));
     let mut refs: Vec<&mut dyn FrameSource> = sources.iter_mut().map(|s| s.as_source()).collect();
     let mut out = analyze_into(
         dir.path(),

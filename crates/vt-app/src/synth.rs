@@ -51,15 +51,10 @@ pub fn real(job: &SynthRealJob, progress: &mut dyn Progress) -> Result<SynthReal
             });
         }
     }
-    let frames = ViewSource::open(&job.source)?.read_all()?;
+    let (mut source, rate) = ViewSource::open_timed(&job.source)?;
+    let frames = source.read_all()?;
     let n_source = frames.len();
-    let fps = match job.fps {
-        Some(f) => f,
-        None if job.source.is_file() => {
-            vt_io::video::median_frame_rate(&job.source)?.unwrap_or(25.0)
-        }
-        None => 25.0,
-    };
+    let fps = job.fps.or(rate).unwrap_or(25.0);
     let scene = RealScene::new(frames, job.params).map_err(|e| Error::In {
         what: job.source.display().to_string(),
         cause: Box::new(Error::Synth(e.to_string())),

@@ -37,6 +37,19 @@ pub enum ViewSource {
 impl ViewSource {
     /// Opens a view: a folder of frames or a video file, decided by what the path is.
     pub fn open(path: &Path) -> Result<Self> {
+        Ok(Self::open_probing(path, false)?.0)
+    }
+
+    /// [`ViewSource::open`], and a video's real frame rate from the same probe: one over the
+    /// median interval between its frames' timestamps ([`crate::video::rate_from_timestamps`],
+    /// so variable-frame-rate files such as OpenCV's `tree.avi` give the rate their frames
+    /// really come at); None for a folder, or without timestamps. The probe reads the whole
+    /// file's packets.
+    pub fn open_timed(path: &Path) -> Result<(Self, Option<f64>)> {
+        Self::open_probing(path, true)
+    }
+
+    fn open_probing(path: &Path, timed: bool) -> Result<(Self, Option<f64>)> {
         if !path.exists() {
             return Err(Error::View {
                 path: path.to_path_buf(),
@@ -44,10 +57,11 @@ impl ViewSource {
             });
         }
         if path.is_dir() {
-            return Ok(ViewSource::Folder(FolderSource::open(path)?));
+            return Ok((ViewSource::Folder(FolderSource::open(path)?), None));
         }
         if has_ext(path, &VIDEO_EXTENSIONS) {
-            return Ok(ViewSource::Video(VideoSource::open(path)?));
+            let (video, rate) = VideoSource::probe(path, timed)?;
+            return Ok((ViewSource::Video(video), rate));
         }
         Err(Error::View {
             path: path.to_path_buf(),
@@ -122,6 +136,17 @@ fn last_line(s: &str) -> String {
 impl VideoSource {
     /// Probes the video's size and pixel format with `ffprobe`.
     pub fn open(path: &Path) -> Result<Self> {
+        Ok(Self::probe(path, false)?.0)
+    }
+
+    /// [`VideoSource::open`], and with `timed` the real frame rate from the same `ffprobe`
+    /// run (its packets' timestamps: the whole file is read).
+    fn probe(path: &Path, timed: bool) -> Result<(Self, Option<f64>)> {
+        let entries = if timed {
+            "stream=width,height,pix_fmt,color_space,color_range:packet=pts_time"
+        } else {
+            "stream=width,height,pix_fmt,color_space,color_range"
+        };
         let out = Command::new("ffprobe")
             .args([
                 "-v",
@@ -129,7 +154,7 @@ impl VideoSource {
                 "-select_streams",
                 "v:0",
                 "-show_entries",
-                "stream=width,height,pix_fmt,color_space,color_range",
+                entries,
                 "-of",
                 "default=noprint_wrappers=1",
             ])
@@ -178,13 +203,27 @@ impl VideoSource {
             }
             _ => None,
         };
-        Ok(Self {
-            path: path.to_path_buf(),
-            name: path.display().to_string(),
-            width: dims.0,
-            height: dims.1,
-            yuv,
-        })
+        let rate = timed
+            .then(|| {
+                let mut ts: Vec<f64> = stdout
+                    .lines()
+                    .filter_map(|l| l.trim().strip_prefix("pts_time=")?.parse().ok())
+                    .filter(|t: &f64| t.is_finite())
+                    .collect();
+                ts.sort_by(f64::total_cmp);
+                crate::video::rate_from_timestamps(&ts)
+            })
+            .flatten();
+        Ok((
+            Self {
+                path: path.to_path_buf(),
+                name: path.display().to_string(),
+                width: dims.0,
+                height: dims.1,
+                yuv,
+            },
+            rate,
+        ))
     }
 
     /// Frame size.

@@ -1,7 +1,8 @@
-//! Video timing and encoding through the `ffmpeg` / `ffprobe` programs: a video's real frame rate
-//! (the median interval between its frames' timestamps, so variable-frame-rate files such as
-//! OpenCV's `tree.avi` give the rate their frames really come at) and H.264 encoding of frames
-//! made in memory.
+//! Video timing and encoding: a video's real frame rate from its frames' timestamps (the median
+//! interval, so variable-frame-rate files such as OpenCV's `tree.avi` give the rate their frames
+//! really come at; the timestamps come from the probe of
+//! [`crate::frames::ViewSource::open_timed`]) and H.264 encoding of frames made in memory through
+//! the `ffmpeg` program.
 
 use std::io::{Read, Write};
 use std::path::Path;
@@ -49,57 +50,15 @@ pub fn ffmpeg_available() -> bool {
         .is_ok_and(|s| s.success())
 }
 
-/// The frame rate of a scene's views: the median of each video's [`median_frame_rate`] (None
-/// for frame folders, or when no video has timestamps).
-pub fn views_frame_rate(views: &[std::path::PathBuf]) -> Option<f64> {
-    let mut rates: Vec<f64> = views
-        .iter()
-        .filter(|v| v.is_file())
-        .filter_map(|v| median_frame_rate(v).ok().flatten())
-        .collect();
+/// The frame rate of a scene's views: the median of the videos' own rates (from
+/// [`crate::frames::ViewSource::open_timed`]); None when none has one (frame folders).
+pub fn views_frame_rate(rates: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
+    let mut rates: Vec<f64> = rates.into_iter().flatten().collect();
     if rates.is_empty() {
         return None;
     }
     rates.sort_by(f64::total_cmp);
     Some(rates[(rates.len() - 1) / 2])
-}
-
-/// Frames per second of a video: one over the median interval between consecutive frame
-/// timestamps (packets, in presentation order). None when the video has fewer than two frames
-/// or no usable timestamps.
-pub fn median_frame_rate(path: &Path) -> Result<Option<f64>> {
-    let out = Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-select_streams",
-            "v:0",
-            "-show_entries",
-            "packet=pts_time",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(path)
-        .stdin(Stdio::null())
-        .output()
-        .map_err(|e| spawn_err("ffprobe", path, e))?;
-    if !out.status.success() {
-        let err = String::from_utf8_lossy(&out.stderr);
-        return Err(video_err(
-            path,
-            format!(
-                "not a readable video ({})",
-                err.lines().last().unwrap_or("ffprobe failed").trim()
-            ),
-        ));
-    }
-    let mut ts: Vec<f64> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter_map(|l| l.trim().trim_end_matches(',').parse().ok())
-        .filter(|t: &f64| t.is_finite())
-        .collect();
-    ts.sort_by(f64::total_cmp);
-    Ok(rate_from_timestamps(&ts))
 }
 
 /// One over the median positive interval of sorted timestamps (seconds).
