@@ -831,8 +831,10 @@ pub fn compose(
 }
 
 /// Per tile at labels' time `t`: the source frame shown, its wrap's two frames `s` and `s + p`,
-/// and the share `((p - 1) / 2 - k) / p` of their difference the correction adds at cycle
-/// position `k` (see [`correction`]).
+/// and the share of their difference the correction adds at cycle position `k` (see
+/// [`correction`]): `((p - 1) / 2 - k) / p` when spread over the whole cycle, and over the
+/// tile's `K` frames of [`spreads`] the same ramp with `K` for `p`, zero in the middle of the
+/// cycle.
 fn ramps(rl: &RegionLoop, spread: &[usize], t: usize) -> Vec<(usize, usize, usize, f32)> {
     rl.labels
         .iter()
@@ -914,7 +916,10 @@ fn tile_weights(
 /// the source's by `D = V(s + p) - V(s)` at that one step. The least-squares fit of a cyclic
 /// sequence to the source's gradients (the temporal Poisson equation, screened to keep the
 /// mean) spreads `D` evenly over the cycle: `c_k = D ((p - 1) / 2 - k) / p` added at position
-/// `k`, so every step carries `-D / p` and the wrap no longer one `D`. Pixels mixing tiles mix
+/// `k`, so every step carries `-D / p` and the wrap no longer one `D`. Spread over only the
+/// tile's `spread` frames around the wrap ([`spreads`]: as few as keep each step's share under
+/// [`SPREAD_STEP`] of an ordinary step), the frames in the middle of the cycle stay the
+/// source's. Pixels mixing tiles mix
 /// their tiles' corrections with the same weights; the field is then low-passed by a Gaussian
 /// of `sigma` pixels (0: none), which keeps only its smooth part (after Liao, Finch and Hoppe
 /// 2015, whose multigrid solve makes a spatially smooth correction): what it removes of `D`,
