@@ -109,6 +109,11 @@ pub struct AnalyzeArgs {
     /// Gaussian of this many pixels (0: not low-passed), or off.
     #[arg(long, default_value = "0")]
     region_blend: String,
+    /// Per-region loops: the most a frame of a tile's wrap correction may add, in the tile's
+    /// ordinary steps (spread over as few frames around the wrap as that allows; 0: over the
+    /// whole cycle).
+    #[arg(long, default_value_t = vt_core::regions::DEFAULT_SPREAD)]
+    region_spread: f32,
 }
 
 impl AnalyzeArgs {
@@ -162,6 +167,7 @@ impl AnalyzeArgs {
                 feather: self.region_feather,
                 blend,
                 only_if_better: self.loops == "auto",
+                spread: self.region_spread,
                 ..Default::default()
             }),
             background: self.background.parse().map_err(|_| {

@@ -35,6 +35,7 @@ pub fn flag_of(name: &str) -> Option<&'static str> {
         "regions.spatial" => "--region-spatial",
         "regions.feather" => "--region-feather",
         "regions.blend" => "--region-blend",
+        "regions.spread" => "--region-spread",
         _ => return None,
     })
 }

@@ -203,7 +203,7 @@ fn the_wrap_correction_removes_a_drift_that_never_repeats() {
     // 1 grey level per frame: no frame repeats, and a 6-frame loop's wrap steps back 6 levels
     // at once, 6 ordinary steps. The temporal Poisson correction spreads that step over the
     // whole cycle (c_k = D ((p - 1) / 2 - k) / p with D = 6 everywhere; spread over fewer
-    // frames, each would carry more than SPREAD_STEP of an ordinary step), which cancels the
+    // frames, each would carry more than the default spread of an ordinary step), which cancels the
     // drift exactly: the baked loop is the texture alone plus one constant, at every pixel,
     // frame and low-pass sigma.
     let (w, h, n, p) = (32u32, 32u32, 30usize, 6usize);

@@ -433,6 +433,20 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
             Some(RegionParams::default()),
         ),
         (
+            "regions + wrap correction over whole cycles (--region-spread 0)",
+            Some(RegionParams {
+                spread: 0.0,
+                ..Default::default()
+            }),
+        ),
+        (
+            "regions + wrap correction, spread 0.25 ordinary steps a frame",
+            Some(RegionParams {
+                spread: 0.25,
+                ..Default::default()
+            }),
+        ),
+        (
             "regions + wrap correction, sigma 2",
             Some(RegionParams {
                 blend: Some(2.0),
