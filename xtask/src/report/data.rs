@@ -19,6 +19,17 @@ use super::Ctx;
 /// sequence ([`vt_app::analyze::analyze_into`]: object stores at the default quality, the scene's
 /// files, the seams), and loads it back for rendering. Returns the analysis, the seconds of
 /// vt-core's analysis and the scene.
+/// The analysis parameters of the sections that check System A against source-frame truth
+/// (loop lengths in periods, transition phases, the gallery's eq. (1) pictures): the thesis's
+/// loops (`--loops single`), whose frames are the source's. A per-region loop (the default
+/// where it measures better) is baked into frames of its own.
+pub fn thesis_params() -> AnalyzeParams {
+    AnalyzeParams {
+        regions: None,
+        ..Default::default()
+    }
+}
+
 pub fn build_scene(
     frames: &[Vec<RgbImage>],
     points: &[Vec<Point>],
@@ -137,7 +148,7 @@ fn build_synth_a(ctx: &mut Ctx) -> Result<SynthA> {
         .map(|p| (0..tp.frames).map(|s| scene.frame(p, s)).collect())
         .collect();
     let points = scene.marked_points();
-    let mut params = AnalyzeParams::default();
+    let mut params = thesis_params();
     // Three periods: short enough for the clip, long enough that loops are multiples of it.
     params.loops.min_length = 3 * tp.period;
     let dir = ctx.work.path().join("synth-a-scene");

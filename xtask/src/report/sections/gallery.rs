@@ -5,7 +5,7 @@
 
 use anyhow::Result;
 use image::RgbImage;
-use vt_core::analysis::{analyze, AnalyzeParams, MemorySource, Quiet};
+use vt_core::analysis::{analyze, MemorySource, Quiet};
 use vt_core::mask::xor_count;
 use vt_core::metrics::psnr;
 use vt_core::render::{Player, RenderParams, Renderer};
@@ -101,7 +101,7 @@ fn system_a(ctx: &mut Ctx) -> Result<Vec<Item>> {
     }
 
     let tr = tree(ctx)?;
-    let mut params = AnalyzeParams::default();
+    let mut params = crate::report::data::thesis_params();
     params.loops.min_length = 20;
     let mut src = MemorySource {
         name: "tree.avi".into(),

@@ -101,7 +101,7 @@ fn points_with_noise(r: &Real, noise: f64) -> Vec<Vec<vt_core::Point>> {
 
 fn registration(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let r = real(ctx)?;
-    let base = AnalyzeParams::default();
+    let base = crate::report::data::thesis_params();
     let mut params = base;
     params.loops.min_length = r.frames[0].len() / 3;
     let mut pts = Vec::new();
@@ -178,7 +178,7 @@ fn registration(ctx: &mut Ctx) -> Result<Vec<Curve>> {
 
 fn homography_refine(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let r = real(ctx)?;
-    let base = AnalyzeParams::default();
+    let base = crate::report::data::thesis_params();
     let settings = [
         (
             "points, model by GRIC",
@@ -247,7 +247,7 @@ fn homography_refine(ctx: &mut Ctx) -> Result<Vec<Curve>> {
 
 fn appearance(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let r = real(ctx)?;
-    let base = AnalyzeParams::default();
+    let base = crate::report::data::thesis_params();
     let weights: Vec<f32> = ctx.pick(vec![0.0, 1.0, 4.0], vec![0.0, 0.25, 0.5, 1.0, 2.0, 4.0]);
     let mut pts = Vec::new();
     for (i, &w) in weights.iter().enumerate() {
@@ -284,7 +284,7 @@ fn appearance(ctx: &mut Ctx) -> Result<Vec<Curve>> {
 
 fn noise_masks(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let r = real(ctx)?;
-    let base = AnalyzeParams::default();
+    let base = crate::report::data::thesis_params();
     let settings = [
         ("off (global threshold)", NoiseParams::off()),
         (
@@ -333,7 +333,7 @@ fn noise_masks(ctx: &mut Ctx) -> Result<Vec<Curve>> {
 fn window(ctx: &mut Ctx) -> Result<Vec<Curve>> {
     let r = real(ctx)?;
     let windows: Vec<usize> = ctx.pick(vec![1, 2, 3, 5, 8], vec![1, 2, 3, 4, 5, 6, 8, 10]);
-    let base = AnalyzeParams::default();
+    let base = crate::report::data::thesis_params();
     let mut pts = Vec::new();
     for &win in &windows {
         let mut params = base;

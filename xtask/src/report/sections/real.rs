@@ -8,7 +8,6 @@
 
 use anyhow::Result;
 use serde_json::json;
-use vt_core::analysis::AnalyzeParams;
 use vt_core::model::{select_model, ModelParams, MotionModel};
 use vt_core::Point;
 use vt_fv::dataset::ModelParams as FvModel;
@@ -83,7 +82,7 @@ fn system_a_table(ctx: &mut Ctx) -> Result<Table> {
     let r = real(ctx)?;
     let (scene, frames, points) = (&r.scene, &r.frames, &r.points);
     let rp = *scene.params();
-    let mut params = AnalyzeParams::default();
+    let mut params = crate::report::data::thesis_params();
     params.loops.min_length = rp.frames / 3;
     let dir = ctx.work.path().join("real-scene");
     let (a, secs, _) = build_scene(frames, points, &params, &dir)?;
