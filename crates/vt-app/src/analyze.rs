@@ -85,27 +85,28 @@ pub fn analyze(job: &AnalyzeJob, progress: &mut dyn Progress) -> Result<Analyzed
     let started = Instant::now();
     job.check()?;
     let m = job.views.len();
-    // The views are probed side by side (an ffprobe each, which reads the video's packets for
-    // its real frame rate: mostly the program's start-up).
-    let opened: Vec<Result<(ViewSource, Option<f64>)>> = std::thread::scope(|scope| {
-        let probes: Vec<_> = job
-            .views
-            .iter()
-            .enumerate()
-            .map(|(view, path)| {
-                scope.spawn(move || {
-                    ViewSource::open_timed(path).map_err(|cause| Error::OpenView { view, cause })
+    // The views are probed side by side, a few at a time (an ffprobe each, which reads the
+    // video's packets for its real frame rate: mostly the program's start-up).
+    let mut opened: Vec<Result<(ViewSource, Option<f64>)>> = Vec::with_capacity(m);
+    for (k, chunk) in job.views.chunks(PROBES_AT_ONCE).enumerate() {
+        std::thread::scope(|scope| {
+            let probes: Vec<_> = chunk
+                .iter()
+                .enumerate()
+                .map(|(i, path)| {
+                    let view = k * PROBES_AT_ONCE + i;
+                    scope.spawn(move || {
+                        ViewSource::open_timed(path)
+                            .map_err(|cause| Error::OpenView { view, cause })
+                    })
                 })
-            })
-            .collect();
-        probes
-            .into_iter()
-            .map(|p| {
+                .collect();
+            opened.extend(probes.into_iter().map(|p| {
                 p.join()
                     .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-            })
-            .collect()
-    });
+            }));
+        });
+    }
     let (mut sources, rates): (Vec<ViewSource>, Vec<Option<f64>>) = opened
         .into_iter()
         .collect::<Result<Vec<_>>>()?
@@ -146,6 +147,9 @@ pub fn analyze(job: &AnalyzeJob, progress: &mut dyn Progress) -> Result<Analyzed
     out.total_secs = started.elapsed().as_secs_f64();
     Ok(out)
 }
+
+/// Views probed at once when a job opens them.
+const PROBES_AT_ONCE: usize = 8;
 
 /// Analyses `sources` (one per view, in order) with `points[p]` view p's marked points (empty:
 /// registered automatically) into `dir`, an existing directory the caller owns: the object
