@@ -887,36 +887,41 @@ fn ramps(rl: &RegionLoop, spread: &[usize], t: usize) -> Vec<(usize, usize, usiz
 /// small gets none), at most its whole cycle (`rl.spread` 0: the whole cycle). The less it is
 /// spread, the closer the frames stay to the source's.
 pub fn spreads(frames: &[RgbImage], rl: &RegionLoop) -> Vec<usize> {
+    if rl.spread == 0.0 {
+        return rl.labels.iter().map(|l| l.period).collect();
+    }
     let (w, h) = frames[0].dimensions();
-    let (cols, _) = rl.grid;
-    let tile_mad = |a: &RgbImage, b: &RgbImage, i: usize| {
-        let (tx, ty) = ((i % cols) as u32 * rl.tile, (i / cols) as u32 * rl.tile);
-        let (x1, y1) = ((tx + rl.tile).min(w), (ty + rl.tile).min(h));
-        let (ra, rb) = (a.as_raw(), b.as_raw());
-        let mut sum = 0u64;
-        for y in ty..y1 {
-            let row = 3 * (y * w) as usize;
-            for i in row + 3 * tx as usize..row + 3 * x1 as usize {
-                sum += ra[i].abs_diff(rb[i]) as u64;
-            }
-        }
-        sum as f64 / (3 * (x1 - tx) * (y1 - ty)) as f64
+    let tile_px = tile_pixels(rl, w, h);
+    let ones = vec![1f32; (w * h) as usize];
+    let tile_mad = |a: &RgbImage, b: &RgbImage, px: &[usize]| {
+        let (s, n) = mad(a, b, px, &ones);
+        s / n.max(1e-9)
     };
     rl.labels
         .par_iter()
-        .enumerate()
-        .map(|(i, l)| {
-            let d = tile_mad(&frames[l.start + l.period], &frames[l.start], i);
+        .zip(&tile_px)
+        .map(|(l, px)| {
+            let d = tile_mad(&frames[l.start + l.period], &frames[l.start], px);
             let steps: Vec<f64> = (l.start..l.start + l.period - 1)
-                .map(|f| tile_mad(&frames[f + 1], &frames[f], i))
+                .map(|f| tile_mad(&frames[f + 1], &frames[f], px))
                 .collect();
             let step = median(steps).max(crate::seam::MIN_UNIT);
-            if rl.spread == 0.0 {
-                return l.period;
-            }
             ((d / (rl.spread as f64 * step)).ceil() as usize).clamp(1, l.period)
         })
         .collect()
+}
+
+/// Each tile's full-resolution pixel indices, row by row, tiles in `rl.labels` order.
+fn tile_pixels(rl: &RegionLoop, w: u32, h: u32) -> Vec<Vec<usize>> {
+    let cols = rl.grid.0;
+    let mut tile_px = vec![Vec::new(); rl.labels.len()];
+    for y in 0..h {
+        for x in 0..w {
+            tile_px[(y / rl.tile) as usize * cols + (x / rl.tile) as usize]
+                .push((y * w + x) as usize);
+        }
+    }
+    tile_px
 }
 
 /// The four tiles a pixel mixes and their weights, from its column's and row's
@@ -1206,13 +1211,7 @@ pub fn quality<B: Borrow<RgbImage> + Sync>(
     let worst_step = steps.iter().cloned().fold(0.0, f64::max) / med;
     // Per tile.
     let (cols, _) = rl.grid;
-    let mut tile_px = vec![Vec::new(); rl.labels.len()];
-    for y in 0..h {
-        for x in 0..w {
-            tile_px[(y / rl.tile) as usize * cols + (x / rl.tile) as usize]
-                .push((y * w + x) as usize);
-        }
-    }
+    let tile_px = tile_pixels(rl, w, h);
     let rows = rl.labels.len() / cols;
     let at = |t: usize| (t + rl.phase) % l;
     // Per tile: its wrap ratio, its source error, its gradient energy near its wraps and in
