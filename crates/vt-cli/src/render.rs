@@ -55,6 +55,10 @@ pub struct RenderOptions {
     /// dissolve the last frame into the new sequence (0 = off; for footage that never repeats).
     #[arg(long, default_value_t = 0, conflicts_with = "crossfade")]
     dissolve: usize,
+    /// Crossfade the object over this many frames after a view switch only, from the old view's
+    /// continuation into the new view (0 = a hard switch, the thesis).
+    #[arg(long, default_value_t = vt_core::render::DEFAULT_SWITCH_FADE)]
+    switch_fade: usize,
     /// Compensate per-view exposure differences (estimated from the backgrounds; the default).
     #[arg(long)]
     gain_compensation: bool,
@@ -78,6 +82,7 @@ impl RenderOptions {
             },
             crossfade: self.crossfade,
             dissolve: self.dissolve,
+            switch_fade: self.switch_fade,
             neighbour_fill: !self.no_neighbour_fill,
             gain_compensation: self.gain_compensation || !self.no_gain_compensation,
             ..RenderParams::default()
@@ -102,12 +107,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
 }
 
 /// `vt render`'s line: frames, where, jumps and their seam score (the same score as `vt
-/// analyze` prints: a jump's rendered step over the median ordinary step, over this render's own
-/// frames).
+/// analyze` prints, [`vt_core::seam`]'s, over this render's own frames).
 pub fn print_rendered(played: &vt_app::play::Playback, shown: &Path) {
     let seam = match played.mean_seam {
         Some(m) => format!(
-            "seam score {m:.3} over {} jumps (1 = one ordinary frame step)",
+            "seam score {m:.3} over {} jumps (1 = as large as the ordinary steps it stands in for)",
             played.measured
         ),
         None => "no jumps".into(),

@@ -1,23 +1,34 @@
 //! One seam score, with one meaning, for `vt analyze` and `vt render` alike: how large the
-//! rendered step at a jump (a loop wrap or a view switch) is, in units of the median ordinary
-//! rendered step (one frame to the next within a loop). 1 is as large as an ordinary frame step
-//! (an exact loop's wrap: the frame after the wrap is the one that would have come next), above
-//! 1 shows as a jump, 0 is a frozen frame.
+//! rendered change at a jump (a loop wrap or a view switch) is, in units of the ordinary rendered
+//! change it stands in for. 1 is as large as ordinary playback (an exact loop's wrap, a switch
+//! between views that agree), above 1 shows as a jump, 0 is a frozen frame.
 //!
 //! A step is [`frame_step`]: the mean absolute difference between two rendered frames over all
 //! pixels and channels, so what the renderer shows is what is measured (background, dynamic
-//! region, object, gain, morph), not the masks the analysis chose by.
+//! region, object, gain, morph, the switch fade), not the masks the analysis chose by.
 //!
-//! - While rendering ([`SeamMeter`]): each output frame's step from the one before, as an ordinary
-//!   step or a jump by how the player reached it; the score is the mean jump step over the median
-//!   ordinary step of the same render.
-//! - After analysis ([`measure_seams`]): per view, the rendered step of its loop wrap at its own
-//!   viewpoint, and of its switches to each neighbour at the tie between them, over the median
-//!   ordinary step at its own viewpoint (sampled evenly, at most `samples` steps).
+//! - A **loop wrap** happens at one place of the loop: its rendered step over the median
+//!   ordinary step (one frame to the next within the loop).
+//! - A **view switch** can happen at any frame, so it is measured against the steps it replaces:
+//!   the sum of the rendered steps from the frame before the switch through the switch and its
+//!   fade frames ([`crate::render::RenderParams::switch_fade`]), over the sum of the steps the
+//!   old view would have shown over the same frames (its loop continued, at the same
+//!   viewpoint). Paired this way, a switch between views that agree scores exactly 1 however
+//!   uneven the footage's own steps are; a switch's single step over the median ordinary step
+//!   would score a perfect switch above 1 on footage whose steps vary (tree.avi's real frame
+//!   steps range over 7x: an exact switch measured 1.35).
+//!
+//! Where:
+//! - While rendering ([`SeamMeter`]): fed each output frame with how the player reached it and,
+//!   for a switch's frames, the frame the old view would have shown; the score is the mean over
+//!   the render's jumps.
+//! - After analysis ([`measure_seams`]): per view, its loop wrap at its own viewpoint, and its
+//!   switches to each neighbour at the tie between them, sampled evenly.
 
 use std::sync::Arc;
 
 use image::RgbImage;
+use rayon::prelude::*;
 
 use crate::render::{FrameChoice, ObjectFrames, RenderParams, RenderScene, Renderer, Step};
 use crate::{Error, Result};
@@ -64,13 +75,30 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+/// A switch's seam from its step sums: shown over replaced, with the replaced steps floored at
+/// [`MIN_UNIT`] a frame (a still scene: an invisible switch scores 0, a visible one large).
+fn switch_ratio(shown: f64, replaced: f64, frames: usize) -> f64 {
+    shown / replaced.max(MIN_UNIT * frames.max(1) as f64)
+}
+
+/// A switch being measured: its frames so far, and the step sums.
+#[derive(Debug, Clone, Copy)]
+struct OpenSwitch {
+    frames: usize,
+    shown: f64,
+    replaced: f64,
+}
+
 /// Seam scores of a render, frame by frame: feed it every output frame with how the player
-/// reached it. Keeps one frame (reused), so it allocates only when the size first is known.
+/// reached it. Keeps two frames (reused), so it allocates only when the size first is known.
 #[derive(Debug, Default)]
 pub struct SeamMeter {
     prev: Option<RgbImage>,
+    prev_replaced: Option<RgbImage>,
     ordinary: Vec<f64>,
-    jumps: Vec<f64>,
+    wraps: Vec<f64>,
+    switches: Vec<f64>,
+    open: Option<OpenSwitch>,
 }
 
 impl SeamMeter {
@@ -79,34 +107,89 @@ impl SeamMeter {
         Self::default()
     }
 
-    /// The next output frame, reached by `step`.
-    pub fn push(&mut self, frame: &RgbImage, step: Step) {
-        match &mut self.prev {
-            Some(prev) if prev.dimensions() == frame.dimensions() => {
-                let d = frame_step(prev, frame);
-                match step {
-                    Step::Play => self.ordinary.push(d),
-                    Step::Wrap | Step::Switch { .. } => self.jumps.push(d),
-                    Step::Start => {}
-                }
-                prev.copy_from_slice(frame.as_raw());
+    /// The next output frame, reached by `step`. `replaced`: for a switch and the fade frames
+    /// after it, the frame the old view would have shown instead (its loop continued, at the
+    /// same viewpoint); None for every other frame. A switch without it is scored like a wrap.
+    pub fn push(&mut self, frame: &RgbImage, step: Step, replaced: Option<&RgbImage>) {
+        let Some(mut prev) = self
+            .prev
+            .take()
+            .filter(|p| p.dimensions() == frame.dimensions())
+        else {
+            self.close();
+            self.prev = Some(frame.clone());
+            return;
+        };
+        let d = frame_step(&prev, frame);
+        let replaced = replaced.filter(|r| r.dimensions() == frame.dimensions());
+        match (step, replaced) {
+            (Step::Switch { .. }, Some(r)) => {
+                self.close();
+                self.open = Some(OpenSwitch {
+                    frames: 1,
+                    shown: d,
+                    replaced: frame_step(&prev, r),
+                });
             }
-            _ => self.prev = Some(frame.clone()),
+            (Step::Play, Some(r)) if self.open.is_some() => {
+                let last = self
+                    .prev_replaced
+                    .as_ref()
+                    .expect("kept while a switch is open");
+                let o = self.open.as_mut().expect("checked");
+                o.frames += 1;
+                o.shown += d;
+                o.replaced += frame_step(last, r);
+            }
+            (Step::Play, _) => {
+                self.close();
+                self.ordinary.push(d);
+            }
+            (Step::Wrap | Step::Switch { .. }, _) => {
+                self.close();
+                self.wraps.push(d);
+            }
+            (Step::Start, _) => self.close(),
+        }
+        prev.copy_from_slice(frame.as_raw());
+        self.prev = Some(prev);
+        match (self.open.is_some(), replaced) {
+            (true, Some(r)) => match &mut self.prev_replaced {
+                Some(k) if k.dimensions() == r.dimensions() => k.copy_from_slice(r.as_raw()),
+                k => *k = Some(r.clone()),
+            },
+            _ => {}
         }
     }
 
-    /// Jumps measured.
+    /// Ends the switch being measured, if any.
+    fn close(&mut self) {
+        if let Some(o) = self.open.take() {
+            self.switches
+                .push(switch_ratio(o.shown, o.replaced, o.frames));
+        }
+    }
+
+    /// Jumps measured (wraps and switches).
     pub fn jumps(&self) -> usize {
-        self.jumps.len()
+        self.wraps.len() + self.switches.len() + usize::from(self.open.is_some())
     }
 
-    /// The mean jump step over the median ordinary step (None without jumps).
+    /// The mean seam score over the jumps: each wrap's step over the median ordinary step, each
+    /// switch's steps over the ones it replaced (None without jumps).
     pub fn score(&self) -> Option<f64> {
-        if self.jumps.is_empty() {
-            return None;
-        }
-        let mean = self.jumps.iter().sum::<f64>() / self.jumps.len() as f64;
-        Some(ratio(mean, median(&mut self.ordinary.clone())))
+        let unit = median(&mut self.ordinary.clone());
+        let open = self
+            .open
+            .map(|o| switch_ratio(o.shown, o.replaced, o.frames));
+        let all: Vec<f64> = self
+            .wraps
+            .iter()
+            .map(|&w| ratio(w, unit))
+            .chain(self.switches.iter().copied())
+            .chain(open)
+            .collect();
+        (!all.is_empty()).then(|| all.iter().sum::<f64>() / all.len() as f64)
     }
 }
 
@@ -146,8 +229,10 @@ fn sample_steps(lo: usize, hi: usize, count: usize, group: usize) -> Vec<usize> 
 }
 
 /// Per view, the seam scores of its loop wrap and its switches, measured on frames the renderer
-/// makes with `params` (crossfade and dissolve off: they act over several frames of a render, see
-/// [`SeamMeter`] for those), sampling at most `samples` ordinary steps and switches per view.
+/// makes with `params` (crossfade and dissolve off: they act on wraps over several frames of a
+/// render, see [`SeamMeter`] for those; the switch fade on, as switches play), sampling at most
+/// `samples` ordinary steps and a quarter as many switches per view and direction (a switch
+/// renders its fade twice over: as shown and as replaced).
 pub fn measure_seams(
     scene: &Arc<RenderScene>,
     objects: &dyn ObjectFrames,
@@ -167,25 +252,22 @@ pub fn measure_seams(
         ..params
     };
     let mut renderer = Renderer::new(scene.clone(), params)?;
+    let fade = params.switch_blend_frames() + 1;
     let (w, h) = renderer.size();
-    let (mut a, mut b) = (RgbImage::new(w, h), RgbImage::new(w, h));
-    let mut step = |(pa, fa): (usize, usize), (pb, fb): (usize, usize), q: f64| -> Result<f64> {
-        let choice = |view, frame| FrameChoice {
-            view,
-            frame,
-            step: Step::Play,
-            continuation: None,
-        };
-        renderer.render_into(objects, q, &choice(pa, fa), &mut a)?;
-        renderer.render_into(objects, q, &choice(pb, fb), &mut b)?;
-        Ok(frame_step(&a, &b))
-    };
+    let mut bufs: [RgbImage; 5] = std::array::from_fn(|_| RgbImage::new(w, h));
     let views = &scene.views;
     let mut out = Vec::with_capacity(views.len());
     for (p, v) in views.iter().enumerate() {
         let (m, n) = (v.loop_start, v.loop_end);
         let q = p as f64;
         // Ordinary steps i -> i + 1 for i in m+1..n.
+        let [a, b, ..] = &mut bufs;
+        let mut step =
+            |(pa, fa): (usize, usize), (pb, fb): (usize, usize), q: f64| -> Result<f64> {
+                renderer.render_plain_into(objects, q, pa, fa, a)?;
+                renderer.render_plain_into(objects, q, pb, fb, b)?;
+                Ok(frame_step(a, b))
+            };
         let mut ordinary = Vec::new();
         for i in sample_steps(m + 1, n, samples, objects.group(p)) {
             ordinary.push(step((p, i), (p, i + 1), q)?);
@@ -197,17 +279,26 @@ pub fn measure_seams(
             None
         };
         let mut switch = |table: &[Option<usize>], to: usize, q: f64| -> Result<Option<f64>> {
-            let frames = views[to].to_next.len().max(views[to].to_prev.len());
             let mut scores = Vec::new();
-            for s in sample_steps(m + 1, n + 1, samples, objects.group(p)) {
+            let count = samples.div_ceil(4);
+            for s in sample_steps(m + 1, n + 1, count, objects.group(p)) {
                 let Some(Some(t)) = table.get(s) else {
                     continue;
                 };
-                if frames > 0 && t + 1 >= frames {
+                if t + 1 >= views[to].to_next.len().max(views[to].to_prev.len()) {
                     continue;
                 }
-                let d = step((p, s), (to, t + 1), q)?;
-                scores.push(ratio(d, unit));
+                scores.push(switch_seam(
+                    &mut renderer,
+                    scene,
+                    fade,
+                    objects,
+                    q,
+                    (p, s),
+                    (to, t + 1),
+                    &mut bufs,
+                    None,
+                )?);
             }
             Ok((!scores.is_empty()).then(|| scores.iter().sum::<f64>() / scores.len() as f64))
         };
@@ -226,6 +317,161 @@ pub fn measure_seams(
             to_next,
             to_prev,
         });
+    }
+    Ok(out)
+}
+
+/// One switch's seam ([`switch_ratio`]): from `from` (shown before it) to `to` at `q`, played as
+/// the player and renderer play it (the jump, then the fade frames, each view following its own
+/// loop; a wrap of the new view ends the fade as it does in play), against what the old view
+/// would have shown, over `frames` frames at most (the jump and its fade). `bufs`: frames of the
+/// renderer's size. With `sharpness`, each blended frame's gradient energy over the blend of
+/// the two layers' own (the old view's continuation and the new view's frame, unblended) is
+/// pushed to it: 1 where blending loses no detail.
+#[allow(clippy::too_many_arguments)]
+fn switch_seam(
+    renderer: &mut Renderer,
+    scene: &RenderScene,
+    frames: usize,
+    objects: &dyn ObjectFrames,
+    q: f64,
+    from: (usize, usize),
+    to: (usize, usize),
+    bufs: &mut [RgbImage; 5],
+    mut sharpness: Option<&mut Vec<f64>>,
+) -> Result<f64> {
+    let [prev, cur, prev_r, cur_r, new] = bufs;
+    renderer.render_plain_into(objects, q, from.0, from.1, prev)?;
+    prev_r.copy_from_slice(prev.as_raw());
+    let (mut shown, mut replaced, mut done) = (0.0, 0.0, 0);
+    let (mut j, mut r) = (to.1, scene.next_in_loop(from.0, from.1));
+    for k in 0..frames {
+        let step = if k == 0 {
+            Step::Switch {
+                hops: from.0.abs_diff(to.0),
+            }
+        } else if j == scene.views[to.0].loop_start + 1 {
+            break;
+        } else {
+            Step::Play
+        };
+        let choice = FrameChoice {
+            view: to.0,
+            frame: j,
+            step,
+            continuation: Some((from.0, from.1 + 1)),
+        };
+        renderer.render_into(objects, q, &choice, cur)?;
+        let blended = renderer.switch_fade_from().is_some();
+        renderer.render_plain_into(objects, q, from.0, r, cur_r)?;
+        shown += frame_step(prev, cur);
+        replaced += frame_step(prev_r, cur_r);
+        done += 1;
+        if let (Some(out), true) = (sharpness.as_deref_mut(), blended) {
+            renderer.render_plain_into(objects, q, to.0, j, new)?;
+            let alpha = (k + 1) as f64 / frames as f64;
+            let mix = (1.0 - alpha) * gradient_energy(cur_r) + alpha * gradient_energy(new);
+            out.push(gradient_energy(cur) / mix.max(1e-9));
+        }
+        std::mem::swap(prev, cur);
+        std::mem::swap(prev_r, cur_r);
+        j = scene.next_in_loop(to.0, j);
+        r = scene.next_in_loop(from.0, r);
+    }
+    Ok(switch_ratio(shown, replaced, done))
+}
+
+/// Mean squared forward difference of a frame's grey (0.299 R + 0.587 G + 0.114 B), both ways:
+/// its detail, which a blend of two slightly different frames loses.
+pub fn gradient_energy(f: &RgbImage) -> f64 {
+    let (w, h) = (f.width() as usize, f.height() as usize);
+    if w < 2 || h < 2 {
+        return 0.0;
+    }
+    let raw = f.as_raw();
+    let grey = |i: usize| {
+        0.299 * raw[3 * i] as f32 + 0.587 * raw[3 * i + 1] as f32 + 0.114 * raw[3 * i + 2] as f32
+    };
+    let sum: f64 = (0..h - 1)
+        .into_par_iter()
+        .map(|y| {
+            let mut s = 0f64;
+            for x in 0..w - 1 {
+                let i = y * w + x;
+                let g = grey(i);
+                let (gx, gy) = (grey(i + 1) - g, grey(i + w) - g);
+                s += (gx * gx + gy * gy) as f64;
+            }
+            s
+        })
+        .sum();
+    sum / ((w - 1) * (h - 1)) as f64
+}
+
+/// What a switch fade costs and gives, over the sampled switches of every link both ways
+/// ([`measure_switch_fades`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FadeFigures {
+    /// Each link direction's mean switch seam (as [`measure_seams`]), `0 -> 1, 1 -> 0, 1 -> 2,
+    /// ...`.
+    pub seams: Vec<f64>,
+    /// Every blended frame's sharpness: its gradient energy over the blend of its two layers'
+    /// own (empty without a fade).
+    pub sharpness: Vec<f64>,
+}
+
+/// The switches of [`measure_seams`] with `params` (its switch fade), and the sharpness of
+/// their blended frames; at most `samples` switches per link direction.
+pub fn measure_switch_fades(
+    scene: &Arc<RenderScene>,
+    objects: &dyn ObjectFrames,
+    params: RenderParams,
+    samples: usize,
+) -> Result<FadeFigures> {
+    let params = RenderParams {
+        crossfade: 0,
+        dissolve: 0,
+        ..params
+    };
+    let mut renderer = Renderer::new(scene.clone(), params)?;
+    let frames = params.switch_blend_frames() + 1;
+    let (w, h) = renderer.size();
+    let mut bufs: [RgbImage; 5] = std::array::from_fn(|_| RgbImage::new(w, h));
+    let mut out = FadeFigures::default();
+    let views = &scene.views;
+    for p in 0..views.len().saturating_sub(1) {
+        for (from, to) in [(p, p + 1), (p + 1, p)] {
+            let v = &views[from];
+            let table = if to > from { &v.to_next } else { &v.to_prev };
+            let q = p as f64 + 0.5;
+            let mut scores = Vec::new();
+            for s in sample_steps(
+                v.loop_start + 1,
+                v.loop_end + 1,
+                samples,
+                objects.group(from),
+            ) {
+                let Some(Some(t)) = table.get(s) else {
+                    continue;
+                };
+                if t + 1 >= views[to].to_next.len() {
+                    continue;
+                }
+                scores.push(switch_seam(
+                    &mut renderer,
+                    scene,
+                    frames,
+                    objects,
+                    q,
+                    (from, s),
+                    (to, t + 1),
+                    &mut bufs,
+                    Some(&mut out.sharpness),
+                )?);
+            }
+            out.seams
+                .push(scores.iter().sum::<f64>() / scores.len().max(1) as f64);
+        }
     }
     Ok(out)
 }
@@ -264,29 +510,68 @@ mod tests {
     }
 
     #[test]
-    fn meter_scores_jumps_against_the_median_ordinary_step() {
+    fn meter_scores_wraps_against_the_median_step_and_switches_against_what_they_replace() {
         let mut m = SeamMeter::new();
-        // Ordinary steps of 2, 2, 4 (median 2); one wrap of 6 and one switch of 2: mean 4 -> 2.
+        // Ordinary steps of 2, 2, 4 (median 2); one wrap of 6: 3.
         for (v, s) in [
             (0, Step::Start),
             (2, Step::Play),
             (4, Step::Play),
             (8, Step::Play),
             (14, Step::Wrap),
-            (16, Step::Switch { hops: 1 }),
         ] {
-            m.push(&grey(v), s);
+            m.push(&grey(v), s, None);
+        }
+        assert_eq!((m.jumps(), m.score()), (1, Some(3.0)));
+        // A switch with a two-frame fade: shown 14 -> 20 -> 21 -> 30 (steps 6, 1, 9: 16), where
+        // the old view would have shown 22, 30, 36 (steps 8, 8, 6: 22). Its seam is 16 / 22,
+        // whatever the median ordinary step; the fade frames are not ordinary steps.
+        for (v, r) in [(20, 22), (21, 30), (30, 36)] {
+            let step = if v == 20 {
+                Step::Switch { hops: 1 }
+            } else {
+                Step::Play
+            };
+            m.push(&grey(v), step, Some(&grey(r)));
         }
         assert_eq!(m.jumps(), 2);
-        assert_eq!(m.score(), Some(2.0));
+        let switch = 16.0 / 22.0;
+        assert!((m.score().unwrap() - (3.0 + switch) / 2.0).abs() < 1e-12);
+        // The next played frame closes the switch and is an ordinary step again (2, 2, 4, 2:
+        // median 2, the wrap still 3).
+        m.push(&grey(32), Step::Play, None);
+        assert!((m.score().unwrap() - (3.0 + switch) / 2.0).abs() < 1e-12);
+        // A switch between views that agree (shown = replaced) scores exactly 1, however
+        // uneven the ordinary steps: a paired measure, not one over the median.
+        let mut even = SeamMeter::new();
+        even.push(&grey(0), Step::Start, None);
+        for v in [1, 2, 3] {
+            even.push(&grey(v), Step::Play, None);
+        }
+        even.push(&grey(40), Step::Switch { hops: 1 }, Some(&grey(40)));
+        assert_eq!(even.score(), Some(1.0));
+        // A switch without what it replaced is scored like a wrap (37 over the median 1).
+        let mut bare = SeamMeter::new();
+        for (v, s) in [
+            (0, Step::Start),
+            (1, Step::Play),
+            (38, Step::Switch { hops: 1 }),
+        ] {
+            bare.push(&grey(v), s, None);
+        }
+        assert_eq!(bare.score(), Some(37.0));
         // Nothing moves: an invisible jump scores 0, a visible one large (against MIN_UNIT).
         let mut still = SeamMeter::new();
         for s in [Step::Start, Step::Play, Step::Wrap] {
-            still.push(&grey(5), s);
+            still.push(&grey(5), s, None);
         }
         assert_eq!(still.score(), Some(0.0));
-        still.push(&grey(9), Step::Wrap);
+        still.push(&grey(9), Step::Wrap, None);
         assert_eq!(still.score(), Some(2.0 / MIN_UNIT));
+        let mut still_switch = SeamMeter::new();
+        still_switch.push(&grey(5), Step::Start, None);
+        still_switch.push(&grey(5), Step::Switch { hops: 1 }, Some(&grey(5)));
+        assert_eq!(still_switch.score(), Some(0.0));
         assert_eq!(SeamMeter::new().score(), None);
     }
 }

@@ -338,6 +338,7 @@ pub fn export(
         "params": {
             "crossfade": opts.params.crossfade,
             "dissolve": opts.params.dissolve,
+            "switch_fade": opts.params.switch_fade,
             "neighbour_fill": opts.params.neighbour_fill,
             "nearest": opts.params.interpolation == Interpolation::Nearest,
         },

@@ -23,6 +23,12 @@
     return { floor: f, ceil: c, nearest: q - f < 0.5 ? f : c };
   }
 
+  // The frame a view plays after `frame`: m + 1 after its loop's end n.
+  function nextInLoop(view, frame) {
+    const v = S.views[view];
+    return frame === v.loop_end ? v.loop_start + 1 : frame + 1;
+  }
+
   class Player {
     constructor() {
       this.state = null;
@@ -80,7 +86,7 @@
           p = np;
           this.switches += 1;
         }
-        if (pj + 1 < S.views[pv].frames) continuation = [pv, pj + 1];
+        continuation = [pv, pj + 1];
         frame = s + 1;
         step = 'switch';
       }
@@ -277,15 +283,20 @@
     nextBlend(choice) {
       const cf = P.crossfade;
       const d = P.dissolve;
+      const sf = P.switch_fade;
       const b = this.blend;
       const jump = choice.step === 'wrap' || choice.step === 'switch';
-      if (jump && choice.continuation && cf > 0) return { type: 'fade', old: choice.continuation, k: 0 };
-      if (jump && choice.continuation && d > 0 && choice.continuation[1] > 0) {
-        const [v, j] = choice.continuation;
-        return { type: 'dissolve', from: [v, j - 1], to: [choice.view, choice.frame + d], k: 0 };
+      const c = choice.continuation;
+      if (jump && c && cf > 0) return { type: 'fade', old: c, k: 0, len: cf, looped: false };
+      if (jump && c && d > 0 && c[1] > 0) {
+        return { type: 'dissolve', from: [c[0], c[1] - 1], to: [choice.view, choice.frame + d], k: 0 };
       }
-      if (choice.step === 'play' && b && b.type === 'fade' && b.k + 1 < cf) {
-        return { type: 'fade', old: [b.old[0], b.old[1] + 1], k: b.k + 1 };
+      if (choice.step === 'switch' && c && sf > 0 && d === 0 && c[1] > 0) {
+        return { type: 'fade', old: [c[0], nextInLoop(c[0], c[1] - 1)], k: 0, len: sf, looped: true };
+      }
+      if (choice.step === 'play' && b && b.type === 'fade' && b.k + 1 < b.len) {
+        const j = b.looped ? nextInLoop(b.old[0], b.old[1]) : b.old[1] + 1;
+        return { type: 'fade', old: [b.old[0], j], k: b.k + 1, len: b.len, looped: b.looped };
       }
       if (choice.step === 'play' && b && b.type === 'dissolve' && b.k + 1 < d && choice.view === b.to[0]) {
         return { type: 'dissolve', from: b.from, to: b.to, k: b.k + 1 };
@@ -321,7 +332,7 @@
       let alpha = 1;
       if (b && b.type === 'fade' && b.old[1] < V[b.old[0]].frames) {
         old = b.old;
-        alpha = Math.fround((b.k + 1) / (P.crossfade + 1));
+        alpha = Math.fround((b.k + 1) / (b.len + 1));
       } else if (b && b.type === 'dissolve' && b.from[1] < V[b.from[0]].frames && b.to[1] < V[b.to[0]].frames) {
         shown = b.to;
         old = b.from;

@@ -62,6 +62,12 @@ pub struct RenderParams {
     /// In-between frames after a wrap or switch, dissolving the last frame shown into the new
     /// sequence (0 = off, the thesis; exclusive with `crossfade`).
     pub dissolve: usize,
+    /// Frames of object crossfade after a view switch only, from what the old view would have
+    /// shown next (its own loop continued) into the new view ([`DEFAULT_SWITCH_FADE`]; 0 = a
+    /// hard switch, the thesis). The transition table (eq. 2) puts both views at the same moment
+    /// of the motion, so the two layers agree but for what the views themselves disagree on,
+    /// which fades in instead of popping. `crossfade` or `dissolve`, when set, take switches too.
+    pub switch_fade: usize,
     /// Where the shown view does not see a pixel at fractional q (near its image edges), show the
     /// other view of the pair's matching frame (its transition-table frame) instead of the
     /// static background. Scenes with dynamic regions only (objects would double).
@@ -80,16 +86,38 @@ pub struct RenderParams {
     pub background_reuse_px: f64,
 }
 
+/// [`RenderParams::switch_fade`]'s default, frames.
+pub const DEFAULT_SWITCH_FADE: usize = 3;
+
+impl RenderParams {
+    /// How many frames after a view switch blend the old view's continuation in: `crossfade`,
+    /// else `dissolve`, else `switch_fade` (0: a hard switch).
+    pub fn switch_blend_frames(&self) -> usize {
+        if self.crossfade > 0 {
+            self.crossfade
+        } else if self.dissolve > 0 {
+            self.dissolve
+        } else {
+            self.switch_fade
+        }
+    }
+}
+
 /// Largest [`RenderParams::background_reuse_px`]: beyond a few pixels the reused background
 /// visibly lags the objects.
 pub const MAX_BACKGROUND_REUSE_PX: f64 = 4.0;
 
 impl RenderParams {
-    /// Checks the values: crossfade and dissolve at most [`MAX_CROSSFADE`] frames and not both,
+    /// Checks the values: crossfade, dissolve and switch fade at most [`MAX_CROSSFADE`] frames,
+    /// crossfade and dissolve not both,
     /// background reuse within `0..=`[`MAX_BACKGROUND_REUSE_PX`]. [`Renderer::new`] calls it;
     /// callers that do work before making a renderer call it first.
     pub fn check(&self) -> Result<()> {
-        for (name, n) in [("crossfade", self.crossfade), ("dissolve", self.dissolve)] {
+        for (name, n) in [
+            ("crossfade", self.crossfade),
+            ("dissolve", self.dissolve),
+            ("switch_fade", self.switch_fade),
+        ] {
             if n > MAX_CROSSFADE {
                 return Err(Error::InvalidParameter {
                     name,
@@ -126,6 +154,7 @@ impl Default for RenderParams {
             interpolation: Interpolation::Bilinear,
             crossfade: 0,
             dissolve: 0,
+            switch_fade: DEFAULT_SWITCH_FADE,
             neighbour_fill: true,
             gain_compensation: true,
             background_reuse_px: 0.0,
@@ -193,8 +222,15 @@ impl Kept {
 /// An object blend in progress: a crossfade or a dissolve, `k` frames in.
 #[derive(Debug, Clone, Copy)]
 enum Blend {
-    /// The old sequence's continuation `old` fading out under the new sequence.
-    Fade { old: (usize, usize), k: usize },
+    /// The old sequence's continuation `old` fading out under the new sequence over `len`
+    /// frames; `looped`: `old` advances as its view's loop plays (a switch fade), else frame by
+    /// frame past the loop (a crossfade, whose wrap continuation runs past `n`).
+    Fade {
+        old: (usize, usize),
+        k: usize,
+        len: usize,
+        looped: bool,
+    },
     /// A still dissolve from `from` (the last frame before the jump) into `to`.
     Dissolve {
         from: (usize, usize),
@@ -247,7 +283,7 @@ impl Renderer {
             h_to_q: vec![None; m],
             background_q: RgbImage::new(width, height),
             padded,
-            layer: if params.crossfade > 0 || params.dissolve > 0 {
+            layer: if params.crossfade > 0 || params.dissolve > 0 || params.switch_fade > 0 {
                 RgbImage::new(width, height)
             } else {
                 RgbImage::new(0, 0)
@@ -263,11 +299,19 @@ impl Renderer {
     /// The blend state after `choice`: a wrap or switch starts a crossfade or dissolve (when
     /// enabled), a played frame advances it, anything else ends it.
     fn next_blend(&self, choice: &FrameChoice) -> Option<Blend> {
-        let (cf, d) = (self.params.crossfade, self.params.dissolve);
+        let (cf, d, sf) = (
+            self.params.crossfade,
+            self.params.dissolve,
+            self.params.switch_fade,
+        );
+        let scene = &self.scene;
         match (choice.step, choice.continuation, self.blend) {
-            (Step::Wrap | Step::Switch { .. }, Some((v, j)), _) if cf > 0 => {
-                Some(Blend::Fade { old: (v, j), k: 0 })
-            }
+            (Step::Wrap | Step::Switch { .. }, Some((v, j)), _) if cf > 0 => Some(Blend::Fade {
+                old: (v, j),
+                k: 0,
+                len: cf,
+                looped: false,
+            }),
             (Step::Wrap | Step::Switch { .. }, Some((v, j)), _) if d > 0 && j > 0 => {
                 Some(Blend::Dissolve {
                     from: (v, j - 1),
@@ -275,9 +319,35 @@ impl Renderer {
                     k: 0,
                 })
             }
-            (Step::Play, _, Some(Blend::Fade { old, k })) if k + 1 < cf => Some(Blend::Fade {
-                old: (old.0, old.1 + 1),
+            (Step::Switch { .. }, Some((v, j)), _) if sf > 0 && d == 0 && j > 0 => {
+                Some(Blend::Fade {
+                    old: (v, scene.next_in_loop(v, j - 1)),
+                    k: 0,
+                    len: sf,
+                    looped: true,
+                })
+            }
+            (
+                Step::Play,
+                _,
+                Some(Blend::Fade {
+                    old,
+                    k,
+                    len,
+                    looped,
+                }),
+            ) if k + 1 < len => Some(Blend::Fade {
+                old: (
+                    old.0,
+                    if looped {
+                        scene.next_in_loop(old.0, old.1)
+                    } else {
+                        old.1 + 1
+                    },
+                ),
                 k: k + 1,
+                len,
+                looped,
             }),
             (Step::Play, _, Some(Blend::Dissolve { from, to, k }))
                 if k + 1 < d && choice.view == to.0 =>
@@ -286,6 +356,40 @@ impl Renderer {
             }
             _ => None,
         }
+    }
+
+    /// The frame the old view shows under a switch fade in progress (its loop continued from
+    /// where the switch left it), None when no switch fade is: what the switch replaced, for
+    /// measuring it ([`crate::seam::SeamMeter`]).
+    pub fn switch_fade_from(&self) -> Option<(usize, usize)> {
+        match self.blend {
+            Some(Blend::Fade {
+                old, looped: true, ..
+            }) => Some(old),
+            _ => None,
+        }
+    }
+
+    /// Renders `(view, frame)` at `q` as a plain played frame, leaving any blend in progress
+    /// as it was (the next [`Renderer::render_into`] goes on with it).
+    pub fn render_plain_into(
+        &mut self,
+        objects: &dyn ObjectFrames,
+        q: f64,
+        view: usize,
+        frame: usize,
+        out: &mut RgbImage,
+    ) -> Result<()> {
+        let blend = self.blend.take();
+        let choice = FrameChoice {
+            view,
+            frame,
+            step: Step::Start,
+            continuation: None,
+        };
+        let r = self.render_into(objects, q, &choice, out);
+        self.blend = blend;
+        r
     }
 
     /// The frame that fills in for `frame` of `view` at `q` where `view` does not see: the other
@@ -453,10 +557,10 @@ impl Renderer {
         let h = self.h_to_q[view].expect("qbar's homography is prepared");
         let views = &self.scene.views;
         let (shown, old, alpha) = match self.blend {
-            Some(Blend::Fade { old, k }) if old.1 < views[old.0].to_next.len() => (
+            Some(Blend::Fade { old, k, len, .. }) if old.1 < views[old.0].to_next.len() => (
                 (view, choice.frame),
                 Some(old),
-                (k + 1) as f32 / (self.params.crossfade + 1) as f32,
+                (k + 1) as f32 / (len + 1) as f32,
             ),
             Some(Blend::Dissolve { from, to, k })
                 if from.1 < views[from.0].to_next.len() && to.1 < views[to.0].to_next.len() =>

@@ -51,8 +51,10 @@ pub struct FrameChoice {
     pub frame: usize,
     /// How it was reached.
     pub step: Step,
-    /// For a wrap or switch: the frame the old sequence would have shown next in the old view
-    /// (`(view, frame)`), if it exists; used by the crossfade and the seam score.
+    /// For a wrap or switch: the frame after the last one shown, in the old view (`(view,
+    /// frame)`): the continuation a crossfade blends from. For a wrap only if that frame exists;
+    /// for a switch always (it may lie one past the old view's last frame, when the switch left
+    /// from it; a switch fade continues the old view's loop from the frame before it instead).
     pub continuation: Option<(usize, usize)>,
 }
 
@@ -188,7 +190,9 @@ impl Player {
                     p = np;
                     self.switches += 1;
                 }
-                let cont = (pj + 1 < scene.views[pv].to_next.len()).then_some((pv, pj + 1));
+                // Always given for a switch (the frame shown before it is `pj`), even one past the
+                // old view's last frame: a blend that would show that frame drops it.
+                let cont = Some((pv, pj + 1));
                 (
                     s + 1,
                     Step::Switch {

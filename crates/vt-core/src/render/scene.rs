@@ -44,6 +44,17 @@ pub struct RenderScene {
 }
 
 impl RenderScene {
+    /// The frame view `view` plays after `frame` (eq. 6 within a view): `m + 1` after the loop's
+    /// end `n`, else the next frame.
+    pub fn next_in_loop(&self, view: usize, frame: usize) -> usize {
+        let v = &self.views[view];
+        if frame == v.loop_end {
+            v.loop_start + 1
+        } else {
+            frame + 1
+        }
+    }
+
     /// Largest valid q, `M - 1`.
     pub fn q_max(&self) -> f64 {
         (self.views.len() - 1) as f64

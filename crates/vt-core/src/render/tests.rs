@@ -89,6 +89,130 @@ fn dissolve_spreads_the_wrap_over_in_between_frames() {
     assert!(e.to_string().contains("dissolve"), "{e}");
 }
 
+/// Solid 4x4 objects whose grey level is 10 x (frame + 1) + 100 x view.
+struct SolidByView;
+impl ObjectFrames for SolidByView {
+    fn decode_into(&self, view: usize, frame: usize, patch: &mut ObjectPatch) -> Result<()> {
+        patch.reset(0, 0, 4, 4);
+        patch.rgb.fill(10 * (frame as u8 + 1) + 100 * view as u8);
+        patch.mask.fill(1);
+        Ok(())
+    }
+}
+
+/// (view, frame, grey at the object) of each output frame along `qs`.
+fn played(params: RenderParams, qs: &[f64]) -> Vec<(usize, usize, u8)> {
+    let s = std::sync::Arc::new(tiny());
+    let mut r = Renderer::new(s.clone(), params).unwrap();
+    let mut p = Player::new();
+    let mut out = RgbImage::new(4, 4);
+    qs.iter()
+        .map(|&q| {
+            let c = p.advance(&s, q).unwrap();
+            r.render_into(&SolidByView, q, &c, &mut out).unwrap();
+            (c.view, c.frame, out.get_pixel(1, 1).0[0])
+        })
+        .collect()
+}
+
+#[test]
+fn switch_fade_blends_the_old_views_own_loop_into_the_new_view() {
+    let plain = RenderParams {
+        gain_compensation: false,
+        switch_fade: 0,
+        ..RenderParams::default()
+    };
+    let faded = RenderParams {
+        switch_fade: 2,
+        ..plain
+    };
+    // View 0 plays 2, 3; the switch at the tie goes to view 1's t_1(3, 0) + 1 = 4 (150), then
+    // 5 (160), 6 (170). Hard: straight to 150. Faded over 2 frames: view 0's continuation 4
+    // (50) and 5 (60) fade out with weights 2/3 and 1/3: 50 + 100 / 3 = 83.3, 60 + 2 x 100 / 3
+    // = 126.7; the third frame is view 1's alone.
+    let qs = [0.0, 0.0, 0.5, 0.5, 0.5];
+    assert_eq!(
+        played(plain, &qs),
+        [
+            (0, 2, 30),
+            (0, 3, 40),
+            (1, 4, 150),
+            (1, 5, 160),
+            (1, 6, 170)
+        ]
+    );
+    assert_eq!(
+        played(faded, &qs),
+        [(0, 2, 30), (0, 3, 40), (1, 4, 83), (1, 5, 127), (1, 6, 170)]
+    );
+    // Leaving view 0 from its loop's end n = 5: what it would have shown next is m + 1 = 2
+    // (30), not frame 6. View 1 shows t_1(5, 0) + 1 = 6 (170): 30 + 140 / 3 = 76.7. Then view 1
+    // wraps (6 is its n) and the wrap ends the fade: 3 (140) alone.
+    let qs = [0.0, 0.0, 0.0, 0.0, 0.5, 0.5];
+    assert_eq!(
+        played(faded, &qs),
+        [
+            (0, 2, 30),
+            (0, 3, 40),
+            (0, 4, 50),
+            (0, 5, 60),
+            (1, 6, 77),
+            (1, 3, 140)
+        ]
+    );
+    // A crossfade takes switches too, from the frame after the last one shown (6: 70), frame
+    // by frame: one frame, weight 1/2: (70 + 170) / 2.
+    let crossfaded = RenderParams {
+        crossfade: 1,
+        ..faded
+    };
+    assert_eq!(played(crossfaded, &qs)[4], (1, 6, 120));
+    // The default fades switches, over DEFAULT_SWITCH_FADE frames.
+    assert_eq!(RenderParams::default().switch_fade, DEFAULT_SWITCH_FADE);
+    assert!(DEFAULT_SWITCH_FADE > 0);
+    let e = Renderer::new(
+        tiny(),
+        RenderParams {
+            switch_fade: MAX_CROSSFADE + 1,
+            ..plain
+        },
+    )
+    .err()
+    .expect("refused");
+    assert!(e.to_string().contains("switch_fade"), "{e}");
+}
+
+#[test]
+fn a_plain_render_leaves_the_fade_in_progress_as_it_was() {
+    // What the seam meter does at every fade frame: render what the old view would have shown,
+    // between the faded frames. The faded frames must not change.
+    let params = RenderParams {
+        gain_compensation: false,
+        switch_fade: 2,
+        ..RenderParams::default()
+    };
+    let s = std::sync::Arc::new(tiny());
+    let mut r = Renderer::new(s.clone(), params).unwrap();
+    let mut p = Player::new();
+    let (mut out, mut other) = (RgbImage::new(4, 4), RgbImage::new(4, 4));
+    let mut got = Vec::new();
+    for q in [0.0, 0.0, 0.5, 0.5, 0.5] {
+        let c = p.advance(&s, q).unwrap();
+        r.render_into(&SolidByView, q, &c, &mut out).unwrap();
+        got.push(out.get_pixel(1, 1).0[0]);
+        if let Some((v, j)) = r.switch_fade_from() {
+            r.render_plain_into(&SolidByView, q, v, j, &mut other)
+                .unwrap();
+            assert_eq!(
+                other.get_pixel(1, 1).0[0],
+                10 * (j as u8 + 1),
+                "view 0 frame {j}"
+            );
+        }
+    }
+    assert_eq!(got, [30, 40, 83, 127, 170]);
+}
+
 /// No moving objects: the frame is the blended background alone.
 struct NoObjects;
 impl ObjectFrames for NoObjects {
