@@ -238,7 +238,8 @@ impl Observer for Stores<'_> {
     }
 }
 
-/// Most ordinary steps and switches per view rendered to measure its seams.
+/// Most ordinary steps per view rendered to measure its seams (and a quarter as many switches
+/// per direction).
 pub const SEAM_SAMPLES: usize = 32;
 
 /// Measures the scene in `dir` ([`vt_core::seam::measure_seams`] on frames its renderer makes
@@ -334,7 +335,7 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             )?;
         }
         writeln!(f,
-        "seam score (mean over wraps and switches, on rendered frames as vt render measures them; 1 = as large as an ordinary frame step, above 1 shows): {:.3}",
+        "seam score (mean over wraps and switches, on rendered frames as vt render measures them: a wrap against the median ordinary step, a switch and its fade against the steps it replaced; 1 = no larger than ordinary playback, above 1 shows): {:.3}",
         scene.seam_score
     )?;
         for (p, v) in a.views.iter().enumerate() {

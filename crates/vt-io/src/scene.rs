@@ -46,8 +46,9 @@ pub struct SceneFile {
     /// The geometric model of the scene (absent for a single view).
     pub model: Option<ModelEntry>,
     /// Mean seam score over every loop wrap and view switch of the scene ([`vt_core::seam`]: a
-    /// jump's rendered step over the median ordinary rendered step; 1 = as large as one
-    /// ordinary frame step, as an exact loop's wrap), as `vt render` measures it.
+    /// wrap's rendered step over the median ordinary rendered step, a switch's rendered steps
+    /// over the ones it replaced; 1 = no larger than ordinary playback), as `vt render`
+    /// measures it.
     #[serde(default)]
     pub seam_score: f64,
     /// The source videos' frame rate (median real frame interval, median over the views;

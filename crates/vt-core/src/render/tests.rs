@@ -211,6 +211,10 @@ fn a_plain_render_leaves_the_fade_in_progress_as_it_was() {
         }
     }
     assert_eq!(got, [30, 40, 83, 127, 170]);
+    // The old view may lie beyond q's pair once q moves on (view 2 at q = 0.2): it is placed by
+    // its own homography to q, not refused.
+    r.render_plain_into(&SolidByView, 0.2, 2, 3, &mut other)
+        .unwrap();
 }
 
 /// No moving objects: the frame is the blended background alone.

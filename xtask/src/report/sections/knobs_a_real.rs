@@ -26,6 +26,7 @@ pub fn knobs() -> Vec<Knob> {
         Knob::new("Window w on real footage", window),
         Knob::new("Noise-model masks", noise_masks),
         Knob::new("Loops on footage that never repeats", loop_options),
+        Knob::new("Switch fade between views", switch_fade),
     ]
 }
 
@@ -577,4 +578,82 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         ));
     }
     Ok(curves)
+}
+
+/// The switch fade's length on the real-footage scene, registered automatically (the default):
+/// each link's switches both ways, measured as `vt analyze` measures them (the rendered steps
+/// through the switch and its fade over the ones the old view would have shown), the sharpness
+/// of the blended frames, and what a sweep across the views costs to render.
+fn switch_fade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    use vt_core::render::{RenderParams, DEFAULT_SWITCH_FADE};
+    let r = real(ctx)?;
+    let mut params = AnalyzeParams::default();
+    params.loops.min_length = r.frames[0].len() / 3;
+    let dir = ctx.work.path().join("real-switch-fade");
+    let (_, _, scene) = build_scene(&r.frames, &[], &params, &dir)?;
+    let samples = ctx.pick(6, 16);
+    let q_max = scene.render.q_max();
+    let sweep = ctx.pick(120, 400);
+    // Slowly across all views and back: 2 (M - 1) switches.
+    let qs: Vec<f64> = (0..sweep)
+        .map(|i| q_max * (0.5 - 0.5 * (i as f64 / sweep as f64 * std::f64::consts::TAU).cos()))
+        .collect();
+    let mut pts = Vec::new();
+    for fade in [0, 1, 2, 3, 4, 6] {
+        let rp = RenderParams {
+            switch_fade: fade,
+            ..RenderParams::default()
+        };
+        let f = vt_core::seam::measure_switch_fades(&scene.render, &scene.objects, rp, samples)?;
+        let t = std::time::Instant::now();
+        let played = vt_app::play::play(&scene, &qs, rp, &mut |f, _| -> vt_app::Result<()> {
+            std::hint::black_box(f);
+            Ok(())
+        })?;
+        let ms = (t.elapsed().as_secs_f64() - played.measure_secs) * 1e3 / sweep as f64;
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let mut sharp = f.sharpness.clone();
+        sharp.sort_by(f64::total_cmp);
+        let label = match fade {
+            0 => "0: a hard switch (the thesis)".to_string(),
+            k => format!("{k} frames"),
+        };
+        let mut s = Setting::new(label, ms, mean(&f.seams), fade == DEFAULT_SWITCH_FADE).with(
+            "worst link direction (x replaced steps)",
+            f.seams.iter().copied().fold(0.0, f64::max),
+        );
+        if !sharp.is_empty() {
+            s = s
+                .with("sharpness of the blended frames, mean", mean(&sharp))
+                .with(
+                    "sharpness, 10th percentile",
+                    sharp[(sharp.len() / 10).min(sharp.len() - 1)],
+                );
+        }
+        pts.push(s.with(
+            "sweep seam score (vt render's)",
+            played.mean_seam.unwrap_or(f64::NAN),
+        ));
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    Ok(vec![Curve::new(
+        "a-switch-fade",
+        "Switch fade between views",
+        format!(
+            "How many frames a view switch fades over, on {SCENE}, registered automatically \
+             (no points file, the default). A switch goes to the frame eq. (2) matches, so \
+             the two views show the same moment and differ only where the views disagree \
+             (resampling, registration, exposure); a hard switch shows that difference at \
+             once. x: ms per rendered frame over a slow sweep across all views and back (a \
+             faded frame composites two layers); y: mean switch seam over every link both \
+             ways, the rendered steps through the switch and its fade over the steps the old \
+             view would have shown over the same frames (1: the switch adds nothing to \
+             ordinary playback). Sharpness: each blended frame's gradient energy over the \
+             blend of its two layers' own (1: blending loses no detail). Default \
+             {DEFAULT_SWITCH_FADE} frames."
+        ),
+        Axis::new("render (ms per frame, sweep)", Better::Lower),
+        Axis::new("switch seam (x the steps replaced)", Better::Lower),
+        pts,
+    )])
 }
