@@ -387,6 +387,7 @@ fn real_scene_registered_without_points() {
         assert!(stdout.contains(&line), "{stdout}");
         assert!(out.join(format!("fit_{p:03}.png")).is_file());
     }
+    switches_fade_without_a_pop(&scene);
     let json = read_json(&out.join("scene.json"));
     let reg = &json["views"][0]["to_next"]["registration"];
     assert!(reg["inliers"].as_u64().unwrap() >= 20, "{reg}");
@@ -405,6 +406,48 @@ fn real_scene_registered_without_points() {
             assert!((q.x - pb[0]).abs() < 1e-6 && (q.y - pb[1]).abs() < 1e-6);
         }
     }
+}
+
+/// Issue #23: a view switch goes to the frame eq. (2) matches, so the views show the same moment
+/// and differ only where they disagree (resampling, registration, gains). A hard switch shows
+/// that difference at once: its step is larger than the ordinary steps it replaces. The
+/// default's fade spreads it, so switches add nothing to ordinary playback, and the blended
+/// frames keep their detail (the views are registered to a fraction of a pixel).
+fn switches_fade_without_a_pop(scene: &LoadedScene) {
+    let links: Vec<f64> = scene
+        .file
+        .views
+        .iter()
+        .filter_map(|v| v.to_next.as_ref().map(|l| l.seam))
+        .collect();
+    let hard = RenderParams {
+        switch_fade: 0,
+        ..RenderParams::default()
+    };
+    let measure = |params| {
+        vt_core::seam::measure_switch_fades(&scene.render, &scene.objects, params, 6).unwrap()
+    };
+    let (plain, faded) = (measure(hard), measure(RenderParams::default()));
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    if verbose() {
+        eprintln!(
+            "switches (x the steps they replace): analysis {links:.3?}; hard {:.3?}, faded {:.3?}; blended frames' sharpness mean {:.3}",
+            plain.seams,
+            faded.seams,
+            mean(&faded.sharpness)
+        );
+    }
+    assert!(links.iter().all(|&l| l <= 1.02), "{links:?}");
+    assert!(
+        mean(&plain.seams) >= 1.04,
+        "a hard switch shows: {:?}",
+        plain.seams
+    );
+    for (h, f) in plain.seams.iter().zip(&faded.seams) {
+        assert!(f < h, "the fade lowers every link's seam: {h} -> {f}");
+    }
+    assert!(plain.sharpness.is_empty());
+    assert!(mean(&faded.sharpness) >= 0.95, "{:?}", faded.sharpness);
 }
 
 /// Largest corner error of the scene's `H_(p,p+1)` against the truth, pixels.
