@@ -398,8 +398,9 @@ fn window(ctx: &mut Ctx) -> Result<Vec<Curve>> {
              frames repeat, so every w finds an exact loop; the transitions carry the marking \
              noise: with 3 short views w 8 was best, with 5 longer ones every w is alike). x: loop + transition \
              search time; y: mean transition error in source frames over the frames on each \
-             loop; also the seam score `vt analyze` prints (each wrap's and switch's rendered \
-             step over the median ordinary step). Default w = 3 (the thesis)."
+             loop; also the seam score `vt analyze` prints (each wrap's rendered step over the \
+             median ordinary step, each switch's over the steps it replaced). Default w = 3 \
+             (the thesis)."
             ),
             Axis::new("loop + transition search (ms)", Better::Lower),
             Axis::new("transition error (frames)", Better::Lower),
@@ -531,7 +532,7 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
             pts.push(
                 Setting::new(*label, secs, loaded.file.seam_score, *regions == default)
                     .with("rendered wrap, worst view (x median step)", wrap)
-                    .with("rendered switch, worst link (x median step)", switch)
+                    .with("rendered switch, worst link (x the steps it replaced)", switch)
                     .with(
                         "worst step of the loop (x its median step)",
                         max(|q| q.worst_step),
@@ -560,8 +561,9 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
             title,
             format!(
                 "The loop options on {what}. x: vt-core's analysis time (s); y: the seam score \
-                 `vt analyze` prints (each wrap's and switch's rendered step over the median \
-                 ordinary rendered step, mean; 1 = as large as an ordinary step). The table: the \
+                 `vt analyze` prints (mean of each wrap's rendered step over the median ordinary \
+                 rendered step and each switch's, through its fade, over the steps it replaced; \
+                 1 = no larger than ordinary playback). The table: the \
                  worst rendered wrap and switch; on the loop's own frames inside the dynamic \
                  region (the thesis's loop baked the same way): the worst frame step over the \
                  median (a loop of real footage has its own uneven steps: tree.avi's 53 source \
@@ -631,7 +633,7 @@ fn switch_fade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
                 );
         }
         pts.push(s.with(
-            "sweep seam score (vt render's)",
+            "sweep seam score, wraps included (vt render's)",
             played.mean_seam.unwrap_or(f64::NAN),
         ));
     }
