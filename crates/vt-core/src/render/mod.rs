@@ -92,7 +92,7 @@ pub struct RenderParams {
 }
 
 /// [`RenderParams::switch_fade`]'s default, frames.
-pub const DEFAULT_SWITCH_FADE: usize = 3;
+pub const DEFAULT_SWITCH_FADE: usize = 4;
 
 impl RenderParams {
     /// How many frames after a view switch blend the old view's continuation in: `crossfade`,
