@@ -153,12 +153,11 @@ impl SeamMeter {
         }
         prev.copy_from_slice(frame.as_raw());
         self.prev = Some(prev);
-        match (self.open.is_some(), replaced) {
-            (true, Some(r)) => match &mut self.prev_replaced {
+        if let (true, Some(r)) = (self.open.is_some(), replaced) {
+            match &mut self.prev_replaced {
                 Some(k) if k.dimensions() == r.dimensions() => k.copy_from_slice(r.as_raw()),
                 k => *k = Some(r.clone()),
-            },
-            _ => {}
+            }
         }
     }
 

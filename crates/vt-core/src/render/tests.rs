@@ -168,8 +168,7 @@ fn switch_fade_blends_the_old_views_own_loop_into_the_new_view() {
     };
     assert_eq!(played(crossfaded, &qs)[4], (1, 6, 120));
     // The default fades switches, over DEFAULT_SWITCH_FADE frames.
-    assert_eq!(RenderParams::default().switch_fade, DEFAULT_SWITCH_FADE);
-    assert!(DEFAULT_SWITCH_FADE > 0);
+    assert!(RenderParams::default().switch_fade > 0);
     let e = Renderer::new(
         tiny(),
         RenderParams {
