@@ -5,6 +5,7 @@
 //! across the views (or stays at view 0 for a single view), so loop wraps and view switches
 //! (jumps to other frames and views) are in the run. With `VT_RENDER_HASH=1` it also prints a
 //! checksum (FNV-1a) of every rendered frame, outside the timing: a speed change must keep it.
+//! `VT_SWITCH_FADE=K` sets the switch fade (default: the renderer's), to time its cost.
 
 use std::time::Instant;
 
@@ -32,7 +33,14 @@ fn main() -> Result<()> {
             }
         }
     };
-    let mut renderer = Renderer::new(scene.render.clone(), RenderParams::default())?;
+    let mut params = RenderParams::default();
+    if let Some(k) = std::env::var_os("VT_SWITCH_FADE") {
+        params.switch_fade = k
+            .to_str()
+            .and_then(|k| k.parse().ok())
+            .context("VT_SWITCH_FADE: a number of frames")?;
+    }
+    let mut renderer = Renderer::new(scene.render.clone(), params)?;
     let mut player = Player::new();
     let (w, h) = renderer.size();
     let mut out = image::RgbImage::new(w, h);
