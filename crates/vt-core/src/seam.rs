@@ -277,40 +277,18 @@ pub fn measure_seams(
         } else {
             None
         };
-        let mut switch = |table: &[Option<usize>], to: usize, q: f64| -> Result<Option<f64>> {
-            let mut scores = Vec::new();
-            let count = samples.div_ceil(4);
-            for s in sample_steps(m + 1, n + 1, count, objects.group(p)) {
-                let Some(Some(t)) = table.get(s) else {
-                    continue;
-                };
-                if t + 1 >= views[to].to_next.len().max(views[to].to_prev.len()) {
-                    continue;
-                }
-                scores.push(switch_seam(
-                    &mut renderer,
-                    scene,
-                    fade,
-                    objects,
-                    q,
-                    (p, s),
-                    (to, t + 1),
-                    &mut bufs,
-                    None,
-                )?);
-            }
+        let count = samples.div_ceil(4);
+        let mut switch = |to: usize, q: f64| -> Result<Option<f64>> {
+            let (r, b) = (&mut renderer, &mut bufs);
+            let scores = direction_switches(r, scene, fade, objects, (p, to), q, count, b, None)?;
             Ok((!scores.is_empty()).then(|| scores.iter().sum::<f64>() / scores.len() as f64))
         };
         let to_next = if p + 1 < views.len() {
-            switch(&v.to_next, p + 1, q + 0.5)?
+            switch(p + 1, q + 0.5)?
         } else {
             None
         };
-        let to_prev = if p > 0 {
-            switch(&v.to_prev, p - 1, q - 0.5)?
-        } else {
-            None
-        };
+        let to_prev = if p > 0 { switch(p - 1, q - 0.5)? } else { None };
         out.push(ViewSeams {
             wrap,
             to_next,
@@ -318,6 +296,47 @@ pub fn measure_seams(
         });
     }
     Ok(out)
+}
+
+/// The seams ([`switch_seam`]) of at most `count` switches from view `from` to its neighbour
+/// `to` at `q`, from frames sampled evenly over `from`'s loop (those eq. (2) sends somewhere
+/// the new view has a next frame).
+#[allow(clippy::too_many_arguments)]
+fn direction_switches(
+    renderer: &mut Renderer,
+    scene: &RenderScene,
+    frames: usize,
+    objects: &dyn ObjectFrames,
+    (from, to): (usize, usize),
+    q: f64,
+    count: usize,
+    bufs: &mut [RgbImage; 5],
+    mut sharpness: Option<&mut Vec<f64>>,
+) -> Result<Vec<f64>> {
+    let v = &scene.views[from];
+    let table = if to > from { &v.to_next } else { &v.to_prev };
+    let target = &scene.views[to];
+    let mut scores = Vec::new();
+    for s in sample_steps(v.loop_start + 1, v.loop_end + 1, count, objects.group(from)) {
+        let Some(Some(t)) = table.get(s) else {
+            continue;
+        };
+        if t + 1 >= target.to_next.len().max(target.to_prev.len()) {
+            continue;
+        }
+        scores.push(switch_seam(
+            renderer,
+            scene,
+            frames,
+            objects,
+            q,
+            (from, s),
+            (to, t + 1),
+            bufs,
+            sharpness.as_deref_mut(),
+        )?);
+    }
+    Ok(scores)
 }
 
 /// One switch's seam ([`switch_ratio`]): from `from` (shown before it) to `to` at `q`, played as
@@ -437,37 +456,21 @@ pub fn measure_switch_fades(
     let (w, h) = renderer.size();
     let mut bufs: [RgbImage; 5] = std::array::from_fn(|_| RgbImage::new(w, h));
     let mut out = FadeFigures::default();
-    let views = &scene.views;
-    for p in 0..views.len().saturating_sub(1) {
-        for (from, to) in [(p, p + 1), (p + 1, p)] {
-            let v = &views[from];
-            let table = if to > from { &v.to_next } else { &v.to_prev };
+    for p in 0..scene.views.len().saturating_sub(1) {
+        for link in [(p, p + 1), (p + 1, p)] {
             let q = p as f64 + 0.5;
-            let mut scores = Vec::new();
-            for s in sample_steps(
-                v.loop_start + 1,
-                v.loop_end + 1,
+            let sharp = Some(&mut out.sharpness);
+            let scores = direction_switches(
+                &mut renderer,
+                scene,
+                frames,
+                objects,
+                link,
+                q,
                 samples,
-                objects.group(from),
-            ) {
-                let Some(Some(t)) = table.get(s) else {
-                    continue;
-                };
-                if t + 1 >= views[to].to_next.len() {
-                    continue;
-                }
-                scores.push(switch_seam(
-                    &mut renderer,
-                    scene,
-                    frames,
-                    objects,
-                    q,
-                    (from, s),
-                    (to, t + 1),
-                    &mut bufs,
-                    Some(&mut out.sharpness),
-                )?);
-            }
+                &mut bufs,
+                sharp,
+            )?;
             out.seams
                 .push(scores.iter().sum::<f64>() / scores.len().max(1) as f64);
         }
