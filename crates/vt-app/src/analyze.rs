@@ -389,10 +389,18 @@ impl std::fmt::Display for AnalysisSummary<'_> {
                 .collect();
             writeln!(
                 f,
-                "model: {}{} (GRIC: {})",
+                "model: {}{} (GRIC: {}){}",
                 sel.model,
                 if sel.forced { ", forced" } else { "" },
-                scores.join(", ")
+                scores.join(", "),
+                if sel.sigma < scene.params.model.sigma {
+                    format!(
+                        "; scored at marking noise {:.2} px, what the points' own residuals imply (--point-sigma {} assumes more)",
+                        sel.sigma, scene.params.model.sigma
+                    )
+                } else {
+                    String::new()
+                }
             )?;
         }
         for (p, r) in a.registration.iter().enumerate() {

@@ -234,6 +234,54 @@ pub struct Selection {
     pub scores: Vec<(MotionModel, f64)>,
     /// The chosen model's fit for each pair, in input order.
     pub fits: Vec<ModelFit>,
+    /// The marking noise GRIC scored with, pixels (see [`select_model_for_points`]).
+    pub sigma: f64,
+}
+
+/// The marking deviation per coordinate that fits' residuals imply, pixels: their RMS over all
+/// links, scaled up by the residual degrees of freedom (`2K` measurements a link for K points,
+/// the model's `dof` used) and halved, since a residual carries the noise of both views' points.
+pub fn implied_sigma(fits: &[ModelFit], points_per_link: f64) -> f64 {
+    let Some(first) = fits.first() else {
+        return f64::NAN;
+    };
+    let k2 = 2.0 * points_per_link;
+    let dof = first.model.dof() as f64;
+    let mean_sq = fits.iter().map(|f| f.rms * f.rms).sum::<f64>() / fits.len() as f64;
+    mean_sq.sqrt() * (k2 / (k2 - dof).max(1.0)).sqrt() / 2.0
+}
+
+/// Finest marking noise GRIC is given, pixels: below it (points exact to rounding) every model's
+/// residual would weigh as an outlier.
+pub const MIN_POINT_SIGMA: f64 = 0.1;
+
+/// [`select_model`] for marked points: when the points' own residuals under the most general
+/// model imply marking noise under a third of `params.sigma` (the points are far more precise
+/// than assumed: exact, or marked with care), GRIC scores with that noise instead (at least
+/// [`MIN_POINT_SIGMA`]), so residuals a simpler model leaves are weighed as the misfit they
+/// are. On the 5-view tree.avi scene with exact points, `sigma` 1 picked an affine map 0.7 px
+/// off the true homography on average (2 px at the corners). Noisier points than assumed keep
+/// `params.sigma`.
+pub fn select_model_for_points(
+    pairs: &[(&[Point], &[Point])],
+    params: &ModelParams,
+) -> Result<Selection> {
+    if params.force.is_none() {
+        let general: Result<Vec<ModelFit>> = pairs
+            .iter()
+            .map(|(s, d)| fit_model(MotionModel::Homography, s, d, params.sigma))
+            .collect();
+        if let Ok(fits) = general {
+            let k = pairs.iter().map(|(s, _)| s.len()).sum::<usize>() as f64
+                / pairs.len().max(1) as f64;
+            let implied = implied_sigma(&fits, k);
+            if implied.is_finite() && implied < params.sigma / 3.0 {
+                let sigma = implied.max(MIN_POINT_SIGMA).min(params.sigma);
+                return select_model(pairs, &ModelParams { sigma, ..*params });
+            }
+        }
+    }
+    select_model(pairs, params)
 }
 
 /// Selects one model for all pairs `(src, dst)` (one per neighbouring view pair) by summed GRIC.
@@ -277,6 +325,7 @@ pub fn select_model(pairs: &[(&[Point], &[Point])], params: &ModelParams) -> Res
             forced: params.force.is_some(),
             scores,
             fits,
+            sigma: params.sigma,
         }),
         None => Err(first_err.unwrap_or_else(|| Error::DegeneratePoints("no view pairs".into()))),
     }

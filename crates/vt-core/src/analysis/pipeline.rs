@@ -57,7 +57,7 @@ pub fn analyze(
         let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
             .map(|p| (points[p].as_slice(), points[p + 1].as_slice()))
             .collect();
-        let sel = select_model(&pairs, &params.model)?;
+        let sel = crate::model::select_model_for_points(&pairs, &params.model)?;
         observer.finish();
         timings.homographies += t0.elapsed();
         selection = Some(sel);
@@ -150,14 +150,10 @@ pub fn analyze(
     let refine_all = |sel: &Selection| -> Result<(Vec<Homography>, Vec<Option<Refinement>>)> {
         let mut used: Vec<Homography> = Vec::new();
         let mut refinements: Vec<Option<Refinement>> = Vec::new();
-        // Marking deviation implied by the fits: the RMS residual over all links, scaled up by
-        // the residual degrees of freedom (2K measurements, `dof` used by the model), and halved
-        // because a residual carries the noise of both views' points (about 2 sigma).
-        let k2 = 2.0 * pair_points.iter().map(|(a, _)| a.len()).sum::<usize>() as f64
+        // Marking deviation implied by the fits.
+        let k = pair_points.iter().map(|(a, _)| a.len()).sum::<usize>() as f64
             / pair_points.len().max(1) as f64;
-        let dof = sel.model.dof() as f64;
-        let mean_sq = sel.fits.iter().map(|f| f.rms * f.rms).sum::<f64>() / sel.fits.len() as f64;
-        let sigma_hat = mean_sq.sqrt() * (k2 / (k2 - dof).max(1.0)).sqrt() / 2.0;
+        let sigma_hat = crate::model::implied_sigma(&sel.fits, k);
         for p in 0..m - 1 {
             let init = sel.fits[p].homography;
             if !params.refine {
