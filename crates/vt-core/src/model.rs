@@ -395,6 +395,59 @@ mod tests {
     }
 
     #[test]
+    fn precise_points_are_weighed_at_their_own_noise() {
+        // A mild perspective (the 5-view tree scene's true H between neighbours): six exact
+        // points over 320x240 fit an affine map to a fraction of a pixel, which GRIC at the
+        // assumed 1 px marking noise cannot tell from noise. Their own homography residuals say
+        // they are exact, so they are weighed at MIN_POINT_SIGMA and the homography is found.
+        let truth = Homography::from_matrix(Matrix3::new(
+            1.03551, 0.0, -7.63091, -0.00642, 0.99296, 0.39122, -5.0e-5, 0.0, 0.99624,
+        ))
+        .unwrap();
+        let src: Vec<Point> = [
+            (255.1, 131.6),
+            (182.8, 213.7),
+            (103.3, 209.3),
+            (53.7, 101.4),
+            (138.7, 27.7),
+            (212.3, 34.5),
+        ]
+        .iter()
+        .map(|&(x, y)| Point::new(x, y))
+        .collect();
+        let mark = |sigma: f64| -> Vec<Point> {
+            src.iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let q = truth.apply(*p).unwrap();
+                    Point::new(q.x + noise(2 * i, sigma), q.y + noise(2 * i + 1, sigma))
+                })
+                .collect()
+        };
+        let exact = mark(0.0);
+        let pairs: [(&[Point], &[Point]); 4] = [(&src, &exact); 4];
+        let plain = select_model(&pairs, &ModelParams::default()).unwrap();
+        assert_eq!(plain.model, MotionModel::Affine, "{:?}", plain.scores);
+        let own = select_model_for_points(&pairs, &ModelParams::default()).unwrap();
+        assert_eq!(own.model, MotionModel::Homography, "{:?}", own.scores);
+        assert_eq!(own.sigma, MIN_POINT_SIGMA);
+        // Points as noisy as assumed keep the assumed noise, and GRIC's choice.
+        let noisy = mark(1.0);
+        let pairs: [(&[Point], &[Point]); 4] = [(&src, &noisy); 4];
+        let plain = select_model(&pairs, &ModelParams::default()).unwrap();
+        let own = select_model_for_points(&pairs, &ModelParams::default()).unwrap();
+        assert_eq!((own.model, own.sigma), (plain.model, 1.0));
+        // A forced model is not second-guessed.
+        let forced = ModelParams {
+            force: Some(MotionModel::Affine),
+            ..Default::default()
+        };
+        let pairs: [(&[Point], &[Point]); 4] = [(&src, &exact); 4];
+        let sel = select_model_for_points(&pairs, &forced).unwrap();
+        assert_eq!((sel.model, sel.sigma), (MotionModel::Affine, 1.0));
+    }
+
+    #[test]
     fn forced_model_is_used_and_reported() {
         let src = points(6, 9);
         let dst: Vec<Point> = src.iter().map(|p| Point::new(p.x + 3.0, p.y)).collect();
