@@ -532,7 +532,10 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
             pts.push(
                 Setting::new(*label, secs, loaded.file.seam_score, *regions == default)
                     .with("rendered wrap, worst view (x median step)", wrap)
-                    .with("rendered switch, worst link (x the steps it replaced)", switch)
+                    .with(
+                        "rendered switch, worst link (x the steps it replaced)",
+                        switch,
+                    )
                     .with(
                         "worst step of the loop (x its median step)",
                         max(|q| q.worst_step),
