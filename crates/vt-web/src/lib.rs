@@ -10,8 +10,8 @@
 //! # What the page does
 //! The player (`player.js`, with one fragment shader per warp: `blend.frag` eq. (3),
 //! `morph.frag` the background morph along the stored parallax fields, `composite.frag` the
-//! object and dynamic region of eq. (4)-(5) with the feathered alpha, `mix.frag` the crossfade
-//! and dissolve) is a port of [`vt_core::render`]'s `Player` (eq. 6 with the switch policy) and
+//! object and dynamic region of eq. (4)-(5) with the feathered alpha, `mix.frag` the switch fade,
+//! crossfade and dissolve) is a port of [`vt_core::render`]'s `Player` (eq. 6 with the switch policy) and
 //! `Renderer` with the same [`RenderParams`]. What it cannot compute cheaply in the browser is
 //! computed here and shipped: the per-view gains ([`vt_core::render::estimate_gains`]) and
 //! `H_(p,q)^-1` on a grid of [`Q_STEPS`] viewpoints per view interval (the page interpolates
@@ -159,7 +159,7 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// How to export.
 #[derive(Debug, Clone)]
 pub struct ExportOptions {
-    /// The render parameters the page plays with (crossfade, dissolve, neighbour fill, gains,
+    /// The render parameters the page plays with (switch fade, crossfade, dissolve, neighbour fill, gains,
     /// interpolation); background reuse is not exported (the page blends every new q).
     pub params: RenderParams,
     /// How the object frames are encoded.

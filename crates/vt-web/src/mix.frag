@@ -1,4 +1,4 @@
-// A crossfade or dissolve: two whole layers, (1 - alpha) old + alpha new, rounded.
+// A switch fade, crossfade or dissolve: two whole layers, (1 - alpha) old + alpha new, rounded.
 uniform sampler2D old;
 uniform sampler2D layer;
 uniform float alpha;
