@@ -224,7 +224,7 @@ impl Kept {
     }
 }
 
-/// An object blend in progress: a crossfade or a dissolve, `k` frames in.
+/// An object blend in progress: a switch fade, a crossfade or a dissolve, `k` frames in.
 #[derive(Debug, Clone, Copy)]
 enum Blend {
     /// The old sequence's continuation `old` fading out under the new sequence over `len`
@@ -555,7 +555,7 @@ impl Renderer {
                 got_h: out.height(),
             });
         }
-        // What the object shows: the chosen frame, or a blend of two (crossfade or dissolve).
+        // What the object shows: the chosen frame, or a blend of two (a fade or a dissolve).
         self.blend = self.next_blend(choice);
         self.prepare_q(q, out, self.blend.is_some())?;
         let view = choice.view;
