@@ -5,8 +5,13 @@
 //! [`crate::blur::gaussian_kernel`]), `C1 = (0.01 * 255)^2`, `C2 = (0.03 * 255)^2`, on luma
 //! `Y = 0.299 R + 0.587 G + 0.114 B`, averaged over the window centres whose window lies inside
 //! the image ("valid" filtering, as the reference code does) and, with a mask, whose centre is set.
+//!
+//! Gradient energy (detail, which a blend of two slightly different frames loses): the mean
+//! squared forward difference of luma both ways, [`gradient_energy`] over a frame and
+//! [`gradient_energy_at`] over a list of pixels, optionally weighted.
 
 use image::RgbImage;
+use rayon::prelude::*;
 
 use crate::blur::gaussian_kernel;
 use crate::{Error, Mask, Result};
@@ -97,6 +102,42 @@ pub fn mean_abs_diff(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) ->
     Ok(sum as f64 / n as f64)
 }
 
+/// Luma `0.299 R + 0.587 G + 0.114 B` of pixel `i` of packed RGB.
+fn luma_at(raw: &[u8], i: usize) -> f32 {
+    0.299 * raw[3 * i] as f32 + 0.587 * raw[3 * i + 1] as f32 + 0.114 * raw[3 * i + 2] as f32
+}
+
+/// Weighted mean over the pixels `px` (indices; `None`: all) of the squared forward differences
+/// of luma both ways, with weights `wt` per pixel (`None`: 1); pixels on the last row or column
+/// and pixels of weight 0 do not count.
+pub fn gradient_energy_at(f: &RgbImage, px: Option<&[usize]>, wt: Option<&[f32]>) -> f64 {
+    let (w, h) = (f.width() as usize, f.height() as usize);
+    let raw = f.as_raw();
+    let term = |i: usize| -> (f64, f64) {
+        let a = wt.map_or(1.0, |wt| wt[i] as f64);
+        if a == 0.0 || i % w + 1 >= w || i / w + 1 >= h {
+            return (0.0, 0.0);
+        }
+        let v = luma_at(raw, i);
+        let (gx, gy) = (luma_at(raw, i + 1) - v, luma_at(raw, i + w) - v);
+        (a * (gx * gx + gy * gy) as f64, a)
+    };
+    let add = |x: (f64, f64), y: (f64, f64)| (x.0 + y.0, x.1 + y.1);
+    let (sum, n) = match px {
+        Some(px) => px.iter().map(|&i| term(i)).fold((0.0, 0.0), add),
+        None => (0..h)
+            .into_par_iter()
+            .map(|y| (y * w..(y + 1) * w).map(term).fold((0.0, 0.0), add))
+            .reduce(|| (0.0, 0.0), add),
+    };
+    sum / n.max(1e-9)
+}
+
+/// [`gradient_energy_at`] over the whole frame, unweighted.
+pub fn gradient_energy(f: &RgbImage) -> f64 {
+    gradient_energy_at(f, None, None)
+}
+
 fn luma(img: &RgbImage) -> Vec<f64> {
     img.pixels()
         .map(|p| 0.299 * p.0[0] as f64 + 0.587 * p.0[1] as f64 + 0.114 * p.0[2] as f64)
@@ -173,6 +214,24 @@ pub fn ssim(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn gradient_energy_by_hand() {
+        // A 3x2 grey ramp 0, 10, 30 over both rows: the pixels with both forward neighbours
+        // are (0, 0) and (1, 0), with x differences 10 and 20 and no y difference.
+        let f = RgbImage::from_fn(3, 2, |x, _| image::Rgb([[0, 10, 30][x as usize]; 3]));
+        let all = gradient_energy(&f);
+        assert!((all - (100.0 + 400.0) / 2.0).abs() < 1e-3, "{all}");
+        // Weighted: (1 * 100 + 3 * 400) / 4; over a pixel list, only (1, 0).
+        let wt = [1.0, 3.0, 0.0, 0.0, 0.0, 0.0];
+        let weighted = gradient_energy_at(&f, None, Some(&wt));
+        assert!((weighted - 1300.0 / 4.0).abs() < 1e-3, "{weighted}");
+        let listed = gradient_energy_at(&f, Some(&[1, 2, 5]), None);
+        assert!((listed - 400.0).abs() < 1e-3, "{listed}");
+        // Nothing to measure: 0, not NaN.
+        assert_eq!(gradient_energy(&RgbImage::new(1, 1)), 0.0);
+    }
+
     use super::*;
     use crate::rng::Rng;
 

@@ -1108,51 +1108,6 @@ pub fn single_frames<'a>(frames: &'a [RgbImage], rl: &RegionLoop) -> Vec<&'a Rgb
         .collect()
 }
 
-fn grey(p: &image::Rgb<u8>) -> f32 {
-    0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32
-}
-
-/// Mean gradient energy (squared forward differences of grey) weighted by `wt`.
-fn gradient_energy(f: &RgbImage, wt: &[f32]) -> f64 {
-    let (w, h) = f.dimensions();
-    let (mut sum, mut n) = (0f64, 0f64);
-    for y in 0..h - 1 {
-        for x in 0..w - 1 {
-            let a = wt[(y * w + x) as usize] as f64;
-            if a == 0.0 {
-                continue;
-            }
-            let g = grey(f.get_pixel(x, y));
-            let gx = grey(f.get_pixel(x + 1, y)) - g;
-            let gy = grey(f.get_pixel(x, y + 1)) - g;
-            sum += a * (gx * gx + gy * gy) as f64;
-            n += a;
-        }
-    }
-    sum / n.max(1e-9)
-}
-
-/// Mean gradient energy (as [`gradient_energy`]) over `px` (full-resolution pixel indices).
-fn tile_gradient(f: &RgbImage, px: &[usize], wt: &[f32]) -> f64 {
-    let (w, h) = (f.width() as usize, f.height() as usize);
-    let raw = f.as_raw();
-    let g = |i: usize| {
-        0.299 * raw[3 * i] as f32 + 0.587 * raw[3 * i + 1] as f32 + 0.114 * raw[3 * i + 2] as f32
-    };
-    let (mut sum, mut n) = (0f64, 0f64);
-    for &i in px {
-        let a = wt[i] as f64;
-        if a == 0.0 || i % w + 1 >= w || i / w + 1 >= h {
-            continue;
-        }
-        let v = g(i);
-        let (gx, gy) = (g(i + 1) - v, g(i + w) - v);
-        sum += a * (gx * gx + gy * gy) as f64;
-        n += a;
-    }
-    sum / n.max(1e-9)
-}
-
 /// Weighted mean absolute difference over `px` (full-resolution pixel indices).
 fn mad(a: &RgbImage, b: &RgbImage, px: &[usize], wt: &[f32]) -> (f64, f64) {
     let (ra, rb) = (a.as_raw(), b.as_raw());
@@ -1268,13 +1223,15 @@ pub fn quality<B: Borrow<RgbImage> + Sync>(
             let ge_near = {
                 let v: Vec<f64> = (0..l)
                     .filter(|&t| near[t])
-                    .map(|t| tile_gradient(baked[t].borrow(), px, &wt))
+                    .map(|t| {
+                        crate::metrics::gradient_energy_at(baked[t].borrow(), Some(px), Some(&wt))
+                    })
                     .collect();
                 v.iter().sum::<f64>() / v.len().max(1) as f64
             };
             let ge_src = source
                 .iter()
-                .map(|f| tile_gradient(f, px, &wt))
+                .map(|f| crate::metrics::gradient_energy_at(f, Some(px), Some(&wt)))
                 .sum::<f64>()
                 / source.len() as f64;
             (wrap, err, ge_near, ge_src, share)
@@ -1306,7 +1263,10 @@ pub fn quality<B: Borrow<RgbImage> + Sync>(
             / total.max(1e-9)
     };
     let ge = |v: &[&RgbImage]| {
-        v.par_iter().map(|f| gradient_energy(f, &wt)).sum::<f64>() / v.len() as f64
+        v.par_iter()
+            .map(|f| crate::metrics::gradient_energy_at(f, None, Some(&wt)))
+            .sum::<f64>()
+            / v.len() as f64
     };
     let baked: Vec<&RgbImage> = baked[..l].iter().map(|f| f.borrow()).collect();
     let source: Vec<&RgbImage> = source.iter().collect();

@@ -28,8 +28,8 @@
 use std::sync::Arc;
 
 use image::RgbImage;
-use rayon::prelude::*;
 
+use crate::metrics::gradient_energy;
 use crate::render::{FrameChoice, ObjectFrames, RenderParams, RenderScene, Renderer, Step};
 use crate::{Error, Result};
 
@@ -228,8 +228,7 @@ fn sample_steps(lo: usize, hi: usize, count: usize, group: usize) -> Vec<usize> 
 }
 
 /// Per view, the seam scores of its loop wrap and its switches, measured on frames the renderer
-/// makes with `params` (crossfade and dissolve off: they act on wraps over several frames of a
-/// render, see [`SeamMeter`] for those; the switch fade on, as switches play), sampling at most
+/// makes with `params` (crossfade and dissolve off, the switch fade on, as switches play), sampling at most
 /// `samples` ordinary steps and a quarter as many switches per view and direction (a switch
 /// renders its fade twice over: as shown and as replaced).
 pub fn measure_seams(
@@ -245,15 +244,7 @@ pub fn measure_seams(
             why: "at least one step must be measured".into(),
         });
     }
-    let params = RenderParams {
-        crossfade: 0,
-        dissolve: 0,
-        ..params
-    };
-    let mut renderer = Renderer::new(scene.clone(), params)?;
-    let fade = params.switch_blend_frames() + 1;
-    let (w, h) = renderer.size();
-    let mut bufs: [RgbImage; 5] = std::array::from_fn(|_| RgbImage::new(w, h));
+    let (mut renderer, fade, mut bufs) = measuring(scene, params)?;
     let views = &scene.views;
     let mut out = Vec::with_capacity(views.len());
     for (p, v) in views.iter().enumerate() {
@@ -296,6 +287,24 @@ pub fn measure_seams(
         });
     }
     Ok(out)
+}
+
+/// The renderer seams are measured with: `params` without crossfade and dissolve (they act on
+/// wraps over several frames of a render, see [`SeamMeter`] for those; the switch fade stays, as
+/// switches play), the frames a switch spans (the jump and its fade), and five frame buffers.
+fn measuring(
+    scene: &Arc<RenderScene>,
+    params: RenderParams,
+) -> Result<(Renderer, usize, [RgbImage; 5])> {
+    let params = RenderParams {
+        crossfade: 0,
+        dissolve: 0,
+        ..params
+    };
+    let renderer = Renderer::new(scene.clone(), params)?;
+    let (w, h) = renderer.size();
+    let bufs = std::array::from_fn(|_| RgbImage::new(w, h));
+    Ok((renderer, params.switch_blend_frames() + 1, bufs))
 }
 
 /// The seams ([`switch_seam`]) of at most `count` switches from view `from` to its neighbour
@@ -399,33 +408,6 @@ fn switch_seam(
     Ok(switch_ratio(shown, replaced, done))
 }
 
-/// Mean squared forward difference of a frame's grey (0.299 R + 0.587 G + 0.114 B), both ways:
-/// its detail, which a blend of two slightly different frames loses.
-pub fn gradient_energy(f: &RgbImage) -> f64 {
-    let (w, h) = (f.width() as usize, f.height() as usize);
-    if w < 2 || h < 2 {
-        return 0.0;
-    }
-    let raw = f.as_raw();
-    let grey = |i: usize| {
-        0.299 * raw[3 * i] as f32 + 0.587 * raw[3 * i + 1] as f32 + 0.114 * raw[3 * i + 2] as f32
-    };
-    let sum: f64 = (0..h - 1)
-        .into_par_iter()
-        .map(|y| {
-            let mut s = 0f64;
-            for x in 0..w - 1 {
-                let i = y * w + x;
-                let g = grey(i);
-                let (gx, gy) = (grey(i + 1) - g, grey(i + w) - g);
-                s += (gx * gx + gy * gy) as f64;
-            }
-            s
-        })
-        .sum();
-    sum / ((w - 1) * (h - 1)) as f64
-}
-
 /// What a switch fade costs and gives, over the sampled switches of every link both ways
 /// ([`measure_switch_fades`]).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -446,15 +428,7 @@ pub fn measure_switch_fades(
     params: RenderParams,
     samples: usize,
 ) -> Result<FadeFigures> {
-    let params = RenderParams {
-        crossfade: 0,
-        dissolve: 0,
-        ..params
-    };
-    let mut renderer = Renderer::new(scene.clone(), params)?;
-    let frames = params.switch_blend_frames() + 1;
-    let (w, h) = renderer.size();
-    let mut bufs: [RgbImage; 5] = std::array::from_fn(|_| RgbImage::new(w, h));
+    let (mut renderer, frames, mut bufs) = measuring(scene, params)?;
     let mut out = FadeFigures::default();
     for p in 0..scene.views.len().saturating_sub(1) {
         for link in [(p, p + 1), (p + 1, p)] {
