@@ -19,17 +19,6 @@ fn absurd_crossfade_is_an_error_not_an_overflow() {
     assert!(Renderer::new(tiny(), params).is_ok());
 }
 
-/// Solid 4x4 objects whose grey level is 10 x (frame + 1), so a blend's weights show.
-struct Solid;
-impl ObjectFrames for Solid {
-    fn decode_into(&self, _view: usize, frame: usize, patch: &mut ObjectPatch) -> Result<()> {
-        patch.reset(0, 0, 4, 4);
-        patch.rgb.fill(10 * (frame as u8 + 1));
-        patch.mask.fill(1);
-        Ok(())
-    }
-}
-
 #[test]
 fn dissolve_spreads_the_wrap_over_in_between_frames() {
     // View 0 loops 1..=5: frames 2, 3, 4, 5, then the wrap to 2. With dissolve 2 the wrap
@@ -43,7 +32,7 @@ fn dissolve_spreads_the_wrap_over_in_between_frames() {
         (0..7)
             .map(|_| {
                 let c = p.advance(&s, 0.0).unwrap();
-                r.render_into(&Solid, 0.0, &c, &mut out).unwrap();
+                r.render_into(&SolidByView, 0.0, &c, &mut out).unwrap();
                 (c.frame, out.get_pixel(1, 1).0[0])
             })
             .collect::<Vec<_>>()
@@ -89,7 +78,8 @@ fn dissolve_spreads_the_wrap_over_in_between_frames() {
     assert!(e.to_string().contains("dissolve"), "{e}");
 }
 
-/// Solid 4x4 objects whose grey level is 10 x (frame + 1) + 100 x view.
+/// Solid 4x4 objects whose grey level is 10 x (frame + 1) + 100 x view, so a blend's weights
+/// show.
 struct SolidByView;
 impl ObjectFrames for SolidByView {
     fn decode_into(&self, view: usize, frame: usize, patch: &mut ObjectPatch) -> Result<()> {
