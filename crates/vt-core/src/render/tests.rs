@@ -25,16 +25,9 @@ fn dissolve_spreads_the_wrap_over_in_between_frames() {
     // and the frame after show the last frame (5) dissolving into frame 2 + 2 = 4, weights
     // 1/3 and 2/3; then play goes on from 4 unblended.
     let grey = |params: RenderParams| {
-        let s = std::sync::Arc::new(tiny());
-        let mut r = Renderer::new(s.clone(), params).unwrap();
-        let mut p = Player::new();
-        let mut out = RgbImage::new(4, 4);
-        (0..7)
-            .map(|_| {
-                let c = p.advance(&s, 0.0).unwrap();
-                r.render_into(&SolidByView, 0.0, &c, &mut out).unwrap();
-                (c.frame, out.get_pixel(1, 1).0[0])
-            })
+        played(params, &[0.0; 7])
+            .into_iter()
+            .map(|(_, frame, grey)| (frame, grey))
             .collect::<Vec<_>>()
     };
     let plain = RenderParams {
