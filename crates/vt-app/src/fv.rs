@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use vt_fv::camera::Ring;
+use vt_fv::composite::Background;
 use vt_fv::dataset::{
-    read_model, write_eval_images, write_hull, write_json, BuildSummary, DataOptions, Dataset,
-    EvalSummary, ModelParams, SilhouetteCheck,
+    read_model, write_eval_images, write_hull, write_json, write_test_outputs, BuildSummary,
+    DataOptions, Dataset, EvalSummary, ModelParams, SilhouetteCheck, TestSummary,
 };
 use vt_fv::hull::Aabb;
 use vt_fv::modelfile::ModelHeader;
@@ -331,7 +332,23 @@ pub fn render(job: &FvRenderJob, progress: &mut dyn Progress) -> Result<FvRender
         });
     }
     let view_secs = t.elapsed().as_secs_f64();
-    vt_io::writer::write_image(&job.out, &inputs, &v.guided)?;
+    let png = job
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        == Some("png".into());
+    match d.background {
+        Some(bg) => {
+            let img = vt_fv::composite::onto(&v.guided, &v.rough.coverage, bg);
+            vt_io::writer::write_image(&job.out, &inputs, &img)?
+        }
+        None if png => {
+            let img = vt_fv::composite::with_alpha(&v.guided, &v.rough.coverage);
+            vt_io::writer::write_image(&job.out, &inputs, &img)?
+        }
+        None => vt_io::writer::write_image(&job.out, &inputs, &v.guided)?,
+    };
     Ok(FvRendered {
         model_line: used.line,
         view_secs,
@@ -428,7 +445,15 @@ pub fn orbit(job: &OrbitJob, progress: &mut dyn Progress) -> Result<Orbited> {
         (w, h),
         &view,
         &mut |i, angle, v| {
-            video.write(&v.guided).map_err(|e| Error::In {
+            let frame = match d.background {
+                Some(bg) => std::borrow::Cow::Owned(vt_fv::composite::onto(
+                    &v.guided,
+                    &v.rough.coverage,
+                    bg,
+                )),
+                None => std::borrow::Cow::Borrowed(&v.guided),
+            };
+            video.write(&frame).map_err(|e| Error::In {
                 what: format!("frame {i} (angle {angle:.1})"),
                 cause: Box::new(e.into()),
             })?;
@@ -455,10 +480,117 @@ pub struct EvalJob {
     pub data: FvData,
     /// How each view is made.
     pub view: ViewOptions,
-    /// The views to withhold, 0-based.
+    /// The views to withhold, 0-based (empty with `test`).
     pub leave_out: Vec<usize>,
+    /// A test set instead of withheld views: a NeRF transforms file (as given, else inside the
+    /// data folder) or a data folder; every view of it is made from the model of every view.
+    pub test: Option<PathBuf>,
     /// A folder for each view's images and eval.json.
     pub save: Option<PathBuf>,
+}
+
+/// What [`eval`] measured against a test set.
+pub struct TestEvaluated {
+    /// The training data as loaded.
+    pub dataset: Dataset,
+    /// The test set's file or folder, as found.
+    pub test: PathBuf,
+    /// The scores.
+    pub summary: TestSummary,
+    /// Where the model came from.
+    pub model_line: String,
+    /// How each view was made, in words.
+    pub describe: String,
+}
+
+/// The test set's path: as given when it exists, else inside the data folder.
+fn test_path(given: &Path, data: &Path) -> Result<PathBuf> {
+    if given.exists() {
+        return Ok(given.to_path_buf());
+    }
+    let inside = data.join(given);
+    if given.is_relative() && inside.exists() {
+        return Ok(inside);
+    }
+    Err(Error::Param {
+        name: "test",
+        value: given.display().to_string(),
+        why: format!("no such file or folder (nor in {})", data.display()),
+    })
+}
+
+/// Number of views the contact sheet shows (the worst by whole-image PSNR).
+pub const CONTACT_VIEWS: usize = 4;
+
+/// Builds the model from every (chosen) view and scores each view of the test set; saves every
+/// view and a contact sheet of the worst when asked.
+pub fn eval_test(job: &EvalJob, progress: &mut dyn Progress) -> Result<TestEvaluated> {
+    job.data.check()?;
+    let given = job.test.as_ref().expect("eval_test is for a test set");
+    if !job.leave_out.is_empty() {
+        return Err(Error::Param {
+            name: "leave-out",
+            value: format!("{:?}", job.leave_out),
+            why: "scores either withheld views or a test set (--test), not both".into(),
+        });
+    }
+    let test_at = test_path(given, &job.data.data)?;
+    let mut inputs = job.data.inputs();
+    inputs.push(test_at.as_path());
+    let save = match &job.save {
+        Some(dir) if dir.exists() && !dir.is_dir() => {
+            return Err(Error::Param {
+                name: "save",
+                value: dir.display().to_string(),
+                why: "exists and is not a folder".into(),
+            })
+        }
+        Some(dir) => Some(Output::dir(dir, OutputKind::Folder, &inputs)?),
+        None => None,
+    };
+    let d = job.data.load(progress)?;
+    // The test photos over the same background as the training photos (and the views).
+    let mut opt = job.data.options.clone();
+    opt.views.clear();
+    opt.background = match d.background {
+        Some(c) => Background::Colour(c),
+        None => Background::Transparent,
+    };
+    let test = Dataset::load_set(&test_at, &opt).map_err(|e| Error::Field {
+        name: "test",
+        cause: Box::new(e.into()),
+    })?;
+    let (w, h) = d.size();
+    let view = job.view.params(w, h)?;
+    let t = Instant::now();
+    let used = model_for(&job.data, &d, progress)?;
+    whole(&used, &job.data)?;
+    let model_secs = match &used.header {
+        Some(h) => h.build_secs,
+        None => t.elapsed().as_secs_f64(),
+    };
+    progress.start("test views", Some(test.cams.len() as u64));
+    let (views, images) = d
+        .score_test_set(&used.model, &test, &view, &mut |i| {
+            progress.at(i as u64 + 1, None)
+        })
+        .map_err(|e| Error::In {
+            what: format!("test set {}", test_at.display()),
+            cause: Box::new(e.into()),
+        })?;
+    progress.finish();
+    let summary = TestSummary::new(view.name(), d.background, d.cams.len(), model_secs, views);
+    if let Some(dir) = save {
+        write_test_outputs(dir.path(), &summary, &images, CONTACT_VIEWS)?;
+        dir.commit()?;
+    }
+    Ok(TestEvaluated {
+        dataset: d,
+        test: test_at,
+        summary,
+        model_line: used.line,
+        describe: view.describe(),
+    })
 }
 
 /// What [`eval`] measured.

@@ -84,6 +84,18 @@ pub struct DataArgs {
     /// Scoring silhouettes: then erode by this many pixels.
     #[arg(long, default_value_t = 5)]
     score_erode: u32,
+    /// Build from these views only, in this order: 0-based indices in camera order, photo
+    /// names or their stems, e.g. `--views 26,86,2,55,75,93,16,73` or `--views r_26,r_86`.
+    /// Indices elsewhere (--leave-out, between:I,J,T) count within the chosen views.
+    #[arg(long, value_delimiter = ',', num_args = 1..)]
+    views: Vec<String>,
+    /// What uncovered pixels of a new view become: `data` (the data's own: white for NeRF
+    /// transforms files, as that data is scored; else transparent), `transparent` (a PNG gets
+    /// the view's coverage as a soft-edged alpha channel; black in JPEG and video), `white`,
+    /// `black`, `grey`, `#rrggbb` or `r,g,b`. Photos with an alpha channel are composited over
+    /// the colour.
+    #[arg(long, default_value = "data")]
+    background: vt_fv::composite::Background,
 }
 
 /// How to build the voxel model.
@@ -253,8 +265,15 @@ pub struct EvalArgs {
     view: ViewArgs,
     /// The views to withhold one at a time, 0-based in camera order (the par file's lines,
     /// COLMAP's image ids, the matrix files' names): `2` or `1,2,5`.
-    #[arg(long, value_delimiter = ',', required = true, num_args = 1..)]
+    #[arg(long, value_delimiter = ',', num_args = 1.., required_unless_present = "test", conflicts_with = "test")]
     leave_out: Vec<usize>,
+    /// Score against a test set instead: a NeRF transforms file (e.g. `transforms_test.json`,
+    /// as given or inside DATA) or a data folder. The model is built from every (chosen) view,
+    /// each test view is made and scored on the whole image over the background (the NeRF
+    /// benchmarks' figure) and inside its silhouette, with the coverage's IoU; `--save DIR`
+    /// writes every view, eval.json and contact_sheet.png (the worst views: truth, view, error).
+    #[arg(long, value_name = "FILE|DIR")]
+    test: Option<PathBuf>,
     /// Print exactly one JSON object on stdout: `rough`, `rough_blur2`, `nearest_photo`,
     /// `guide`, `guided` (each `{"psnr", "ssim"}` inside the withheld silhouette; the mean over
     /// the views when several), `silhouette_iou`, and `views` with every view's details.
@@ -306,6 +325,8 @@ impl DataArgs {
                     SilhouettesArg::Backdrop => vt_fv::dataset::SilhouetteMode::Backdrop,
                 },
                 backdrop: Default::default(),
+                views: self.views.clone(),
+                background: self.background,
             },
             model: ModelParams {
                 grid: model.grid,
@@ -423,8 +444,37 @@ fn eval(a: EvalArgs) -> Result<()> {
         data,
         view: a.view.options()?,
         leave_out: a.leave_out.clone(),
+        test: a.test.clone(),
         save: a.save.clone(),
     };
+    if job.test.is_some() {
+        let done = vt_app::fv::eval_test(&job, &mut Bars::default())?;
+        eprintln!("{}", done.model_line);
+        if a.json {
+            println!("{}", serde_json::to_string(&done.summary)?);
+            return Ok(());
+        }
+        println!(
+            "test set {}; new views by {}",
+            done.test.display(),
+            done.describe
+        );
+        for (i, v) in done.summary.views.iter().enumerate() {
+            println!(
+                "  {i:3} {:<24} {:6.2} dB  SSIM {:.3}  inside {:6.2} dB  IoU {:.3}  ({:.2} s)",
+                v.name, v.whole.psnr, v.whole.ssim, v.inside.psnr, v.coverage_iou, v.secs
+            );
+        }
+        println!("{}", done.summary);
+        if let Some(dir) = &a.save {
+            println!(
+                "wrote {}: every view, eval.json, contact_sheet.png (the {} worst views)",
+                dir.display(),
+                vt_app::fv::CONTACT_VIEWS
+            );
+        }
+        return Ok(());
+    }
     let done = vt_app::fv::eval(&job, &mut Bars::default())?;
     // On stderr, so that --json prints exactly one JSON object on stdout.
     if let Some(line) = &done.model_line {

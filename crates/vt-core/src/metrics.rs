@@ -174,6 +174,26 @@ const SSIM_WINDOW: usize = 11;
 /// Mean SSIM of luma over window centres inside the image (and in `mask`). Errors for a size
 /// mismatch, images smaller than 11x11 or a mask with no valid centre.
 pub fn ssim(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
+    check_ssim(a, reference, mask)?;
+    ssim_plane(&luma(a), &luma(reference), a.width() as usize, mask)
+}
+
+/// SSIM as the NeRF benchmarks report it (mip-NeRF's `compute_ssim`, skimage with
+/// `channel_axis`): each RGB channel's mean SSIM over the same windows as [`ssim`], averaged
+/// over the channels. Errors as [`ssim`].
+pub fn ssim_rgb(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f64> {
+    check_ssim(a, reference, mask)?;
+    let plane = |img: &RgbImage, c: usize| -> Vec<f64> {
+        img.as_raw().chunks_exact(3).map(|p| p[c] as f64).collect()
+    };
+    let mut total = 0.0;
+    for c in 0..3 {
+        total += ssim_plane(&plane(a, c), &plane(reference, c), a.width() as usize, mask)?;
+    }
+    Ok(total / 3.0)
+}
+
+fn check_ssim(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<()> {
     check_sizes(a, reference, mask)?;
     let (w, h) = (a.width() as usize, a.height() as usize);
     if w < SSIM_WINDOW || h < SSIM_WINDOW {
@@ -183,12 +203,18 @@ pub fn ssim(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f
             why: format!("SSIM needs at least {SSIM_WINDOW}x{SSIM_WINDOW}"),
         });
     }
+    Ok(())
+}
+
+/// Mean SSIM of two planes of width `w` (0..255 values) over the valid 11x11 Gaussian windows
+/// (sigma 1.5) whose centre is in `mask`.
+fn ssim_plane(x: &[f64], y: &[f64], w: usize, mask: Option<&Mask>) -> Result<f64> {
+    let h = x.len() / w;
     let k = gaussian_kernel(SSIM_WINDOW, 1.5)?;
-    let (x, y) = (luma(a), luma(reference));
     let xx: Vec<f64> = x.iter().map(|v| v * v).collect();
     let yy: Vec<f64> = y.iter().map(|v| v * v).collect();
-    let xy: Vec<f64> = x.iter().zip(&y).map(|(a, b)| a * b).collect();
-    let [mx, my, sxx, syy, sxy] = [&x, &y, &xx, &yy, &xy].map(|v| filter_valid(v, w, h, &k));
+    let xy: Vec<f64> = x.iter().zip(y).map(|(a, b)| a * b).collect();
+    let [mx, my, sxx, syy, sxy] = [x, y, &xx, &yy, &xy].map(|v| filter_valid(v, w, h, &k));
     let (c1, c2) = ((0.01 * 255.0f64).powi(2), (0.03 * 255.0f64).powi(2));
     let half = SSIM_WINDOW / 2;
     let ow = w - 2 * half;
@@ -214,6 +240,30 @@ pub fn ssim(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) -> Result<f
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn rgb_ssim_is_the_mean_of_the_channels_and_luma_ssim_on_grey() {
+        let mut r = Rng::new(7);
+        let a = RgbImage::from_fn(32, 24, |x, y| {
+            image::Rgb([(x * 7) as u8, (y * 9) as u8, ((x * y) % 251) as u8])
+        });
+        let b = RgbImage::from_fn(32, 24, |x, y| {
+            image::Rgb(a.get_pixel(x, y).0.map(|c| c.saturating_add((r.next_u64() % 40) as u8)))
+        });
+        // Each channel alone, as a grey image, is a plane whose luma is that channel.
+        let grey = |img: &RgbImage, c: usize| {
+            RgbImage::from_fn(32, 24, |x, y| image::Rgb([img.get_pixel(x, y).0[c]; 3]))
+        };
+        let per: Vec<f64> = (0..3)
+            .map(|c| ssim(&grey(&a, c), &grey(&b, c), None).unwrap())
+            .collect();
+        let mean = per.iter().sum::<f64>() / 3.0;
+        assert!((ssim_rgb(&a, &b, None).unwrap() - mean).abs() < 1e-12);
+        assert!(per.iter().all(|&s| s < 0.999), "{per:?}");
+        assert!((ssim_rgb(&a, &a, None).unwrap() - 1.0).abs() < 1e-12);
+        let g = grey(&a, 0);
+        assert!((ssim_rgb(&g, &grey(&b, 0), None).unwrap() - per[0]).abs() < 1e-12);
+    }
 
     #[test]
     fn gradient_energy_by_hand() {

@@ -156,6 +156,13 @@ pub enum Error {
         /// What is wrong with it.
         what: String,
     },
+    /// A NeRF transforms file ([`crate::nerf`]) that vt cannot read correctly; the path is
+    /// added by [`crate::dataset`].
+    #[error("{what}")]
+    Transforms {
+        /// What is wrong with it.
+        what: String,
+    },
     /// An error from vt-core's primitives (metrics, masks, images).
     #[error(transparent)]
     Core(#[from] vt_core::Error),

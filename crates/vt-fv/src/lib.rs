@@ -16,11 +16,13 @@
 
 pub mod camera;
 pub mod colmap;
+pub mod composite;
 pub mod dataset;
 mod error;
 pub mod hull;
 pub mod lens;
 pub mod modelfile;
+pub mod nerf;
 pub mod orbit;
 pub mod silhouette;
 

@@ -415,8 +415,17 @@ impl FrameWriter {
     }
 }
 
-/// Writes one image (`.png` or `.jpg`/`.jpeg`, by the name) through a temporary, marked as vt's.
-pub fn write_image(target: &Path, inputs: &[&Path], img: &RgbImage) -> Result<PathBuf> {
+/// Writes one image (`.png` or `.jpg`/`.jpeg`, by the name; RGB, or RGBA for a PNG) through a
+/// temporary, marked as vt's.
+pub fn write_image<P>(
+    target: &Path,
+    inputs: &[&Path],
+    img: &image::ImageBuffer<P, Vec<P::Subpixel>>,
+) -> Result<PathBuf>
+where
+    P: image::Pixel + image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+{
     let format = match ext_of(target).as_deref() {
         Some("png") => image::ImageFormat::Png,
         Some("jpg" | "jpeg") => image::ImageFormat::Jpeg,

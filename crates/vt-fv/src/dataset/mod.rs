@@ -86,6 +86,13 @@ pub struct DataOptions {
     pub silhouettes: SilhouetteMode,
     /// Settings of the plain-backdrop segmentation ([`BackdropParams::default`]).
     pub backdrop: BackdropParams,
+    /// The views to build from, in this order: 0-based indices in camera order, camera names or
+    /// their file stems (`r_26`). Empty: every view.
+    pub views: Vec<String>,
+    /// The colour photos with an alpha channel are composited over, and new views' uncovered
+    /// pixels take ([`Background::Data`]: white for NeRF transforms files, as the NeRF
+    /// synthetic data is scored; transparent for the other formats).
+    pub background: crate::composite::Background,
 }
 
 /// How silhouettes are made when there is no masks folder.
@@ -115,6 +122,8 @@ impl Default for DataOptions {
             score: SilhouetteParams::scoring(),
             silhouettes: SilhouetteMode::Auto,
             backdrop: BackdropParams::default(),
+            views: Vec::new(),
+            background: Default::default(),
         }
     }
 }
@@ -213,6 +222,10 @@ pub struct Dataset {
     /// What loading did beyond reading (intrinsics fitted to resized photos, distortion
     /// removed, quaternions normalised), one line each, to be said once.
     pub notes: Vec<String>,
+    /// The background colour: photos with an alpha channel were composited over it, and new
+    /// views' uncovered pixels take it. `None`: photos keep their colours, uncovered pixels are
+    /// transparent (black where the format has no alpha).
+    pub background: Option<[u8; 3]>,
 }
 
 impl Dataset {
@@ -227,6 +240,40 @@ impl Dataset {
             return Err(path_err(dir, "not a folder"));
         }
         let found = find_cameras(dir)?;
+        Self::load_from(dir, found, opt)
+    }
+
+    /// Reads a second camera set, e.g. a test set: a data folder as [`Dataset::load`] reads it,
+    /// or a NeRF transforms file (`transforms_test.json`), its photos relative to its folder.
+    pub fn load_set(path: &Path, opt: &DataOptions) -> Result<Self, DataError> {
+        if path.is_dir() {
+            return Self::load(path, opt);
+        }
+        opt.check()?;
+        if !path.is_file() {
+            return Err(path_err(path, "no such file or folder"));
+        }
+        if path.extension().and_then(|e| e.to_str()) != Some("json") {
+            return Err(path_err(
+                path,
+                "not a data folder nor a NeRF transforms file (.json)",
+            ));
+        }
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        let found = CameraSource {
+            format: CameraFormat::Nerf,
+            path: path.to_path_buf(),
+            note: None,
+        };
+        Self::load_from(dir, found, opt)
+    }
+
+    fn load_from(dir: &Path, found: CameraSource, opt: &DataOptions) -> Result<Self, DataError> {
         let mut notes: Vec<String> = found.note.iter().cloned().collect();
         let (cameras_file, sources) = match found.format {
             CameraFormat::Par => {
@@ -267,6 +314,36 @@ impl Dataset {
                 ));
                 (found.path.clone(), s)
             }
+            CameraFormat::Nerf => {
+                let s = nerf_sources(&found.path)?;
+                notes.push(format!(
+                    "cameras: {} frames in {} (NeRF transforms, camera-to-world in OpenGL axes)",
+                    s.len(),
+                    found.path.display()
+                ));
+                (found.path.clone(), s)
+            }
+        };
+        let all = sources.len();
+        let sources = select_views(sources, &opt.views, &cameras_file)?;
+        if sources.len() < all {
+            notes.push(format!(
+                "views: {} of {all} chosen by --views ({})",
+                sources.len(),
+                sources
+                    .iter()
+                    .map(|s| s.cam.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        // The NeRF synthetic data is scored over white (its `white_bkgd`).
+        let background = match opt.background {
+            crate::composite::Background::Colour(c) => Some(c),
+            crate::composite::Background::Transparent => None,
+            crate::composite::Background::Data => {
+                (found.format == CameraFormat::Nerf).then_some([255; 3])
+            }
         };
         for s in &sources {
             s.cam.check().map_err(file_err(&cameras_file))?;
@@ -289,6 +366,7 @@ impl Dataset {
                 .first()
                 .ok_or_else(|| path_err(&cameras_file, "no cameras in it"))?
                 .photo,
+            background,
         )?;
         let target = match (sources[0].recorded, opt.fit) {
             (Some(rec), PhotoFit::Crop) => rec,
@@ -316,7 +394,7 @@ impl Dataset {
             .map(|(s, pre)| -> Result<Loaded, DataError> {
                 let (img, alpha) = match pre {
                     Some(i) => i,
-                    None => read_photo(&s.photo)?,
+                    None => read_photo(&s.photo, background)?,
                 };
                 let (supplied, kind) = match (&mask_dir, alpha) {
                     (Some(d), _) => (
@@ -468,6 +546,7 @@ impl Dataset {
             score_masks,
             silhouettes,
             notes,
+            background,
         })
     }
 
@@ -593,8 +672,10 @@ mod photos;
 mod sources;
 #[cfg(test)]
 mod tests;
+mod testset;
 
 pub use model::*;
 pub use outputs::*;
 pub use photos::*;
 pub use sources::*;
+pub use testset::*;

@@ -63,7 +63,10 @@ pub(super) enum SilhouetteKind {
 
 /// A photo, and its alpha channel as a mask (alpha >= 128 = object) when it has one that is not
 /// fully opaque. Decoded through vt-io's limits.
-pub(super) fn read_photo(path: &Path) -> Result<(RgbImage, Option<Mask>), DataError> {
+pub(super) fn read_photo(
+    path: &Path,
+    background: Option<[u8; 3]>,
+) -> Result<(RgbImage, Option<Mask>), DataError> {
     let bytes = vt_io::limits::read_bytes(path, vt_io::limits::MAX_IMAGE_FILE_BYTES, "image file")?;
     let rgb = vt_io::frames::decode_rgb(&bytes, path)?;
     let has_alpha = image::ImageReader::new(std::io::Cursor::new(&bytes))
@@ -89,6 +92,10 @@ pub(super) fn read_photo(path: &Path) -> Result<(RgbImage, Option<Mask>), DataEr
             "its alpha channel is transparent everywhere (below 128): no object in the mask",
         ));
     }
+    let rgb = match background {
+        None => rgb,
+        Some(bg) => crate::composite::over(&rgba, bg),
+    };
     Ok((rgb, Some(m)))
 }
 

@@ -14,6 +14,8 @@ pub enum CameraFormat {
     ColmapBinary,
     /// A `cameras/` folder with one 3x4 projection matrix per photo (`<photo stem>.txt`).
     Matrices,
+    /// A NeRF transforms file (`transforms.json`, `transforms_train.json`; [`crate::nerf`]).
+    Nerf,
 }
 
 impl std::fmt::Display for CameraFormat {
@@ -23,6 +25,7 @@ impl std::fmt::Display for CameraFormat {
             CameraFormat::ColmapText => "COLMAP text model",
             CameraFormat::ColmapBinary => "COLMAP binary model",
             CameraFormat::Matrices => "projection matrices",
+            CameraFormat::Nerf => "NeRF transforms file",
         })
     }
 }
@@ -78,10 +81,14 @@ pub(super) fn files_ending(dir: &Path, suffix: &str) -> Vec<PathBuf> {
     v
 }
 
+/// The NeRF transforms files a data folder's cameras are read from (a test set's file is given
+/// by name: `vt fv eval --test`).
+pub const NERF_FILES: [&str; 2] = ["transforms.json", "transforms_train.json"];
+
 /// Finds a data folder's cameras: one `*_par.txt` in it; a COLMAP model (`cameras.txt` +
 /// `images.txt`, or `cameras.bin` + `images.bin`; binary wins when both are there) in it, in
-/// `sparse/` or in `sparse/0/`; or a `cameras/` folder of projection matrices. More than one of
-/// these is refused (keep one).
+/// `sparse/` or in `sparse/0/`; a `cameras/` folder of projection matrices; or a NeRF
+/// transforms file ([`NERF_FILES`]). More than one of these is refused (keep one).
 pub fn find_cameras(dir: &Path) -> Result<CameraSource, DataError> {
     std::fs::read_dir(dir).map_err(|e| path_err(dir, e.to_string()))?;
     let mut found: Vec<CameraSource> = Vec::new();
@@ -130,6 +137,16 @@ pub fn find_cameras(dir: &Path) -> Result<CameraSource, DataError> {
             });
         }
     }
+    for name in NERF_FILES {
+        let path = dir.join(name);
+        if path.is_file() {
+            found.push(CameraSource {
+                format: CameraFormat::Nerf,
+                path,
+                note: None,
+            });
+        }
+    }
     let mats = dir.join("cameras");
     if mats.is_dir() {
         found.push(CameraSource {
@@ -141,7 +158,7 @@ pub fn find_cameras(dir: &Path) -> Result<CameraSource, DataError> {
     match found.len() {
         0 => Err(path_err(
             dir,
-            "no cameras in it: no *_par.txt camera file, no COLMAP model (cameras.txt + images.txt or cameras.bin + images.bin, here or in sparse/ or sparse/0/), no cameras/ folder of projection matrices",
+            "no cameras in it: no *_par.txt camera file, no COLMAP model (cameras.txt + images.txt or cameras.bin + images.bin, here or in sparse/ or sparse/0/), no cameras/ folder of projection matrices, no transforms.json or transforms_train.json (NeRF)",
         )),
         1 => Ok(found.remove(0)),
         _ => Err(path_err(
@@ -417,4 +434,157 @@ pub fn fit_intrinsics(
         }
     }
     Ok(k)
+}
+
+/// The views of a NeRF transforms file `file`: photos at each frame's `file_path` relative to
+/// the file's folder (with the extension it has, else the first of [`PHOTO_EXTENSIONS`] that
+/// exists), each camera recorded at the file's `w`, `h` or its photo's own size.
+pub(super) fn nerf_sources(file: &Path) -> Result<Vec<Source>, DataError> {
+    let text = vt_io::limits::read_text(file, MAX_MODEL_FILE_BYTES, "NeRF transforms file")?;
+    let frames = crate::nerf::parse_transforms(&text).map_err(file_err(file))?;
+    let folder = file.parent().unwrap_or(Path::new("."));
+    let mut out = Vec::with_capacity(frames.len());
+    for (i, f) in frames.iter().enumerate() {
+        let rel = f.file_path.trim_start_matches("./");
+        if !inside(rel) {
+            return Err(path_err(
+                file,
+                format!(
+                    "frame {i}: file_path {:?} points outside {} (use a path relative to it, without ..)",
+                    f.file_path,
+                    folder.display()
+                ),
+            ));
+        }
+        let given = folder.join(rel);
+        let has_ext = Path::new(rel)
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| PHOTO_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()));
+        let photo = if has_ext {
+            Some(given.clone()).filter(|p| p.is_file())
+        } else {
+            PHOTO_EXTENSIONS
+                .iter()
+                .flat_map(|e| [e.to_string(), e.to_ascii_uppercase()])
+                .map(|e| folder.join(format!("{rel}.{e}")))
+                .find(|p| p.is_file())
+        };
+        let Some(photo) = photo else {
+            return Err(path_err(
+                file,
+                format!(
+                    "frame {i}: no photo {}{} for file_path {:?}",
+                    given.display(),
+                    if has_ext { "" } else { ".png/.jpg/..." },
+                    f.file_path
+                ),
+            ));
+        };
+        let dims = image::ImageReader::open(&photo)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| vt_io::Error::io(&photo, e))?
+            .into_dimensions()
+            .map_err(|e| path_err(&photo, e.to_string()))?;
+        let named = |e: crate::Error| DataError::File {
+            path: file.to_path_buf(),
+            cause: crate::Error::Transforms {
+                what: format!("frame {i} ({}): {e}", f.file_path),
+            },
+        };
+        let size = f.intrinsics.size(dims).map_err(named)?;
+        let (k, lens) = f.intrinsics.k(size).map_err(named)?;
+        let name = photo
+            .strip_prefix(folder)
+            .unwrap_or(&photo)
+            .to_string_lossy()
+            .into_owned();
+        let cam = crate::nerf::camera_from_c2w(&name, &f.c2w, k).map_err(file_err(file))?;
+        out.push(Source {
+            cam,
+            lens,
+            recorded: Some(size),
+            photo,
+        });
+    }
+    Ok(out)
+}
+
+/// The views `sel` picks from `sources`, in `sel`'s order: each a 0-based index in camera order,
+/// a camera's name (its photo's path as the camera file names it) or that name's file stem.
+pub(super) fn select_views(
+    sources: Vec<Source>,
+    sel: &[String],
+    cameras_file: &Path,
+) -> Result<Vec<Source>, DataError> {
+    if sel.is_empty() {
+        return Ok(sources);
+    }
+    let n = sources.len();
+    let stem = |name: &str| {
+        Path::new(name)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    let mut picked: Vec<usize> = Vec::with_capacity(sel.len());
+    for s in sel {
+        let s = s.trim();
+        let i = match s.parse::<usize>() {
+            Ok(i) if i < n => i,
+            Ok(i) => {
+                return Err(DataError::Fv(bad(
+                    "views",
+                    i,
+                    format!(
+                        "{} has {n} views (0-based, 0..{})",
+                        cameras_file.display(),
+                        n.saturating_sub(1)
+                    ),
+                )))
+            }
+            Err(_) => {
+                let by_name: Vec<usize> =
+                    (0..n)
+                        .filter(|&i| sources[i].cam.name == s)
+                        .chain((0..n).filter(|&i| {
+                            sources[i].cam.name != s && stem(&sources[i].cam.name) == s
+                        }))
+                        .collect();
+                match by_name.as_slice() {
+                    [i] => *i,
+                    [] => {
+                        return Err(DataError::Fv(bad(
+                            "views",
+                            s,
+                            format!(
+                                "no view of that index or name in {}",
+                                cameras_file.display()
+                            ),
+                        )))
+                    }
+                    _ => {
+                        return Err(DataError::Fv(bad(
+                            "views",
+                            s,
+                            "names more than one view; give the full name or the index",
+                        )))
+                    }
+                }
+            }
+        };
+        if picked.contains(&i) {
+            return Err(DataError::Fv(bad(
+                "views",
+                s,
+                format!("view {i} is chosen twice"),
+            )));
+        }
+        picked.push(i);
+    }
+    let mut sources: Vec<Option<Source>> = sources.into_iter().map(Some).collect();
+    Ok(picked
+        .into_iter()
+        .map(|i| sources[i].take().expect("picked once"))
+        .collect())
 }
