@@ -117,6 +117,11 @@ pub struct ModelArgs {
     /// a camera's silhouette empty (default: keep what the silhouettes prove is there).
     #[arg(long)]
     paper_carving: bool,
+    /// Skip the stereo carving: by default a depth map per photo (plane sweep inside the
+    /// visual hull, checked against the other photos' maps) carves the free space in front of
+    /// the surfaces the photos see, and what no photo can see, before the photo hull.
+    #[arg(long)]
+    no_stereo: bool,
 }
 
 /// Guided synthesis settings.
@@ -204,7 +209,7 @@ pub struct ModelFileArgs {
     #[arg(
         long = "model",
         value_name = "FILE",
-        conflicts_with_all = ["grid", "bounds", "photo_threshold", "paper_carving"]
+        conflicts_with_all = ["grid", "bounds", "photo_threshold", "paper_carving", "no_stereo"]
     )]
     file: Option<PathBuf>,
 }
@@ -333,6 +338,8 @@ impl DataArgs {
                 bounds: model.bounds,
                 photo_threshold: model.photo_threshold,
                 paper_carving: model.paper_carving,
+                stereo: !model.no_stereo,
+                ..Default::default()
             },
             model_file: from.and_then(|f| f.file.clone()),
         }

@@ -689,3 +689,356 @@ fn hull_model_is_reused_by_render_orbit_and_eval() {
         &["model.vtfv", "view 5", "photo differs"],
     );
 }
+
+/// testdata/nerf-lego: the NeRF synthetic lego's 8 sparse-view training photos (RGBA) with
+/// `transforms_train.json`, and 3 test views in `transforms_test.json`.
+fn nerf_lego() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../testdata/nerf-lego")
+}
+
+/// PSNR over RGB of two images of one size, computed here (10 log10(255^2 / MSE)).
+fn psnr_rgb(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let se: f64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(&x, &y)| (x as f64 - y as f64).powi(2))
+        .sum();
+    let mse = se / a.as_raw().len() as f64;
+    10.0 * (255.0 * 255.0 / mse).log10()
+}
+
+/// A NeRF photo as the benchmarks score it: composited over white, `rgb * a + (1 - a)`.
+fn over_white(p: &Path) -> image::RgbImage {
+    let rgba = image::open(p).unwrap().to_rgba8();
+    image::RgbImage::from_fn(rgba.width(), rgba.height(), |x, y| {
+        let p = rgba.get_pixel(x, y).0;
+        let a = p[3] as f64 / 255.0;
+        image::Rgb(std::array::from_fn(|c| {
+            (p[c] as f64 * a + 255.0 * (1.0 - a)).round() as u8
+        }))
+    })
+}
+
+/// Every number in a JSON value, with its path; fails on null (NaN or infinity serialised).
+fn numbers(v: &Value, at: &str, out: &mut Vec<(String, f64)>) {
+    match v {
+        Value::Number(n) => out.push((at.to_string(), n.as_f64().unwrap())),
+        Value::Null => panic!("{at} is null (a figure that is not finite)"),
+        Value::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                numbers(x, &format!("{at}[{i}]"), out);
+            }
+        }
+        Value::Object(o) => {
+            for (k, x) in o {
+                numbers(x, &format!("{at}.{k}"), out);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// `vt fv eval DATA --test transforms_test.json`: the model from the 8 training views, each test
+/// view made and scored on the whole image over white (the NeRF benchmarks' figure). The
+/// figures are checked against the truth computed here from the saved views and the test
+/// photos, and the method must beat its baseline, the nearest training photo.
+#[test]
+fn nerf_lego_test_set_is_scored_as_the_benchmarks_do() {
+    let data = nerf_lego();
+    // The test file is found inside DATA (the tests run in crates/vt-cli).
+    assert!(!Path::new("transforms_test.json").exists());
+    let out = vt_ok(&[
+        "fv",
+        "eval",
+        s(&data),
+        "--test",
+        "transforms_test.json",
+        "--json",
+    ]);
+    let lines: Vec<&str> = out.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "--json printed more than one line:\n{out}");
+    let j: Value = serde_json::from_str(lines[0]).unwrap();
+    eprintln!("nerf-lego test set: {j}");
+    let mut all = Vec::new();
+    numbers(&j, "", &mut all);
+    for (at, x) in &all {
+        assert!(x.is_finite(), "{at} = {x}");
+    }
+    assert_eq!(j["background"], serde_json::json!([255, 255, 255]), "{j}");
+    assert_eq!(j["train_views"], 8, "{j}");
+    let views = j["views"].as_array().unwrap();
+    let names: Vec<&str> = views.iter().map(|v| v["name"].as_str().unwrap()).collect();
+    // The benchmark's 25 test views: every 8th of the 200.
+    let stems: Vec<String> = (0..25).map(|i| format!("r_{}", 8 * i)).collect();
+    let want: Vec<String> = stems.iter().map(|t| format!("test/{t}.png")).collect();
+    assert_eq!(names, want);
+    let n = views.len() as f64;
+    let f = |v: &Value, k: &str, m: &str| v[k][m].as_f64().unwrap();
+    for v in views {
+        for k in ["whole", "inside", "rough", "nearest_photo"] {
+            let (p, q) = (f(v, k, "psnr"), f(v, k, "ssim"));
+            assert!((8.0..60.0).contains(&p) && q > 0.0 && q <= 1.0, "{k}: {v}");
+        }
+        let iou = v["coverage_iou"].as_f64().unwrap();
+        assert!(iou > 0.6 && iou <= 1.0, "coverage IoU {iou}: {v}");
+        let refs = v["references"].as_array().unwrap();
+        assert!(
+            !refs.is_empty()
+                && refs
+                    .iter()
+                    .all(|r| r.as_str().unwrap().starts_with("train/")),
+            "{v}"
+        );
+    }
+    // The summary is the mean of the views; the method beats the nearest training photo.
+    for k in ["whole", "inside", "rough", "nearest_photo"] {
+        for m in ["psnr", "ssim"] {
+            let mean = views.iter().map(|v| f(v, k, m)).sum::<f64>() / n;
+            assert!((f(&j, k, m) - mean).abs() < 1e-9, "{k}.{m}: {j}");
+        }
+    }
+    let ious: Vec<f64> = views
+        .iter()
+        .map(|v| v["coverage_iou"].as_f64().unwrap())
+        .collect();
+    let iou = j["coverage_iou"].as_f64().unwrap();
+    assert!((iou - ious.iter().sum::<f64>() / n).abs() < 1e-9 && iou > 0.6 && iou <= 1.0);
+    assert_eq!(
+        j["coverage_iou_worst"].as_f64().unwrap(),
+        ious.iter().copied().fold(f64::INFINITY, f64::min)
+    );
+    assert!(
+        f(&j, "whole", "psnr") > f(&j, "nearest_photo", "psnr") + 2.0,
+        "the new views do not beat the nearest training photo: {j}"
+    );
+    assert!(
+        f(&j, "whole", "ssim") > f(&j, "nearest_photo", "ssim"),
+        "{j}"
+    );
+
+    // --save: every view, eval.json and a contact sheet of the 4 worst views: truth, view, error
+    // side by side.
+    let root = scratch("nerf-eval");
+    let save = root.join("saved");
+    let said = vt_ok(&[
+        "fv",
+        "eval",
+        s(&data),
+        "--test",
+        "transforms_test.json",
+        "--save",
+        s(&save),
+    ]);
+    assert!(
+        said.contains("PSNR") && said.contains("over white"),
+        "{said}"
+    );
+    let sheet = image::open(save.join("contact_sheet.png")).unwrap();
+    assert_eq!((sheet.width(), sheet.height()), (1200, 1600));
+    let saved = read_json(&save.join("eval.json"));
+    let sviews = saved["views"].as_array().unwrap();
+    assert_eq!(sviews.len(), 25);
+    assert_eq!(count_pngs(&save), 26, "25 views and the contact sheet");
+    for (i, (v, stem)) in sviews.iter().zip(&stems).enumerate() {
+        let view = image::open(save.join(format!("{i:03}_{stem}.png")))
+            .unwrap_or_else(|e| panic!("view {i} ({stem}) not saved: {e}"))
+            .to_rgb8();
+        assert_eq!(view.dimensions(), (400, 400));
+        // The saved view is the scored one, scored against the test photo over white.
+        let truth = over_white(&data.join(format!("test/{stem}.png")));
+        let p = psnr_rgb(&view, &truth);
+        assert!(
+            (p - f(v, "whole", "psnr")).abs() < 1e-6,
+            "{stem}: PSNR {p} of the saved view vs reported {}",
+            f(v, "whole", "psnr")
+        );
+        // The nearest-photo baseline is a training photo over white scored the same way.
+        let nearest = f(v, "nearest_photo", "psnr");
+        let train: Vec<f64> = [
+            "r_26", "r_86", "r_2", "r_55", "r_75", "r_93", "r_16", "r_73",
+        ]
+        .iter()
+        .map(|t| psnr_rgb(&over_white(&data.join(format!("train/{t}.png"))), &truth))
+        .collect();
+        assert!(
+            train.iter().any(|t| (t - nearest).abs() < 1e-6),
+            "{stem}: nearest photo PSNR {nearest} is no training photo's ({train:?})"
+        );
+    }
+    // The worst view (lowest whole PSNR) heads the sheet: truth and view side by side.
+    let worst = (0..25)
+        .min_by(|&a, &b| f(&sviews[a], "whole", "psnr").total_cmp(&f(&sviews[b], "whole", "psnr")))
+        .unwrap();
+    let stem = &stems[worst];
+    let rgb = sheet.to_rgb8();
+    let cell = |c: u32| image::imageops::crop_imm(&rgb, c * 400, 0, 400, 400).to_image();
+    assert!(cell(0) == over_white(&data.join(format!("test/{stem}.png"))));
+    let view = image::open(save.join(format!("{worst:03}_{stem}.png")))
+        .unwrap()
+        .to_rgb8();
+    assert!(
+        cell(1) == view,
+        "the sheet's second column is the saved view"
+    );
+
+    // --views: the model from 4 of the 8 training views.
+    let out = vt_ok(&[
+        "fv",
+        "eval",
+        s(&data),
+        "--views",
+        "r_26,1,train/r_2.png,3",
+        "--test",
+        "transforms_test.json",
+        "--json",
+    ]);
+    let j4: Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(j4["train_views"], 4, "{j4}");
+    assert_eq!(
+        j4["views"].as_array().unwrap().len(),
+        25,
+        "--views leaves the test set whole"
+    );
+}
+
+/// `vt fv render` on NeRF data: composited over white by default (as the data is scored), RGBA
+/// with the coverage as a soft-edged alpha with `--background transparent`. The view is halfway
+/// between r_26 and r_75 (views 0 and 4, 24 degrees apart: the bulldozer stays in the middle of
+/// the frame; halfway between views 0 and 1, 98 degrees apart, the interpolated camera is 2.6
+/// from the origin instead of 4 and looks over the bulldozer, which fills the bottom edge).
+#[test]
+fn nerf_lego_render_backgrounds() {
+    let data = nerf_lego();
+    let root = scratch("nerf-render");
+    let render = |name: &str, extra: &[&str]| {
+        let out = root.join(name);
+        vt_ok(
+            &[
+                &[
+                    "fv",
+                    "render",
+                    s(&data),
+                    "--camera",
+                    "between:0,4,0.5",
+                    "--out",
+                    s(&out),
+                ],
+                extra,
+            ]
+            .concat(),
+        );
+        image::open(&out).unwrap()
+    };
+    let corners = [(0, 0), (399, 0), (0, 399), (399, 399)];
+    let white = render("data.png", &[]);
+    assert_eq!(
+        white.color(),
+        image::ColorType::Rgb8,
+        "no alpha over the data's white"
+    );
+    let white = white.to_rgb8();
+    assert_eq!(white.dimensions(), (400, 400));
+    for (x, y) in corners {
+        assert_eq!(white.get_pixel(x, y).0, [255; 3], "corner ({x}, {y})");
+    }
+    let not_white = white.pixels().filter(|p| p.0 != [255; 3]).count() as f64 / 160_000.0;
+    assert!(
+        (0.05..0.6).contains(&not_white),
+        "object covers {not_white:.3}"
+    );
+    // `white` is the data's own background here: the same picture.
+    let named = render("white.png", &["--background", "white"]).to_rgb8();
+    assert!(
+        named == white,
+        "--background white differs from the NeRF data's default"
+    );
+
+    let rgba = render("transparent.png", &["--background", "transparent"]);
+    assert_eq!(rgba.color(), image::ColorType::Rgba8, "a PNG with alpha");
+    let rgba = rgba.to_rgba8();
+    for (x, y) in corners {
+        assert_eq!(rgba.get_pixel(x, y).0[3], 0, "corner ({x}, {y}) alpha");
+    }
+    let alpha: Vec<u8> = rgba.pixels().map(|p| p.0[3]).collect();
+    let soft = alpha.iter().filter(|&&a| a > 0 && a < 255).count();
+    let opaque = alpha.iter().filter(|&&a| a == 255).count() as f64 / 160_000.0;
+    assert!(soft > 100, "{soft} soft-edged pixels");
+    assert!((0.05..0.6).contains(&opaque), "opaque share {opaque:.3}");
+    // Where the RGBA view is clear, the view over white is white (the same coverage, though
+    // the model may differ slightly: photos over no background carve a little differently).
+    let clear: Vec<usize> = (0..alpha.len()).filter(|&i| alpha[i] == 0).collect();
+    let white_there = clear
+        .iter()
+        .filter(|&&i| white.as_raw()[3 * i..3 * i + 3] == [255; 3])
+        .count() as f64
+        / clear.len() as f64;
+    assert!(
+        white_there > 0.97,
+        "{white_there:.3} of the clear pixels are white"
+    );
+
+    let e = vt_err(
+        &[
+            "fv",
+            "render",
+            s(&data),
+            "--camera",
+            "between:0,4,0.5",
+            "--out",
+            s(&root.join("purple.png")),
+            "--background",
+            "purple",
+        ],
+        &["purple", "--background"],
+    );
+    assert!(e.contains("#rrggbb"), "{e}");
+    assert!(!root.join("purple.png").exists());
+}
+
+#[test]
+fn nerf_lego_eval_refusals() {
+    let data = nerf_lego();
+    vt_err(
+        &["fv", "eval", s(&data), "--test", "missing.json"],
+        &["--test", "missing.json", "no such file"],
+    );
+    // Withheld views or a test set, not both (a usage error: exit 2).
+    let out = vt(&[
+        "fv",
+        "eval",
+        s(&data),
+        "--leave-out",
+        "1",
+        "--test",
+        "transforms_test.json",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    vt_err(
+        &[
+            "fv",
+            "eval",
+            s(&data),
+            "--leave-out",
+            "1",
+            "--test",
+            "transforms_test.json",
+        ],
+        &["--leave-out", "--test", "cannot be used with"],
+    );
+    vt_err(
+        &[
+            "fv",
+            "eval",
+            s(&data),
+            "--test",
+            "transforms_test.json",
+            "--views",
+            "0,8",
+        ],
+        &["views", "8", "transforms_train.json"],
+    );
+    let out = vt(&["fv", "eval", s(&data), "--test", "missing.json"]);
+    assert_eq!(out.status.code(), Some(1));
+}

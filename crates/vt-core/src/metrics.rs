@@ -248,7 +248,11 @@ mod tests {
             image::Rgb([(x * 7) as u8, (y * 9) as u8, ((x * y) % 251) as u8])
         });
         let b = RgbImage::from_fn(32, 24, |x, y| {
-            image::Rgb(a.get_pixel(x, y).0.map(|c| c.saturating_add((r.next_u64() % 40) as u8)))
+            image::Rgb(
+                a.get_pixel(x, y)
+                    .0
+                    .map(|c| c.saturating_add((r.next_u64() % 40) as u8)),
+            )
         });
         // Each channel alone, as a grey image, is a plane whose luma is that channel.
         let grey = |img: &RgbImage, c: usize| {

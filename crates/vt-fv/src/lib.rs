@@ -25,6 +25,7 @@ pub mod modelfile;
 pub mod nerf;
 pub mod orbit;
 pub mod silhouette;
+pub mod stereo;
 
 pub use camera::Camera;
 pub use error::{Error, Result};

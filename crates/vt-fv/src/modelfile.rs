@@ -68,6 +68,9 @@ pub struct ModelHeader {
     pub photo_threshold: f64,
     /// Whether the paper's carving rule was used.
     pub paper_carving: bool,
+    /// Whether the hull was carved by stereo first (files from before it: false).
+    #[serde(default)]
+    pub stereo: bool,
     /// Seconds the build took (visual hull and photo hull).
     pub build_secs: f64,
 }
@@ -326,6 +329,7 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelModel, ModelHeader)> {
             surface,
             passes,
             removed,
+            stereo: None,
         },
         header,
     ))

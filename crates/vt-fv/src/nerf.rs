@@ -128,7 +128,7 @@ impl Intrinsics {
     pub fn size(&self, photo: (u32, u32)) -> Result<(u32, u32)> {
         match (self.w, self.h) {
             (Some(w), Some(h)) => {
-                let ok = |x: f64| x >= 1.0 && x <= 1e6 && x.fract() == 0.0;
+                let ok = |x: f64| (1.0..=1e6).contains(&x) && x.fract() == 0.0;
                 if !ok(w) || !ok(h) {
                     return Err(err(format!("w, h = {w}, {h}: not a whole image size")));
                 }
@@ -311,7 +311,10 @@ mod tests {
         approx::assert_relative_eq!(c, Vector3::new(-0.0538, 3.8455, 1.2081), epsilon = 1e-3);
         let (px, py, depth) = cam.project(&Vector3::zeros()).unwrap();
         assert!(depth > 3.9 && depth < 4.1, "{depth}");
-        assert!((px - 199.5).abs() < 5.0 && (py - 199.5).abs() < 5.0, "{px} {py}");
+        assert!(
+            (px - 199.5).abs() < 5.0 && (py - 199.5).abs() < 5.0,
+            "{px} {py}"
+        );
         let (_, up_y, _) = cam.project(&Vector3::new(0.0, 0.0, 0.5)).unwrap();
         assert!(up_y < py - 50.0, "{up_y} vs {py}");
     }

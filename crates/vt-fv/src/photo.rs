@@ -76,6 +76,11 @@ pub struct PhotoParams {
     /// surface share 0.55 -> 0.37 (8 views, 256^3), templeSparseRing's rough render
     /// +0.14 dB, the synthetic object's -0.16 dB (its partly seen pixels are edge pixels).
     pub colour_partly_seen: bool,
+    /// With silhouettes ([`photo_hull_keeping`]): first carve the hull by multi-view stereo
+    /// ([`crate::stereo`]: free space in front of each photo's confirmed depths, then what no
+    /// photo can see). `None` (the paper's photo hull alone) by default here; vt's models
+    /// ([`crate::dataset::ModelParams`]) turn it on.
+    pub stereo: Option<crate::stereo::StereoParams>,
 }
 
 /// When the colour samples of a voxel (one per judging camera) agree; a voxel judged by fewer
@@ -131,6 +136,7 @@ impl Default for PhotoParams {
             visibility: Visibility::Centre,
             colour_partly_seen: true,
             consistency: Consistency::StdDev,
+            stereo: None,
         }
     }
 }
@@ -157,6 +163,8 @@ pub struct VoxelModel {
     pub passes: usize,
     /// Voxels removed by photo-consistency.
     pub removed: usize,
+    /// What the stereo carving before it did ([`PhotoParams::stereo`]), when it ran.
+    pub stereo: Option<crate::stereo::StereoSummary>,
 }
 
 impl VoxelModel {
@@ -667,6 +675,13 @@ pub fn photo_hull_keeping(
             });
         }
     }
+    let mut stereo = None;
+    if let (Some(sp), Some(masks)) = (&params.stereo, silhouettes) {
+        progress("stereo", 0, 1);
+        let (_, s) = crate::stereo::carve_by_stereo(&mut grid, cams, images, masks, sp)?;
+        stereo = Some(s);
+        progress("stereo", 1, 1);
+    }
     let vs = grid.voxel_size();
     let size = (vs.x * vs.y * vs.z).cbrt();
     let scale = params.splat_scale;
@@ -845,6 +860,7 @@ pub fn photo_hull_keeping(
         surface: voxels,
         passes,
         removed: removed_total,
+        stereo,
     })
 }
 

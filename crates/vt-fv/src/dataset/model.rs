@@ -1,6 +1,7 @@
 //! The voxel model of a data folder: its parameters, build, summary and model file.
 
 use super::*;
+use crate::stereo::StereoParams;
 
 /// The model file's name inside a hull folder (`vt fv hull`).
 pub const MODEL_FILE: &str = "model.vtfv";
@@ -35,6 +36,7 @@ impl Dataset {
             silhouettes: self.silhouettes.clone(),
             photo_threshold: m.photo_threshold,
             paper_carving: m.paper_carving,
+            stereo: m.stereo,
             build_secs: build.visual_hull_secs + build.photo_hull_secs,
         }
     }
@@ -213,6 +215,11 @@ pub struct ModelParams {
     /// Carve and colour as the paper does (no [`PhotoParams::keep_silhouettes`], no
     /// [`PhotoParams::colour_partly_seen`]).
     pub paper_carving: bool,
+    /// Carve the visual hull by multi-view stereo before the photo hull
+    /// ([`PhotoParams::stereo`]; true).
+    pub stereo: bool,
+    /// The stereo carving's settings ([`StereoParams::default`]).
+    pub stereo_params: StereoParams,
 }
 
 impl Default for ModelParams {
@@ -222,6 +229,8 @@ impl Default for ModelParams {
             bounds: None,
             photo_threshold: PhotoParams::default().threshold,
             paper_carving: false,
+            stereo: true,
+            stereo_params: StereoParams::default(),
         }
     }
 }
@@ -252,6 +261,9 @@ impl ModelParams {
                 format!("{e} (refused before allocating)"),
             )
         })?;
+        if self.stereo {
+            self.stereo_params.check()?;
+        }
         let t = self.photo_threshold;
         if !(t.is_finite() && (0.0..=255.0).contains(&t)) {
             return Err(bad(
@@ -278,6 +290,7 @@ impl ModelParams {
             threshold: self.photo_threshold,
             keep_silhouettes: !self.paper_carving,
             colour_partly_seen: !self.paper_carving,
+            stereo: self.stereo.then_some(self.stereo_params),
             ..Default::default()
         }
     }
@@ -302,6 +315,8 @@ pub struct BuildSummary {
     pub photo_hull_passes: usize,
     /// Voxels the photo hull removed.
     pub photo_hull_removed: usize,
+    /// Voxels the stereo carving removed before the photo hull (free space and unseen).
+    pub stereo_carved: usize,
     /// Seconds for the photo hull.
     pub photo_hull_secs: f64,
     /// Surface voxels.
@@ -338,6 +353,7 @@ pub fn build_summarised(
         photo_hull_voxels: model.grid.count(),
         photo_hull_passes: model.passes,
         photo_hull_removed: model.removed,
+        stereo_carved: model.stereo.as_ref().map_or(0, |s| s.carved + s.unseen),
         photo_hull_secs: t.elapsed().as_secs_f64(),
         surface_voxels: model.surface.len(),
         surface_unseen: model.surface.iter().filter(|v| v.seen_by == 0).count(),
@@ -422,6 +438,13 @@ impl std::fmt::Display for BuildSummary {
         )?;
         let (passes, secs) = (s.photo_hull_passes, s.photo_hull_secs);
         writeln!(f, "{:<14} {ph:>12} {passes:>7} {secs:>7.2} s", "photo hull")?;
+        if s.stereo_carved > 0 {
+            writeln!(
+                f,
+                "(the photo hull's time includes the stereo carving, which removed {} voxels first)",
+                s.stereo_carved
+            )?;
+        }
         writeln!(
             f,
             "{:<14} {:>12} {:>7} {:>9}",

@@ -567,7 +567,10 @@ pub(super) fn select_views(
                         return Err(DataError::Fv(bad(
                             "views",
                             s,
-                            "names more than one view; give the full name or the index",
+                            format!(
+                                "names more than one view in {}; give the full name or the index",
+                                cameras_file.display()
+                            ),
                         )))
                     }
                 }

@@ -1,6 +1,7 @@
 //! The report's sections, in page order. Section 1 is a list of knobs: each a function returning
 //! its curve(s), or a plain statement that it does not exist yet.
 
+pub mod benchmark;
 pub mod gallery;
 pub mod knobs_a;
 pub mod knobs_a_real;
@@ -125,6 +126,14 @@ pub fn all() -> Vec<(&'static str, &'static str, &'static str, Build)> {
             "System A's transitions and homographies against known truth, and System B's \
              leave-one-out on the real templeSparseRing photos.",
             real::build,
+        ),
+        (
+            "benchmark",
+            "4b. The field's benchmark for System B",
+            "NeRF synthetic lego from 8 views, the sparse-view protocol every paper since 2021 \
+             reports: vt's row measured here beside the published ones, and the stereo \
+             carving's knobs.",
+            benchmark::build,
         ),
         (
             "gallery",

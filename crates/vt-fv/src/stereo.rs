@@ -1,0 +1,735 @@
+//! Geometry from the photos themselves: a depth map per photo by plane-sweep stereo inside the
+//! visual hull, checked against the other photos' depth maps, then the hull carved to the free
+//! space the depth maps prove.
+//!
+//! The visual hull of a few views is fat: every concavity and every region between the views'
+//! silhouette cones stays full. Colours see what silhouettes cannot. For each photo (the
+//! reference) and each pixel inside its silhouette, the ray's stretch inside the hull is swept
+//! in steps of half a voxel; at each depth a window around the pixel, taken as a fronto-parallel
+//! patch at that depth, is compared with its projection into the nearest photos by normalised
+//! cross-correlation (NCC) of luma. The score of a depth is the mean of the best `best` sources'
+//! NCC (a source where the point is hidden scores low and drops out). The best depth is kept
+//! when its score is at least `min_ncc` and the window has texture. Each kept depth must then be
+//! confirmed by another photo's depth map: the point, projected into another photo, lands on a
+//! depth within `agree` voxels. Finally every hull voxel that lies in front of a confirmed depth
+//! by more than `margin` voxels, in every confirmed pixel around its projection, is empty space
+//! and is carved.
+
+use image::RgbImage;
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::hull::VoxelGrid;
+use crate::silhouette::Mask;
+use crate::texture::nearest_by_direction;
+use crate::{Error, Result};
+
+/// Settings of [`carve_by_stereo`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StereoParams {
+    /// Photos compared with each reference: the nearest by viewing direction (4).
+    pub sources: usize,
+    /// A depth's score is the mean NCC of this many best sources (2).
+    pub best: usize,
+    /// Half side of the NCC window in pixels (3: 7x7), sampled every `stride` pixels.
+    pub radius: i32,
+    /// Window sampling stride in pixels (2: a 4x4 lattice over the 7x7 window).
+    pub stride: i32,
+    /// Depth step along a ray, in voxels (0.5).
+    pub step: f64,
+    /// The sweep first tries every `coarse`-th step, then every step within `coarse` steps of
+    /// the best (4).
+    pub coarse: usize,
+    /// Depths are measured every `pixel_step` pixels in both directions (2).
+    pub pixel_step: usize,
+    /// Least score a depth is kept at (0.5).
+    pub min_ncc: f64,
+    /// Least lead of the best depth's score over any other depth farther than `apart` voxels
+    /// (0: off). A repeated pattern matches at several depths; 0.1-0.2 drops those and carves
+    /// less, safer on periodic texture (the synthetic object) but less on real photos (the
+    /// report's stereo table).
+    pub distinct: f64,
+    /// How far, in voxels, a rival depth must lie (3).
+    pub apart: f64,
+    /// Least luma standard deviation of the reference window (2 levels of 255): flat windows
+    /// have no depth.
+    pub min_texture: f64,
+    /// Two depth maps agree on a point within this many voxels (1.5).
+    pub agree: f64,
+    /// A depth is kept when this many other photos' maps agree with it (1).
+    pub confirmations: usize,
+    /// A voxel is carved when it lies this many voxels in front of the confirmed depths (2).
+    pub margin: f64,
+    /// After the first pass, keep only voxels within this many voxels of one a photo sees
+    /// ([`carve_unseen`]; 3); `None` keeps them all.
+    pub unseen_keep: Option<usize>,
+    /// Sweep and carve up to this many times (2): each pass measures inside what the one
+    /// before left, where fewer phantom surfaces hide the real ones.
+    pub passes: usize,
+}
+
+impl Default for StereoParams {
+    fn default() -> Self {
+        Self {
+            sources: 4,
+            best: 2,
+            radius: 3,
+            stride: 2,
+            step: 0.5,
+            coarse: 4,
+            pixel_step: 2,
+            min_ncc: 0.5,
+            distinct: 0.0,
+            apart: 3.0,
+            min_texture: 2.0,
+            agree: 1.5,
+            confirmations: 1,
+            margin: 2.0,
+            unseen_keep: Some(3),
+            passes: 2,
+        }
+    }
+}
+
+impl StereoParams {
+    /// Checks the ranges.
+    pub fn check(&self) -> Result<()> {
+        let bad = |name: &str, v: String, why: &str| {
+            Err(Error::BadParam {
+                name: name.into(),
+                value: v,
+                why: why.into(),
+            })
+        };
+        if self.best == 0 || self.sources < self.best {
+            return bad(
+                "stereo_best",
+                format!("{} of {}", self.best, self.sources),
+                "at least 1, and at most the sources",
+            );
+        }
+        if !(1..=15).contains(&self.radius) || !(1..=self.radius).contains(&self.stride) {
+            return bad(
+                "stereo_radius",
+                format!("{} (stride {})", self.radius, self.stride),
+                "radius in 1..=15, stride in 1..=radius",
+            );
+        }
+        if !(1..=8).contains(&self.passes) {
+            return bad("stereo_passes", self.passes.to_string(), "in 1..=8");
+        }
+        if !(1..=16).contains(&self.coarse) || !(1..=8).contains(&self.pixel_step) {
+            return bad(
+                "stereo_coarse",
+                format!("{} (pixel step {})", self.coarse, self.pixel_step),
+                "coarse in 1..=16, pixel step in 1..=8",
+            );
+        }
+        if !(self.step > 0.01 && self.step <= 4.0) {
+            return bad("stereo_step", self.step.to_string(), "in (0.01, 4] voxels");
+        }
+        if !(-1.0..=1.0).contains(&self.min_ncc) {
+            return bad("stereo_min_ncc", self.min_ncc.to_string(), "in [-1, 1]");
+        }
+        for (n, v) in [
+            ("stereo_min_texture", self.min_texture),
+            ("stereo_agree", self.agree),
+            ("stereo_margin", self.margin),
+        ] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return bad(n, v.to_string(), "a finite number >= 0");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One photo's depth map: camera depth every `step` pixels, `NaN` where there is none.
+#[derive(Debug, Clone)]
+pub struct DepthMap {
+    /// Width in cells (one every `step` pixels).
+    pub w: usize,
+    /// Height in cells.
+    pub h: usize,
+    /// Pixels between cells: cell `(x, y)` is pixel `(step x, step y)`.
+    pub step: usize,
+    /// Depths, row-major.
+    pub depth: Vec<f32>,
+}
+
+impl DepthMap {
+    fn at(&self, x: i64, y: i64) -> f32 {
+        if x < 0 || y < 0 || x >= self.w as i64 || y >= self.h as i64 {
+            return f32::NAN;
+        }
+        self.depth[y as usize * self.w + x as usize]
+    }
+
+    /// The cell nearest pixel `(u, v)`.
+    fn cell(&self, u: f64, v: f64) -> (i64, i64) {
+        let s = self.step as f64;
+        ((u / s).round() as i64, (v / s).round() as i64)
+    }
+
+    /// Pixels with a depth.
+    pub fn count(&self) -> usize {
+        self.depth.iter().filter(|d| d.is_finite()).count()
+    }
+}
+
+/// What [`carve_by_stereo`] did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StereoSummary {
+    /// Silhouette pixels with a depth kept by the sweep, over all photos.
+    pub matched: usize,
+    /// Of those, confirmed by another photo.
+    pub confirmed: usize,
+    /// Silhouette pixels over all photos.
+    pub silhouette: usize,
+    /// Voxels carved as free space.
+    pub carved: usize,
+    /// Voxels carved as seen by no photo ([`carve_unseen`]).
+    pub unseen: usize,
+}
+
+struct Plane {
+    w: usize,
+    h: usize,
+    v: Vec<f32>,
+}
+
+impl Plane {
+    fn luma(img: &RgbImage) -> Self {
+        Plane {
+            w: img.width() as usize,
+            h: img.height() as usize,
+            v: img
+                .pixels()
+                .map(|p| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32)
+                .collect(),
+        }
+    }
+
+    /// Bilinear sample; `None` outside the image.
+    #[inline]
+    fn sample(&self, x: f64, y: f64) -> Option<f32> {
+        if !(x >= 0.0 && y >= 0.0) {
+            return None;
+        }
+        let (x0, y0) = (x as usize, y as usize);
+        if x0 + 1 >= self.w || y0 + 1 >= self.h {
+            return None;
+        }
+        let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+        let i = y0 * self.w + x0;
+        let a = self.v[i] + (self.v[i + 1] - self.v[i]) * fx;
+        let b = self.v[i + self.w] + (self.v[i + self.w + 1] - self.v[i + self.w]) * fx;
+        Some(a + (b - a) * fy)
+    }
+}
+
+/// The map from a reference pixel at camera depth `d` to a source pixel:
+/// `x_s ~ d A [u v 1] + b`.
+struct Transfer {
+    a: Matrix3<f64>,
+    b: Vector3<f64>,
+    src: usize,
+}
+
+impl Transfer {
+    fn new(r: &Camera, s: &Camera, src: usize) -> Self {
+        let kinv =
+            r.k.try_inverse()
+                .expect("K is invertible: checked by Camera::new");
+        let rel = s.r * r.r.transpose();
+        Transfer {
+            a: s.k * rel * kinv,
+            b: s.k * (s.t - rel * r.t),
+            src,
+        }
+    }
+}
+
+/// The stretch `[near, far]` of camera depth along pixel `(u, v)`'s ray that lies in occupied
+/// voxels of `grid` (sampled every half voxel), or `None`.
+fn hull_interval(
+    grid: &VoxelGrid,
+    cam: &Camera,
+    kinv: &Matrix3<f64>,
+    u: f64,
+    v: f64,
+) -> Option<(f64, f64)> {
+    let dir = cam.r.transpose() * (kinv * Vector3::new(u, v, 1.0));
+    let c = cam.centre();
+    let b = grid.bounds();
+    // Slab intersection with the bounds, in the ray parameter (= camera depth).
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for k in 0..3 {
+        if dir[k].abs() < 1e-12 {
+            if c[k] < b.min[k] || c[k] > b.max[k] {
+                return None;
+            }
+            continue;
+        }
+        let (a, e) = ((b.min[k] - c[k]) / dir[k], (b.max[k] - c[k]) / dir[k]);
+        t0 = t0.max(a.min(e));
+        t1 = t1.min(a.max(e));
+    }
+    if t0 >= t1 {
+        return None;
+    }
+    let vs = grid.voxel_size().min();
+    let dt = 0.5 * vs / dir.norm();
+    let (mut near, mut far) = (f64::NAN, f64::NAN);
+    let mut t = t0;
+    while t <= t1 {
+        if let Some(v) = grid.voxel_of(&(c + dir * t)) {
+            if grid.get(v[0] as i64, v[1] as i64, v[2] as i64) {
+                if near.is_nan() {
+                    near = t;
+                }
+                far = t;
+            }
+        }
+        t += dt;
+    }
+    (!near.is_nan()).then_some((near, far))
+}
+
+/// The depth map of photo `i` by plane sweep inside `grid` against its nearest photos.
+fn sweep(
+    i: usize,
+    grid: &VoxelGrid,
+    cams: &[Camera],
+    planes: &[Plane],
+    masks: &[Mask],
+    centre: &Vector3<f64>,
+    p: &StereoParams,
+) -> DepthMap {
+    let cam = &cams[i];
+    let plane = &planes[i];
+    let (w, h) = (plane.w, plane.h);
+    let kinv = cam
+        .k
+        .try_inverse()
+        .expect("K is invertible: checked by Camera::new");
+    // The nearest other photos by viewing direction (the reference itself comes first).
+    let transfers: Vec<Transfer> = nearest_by_direction(cams, cam, centre, p.sources + 1)
+        .into_iter()
+        .filter(|&j| j != i)
+        .take(p.sources)
+        .map(|j| Transfer::new(cam, &cams[j], j))
+        .collect();
+    let offsets: Vec<(i32, i32)> = (-p.radius..=p.radius)
+        .step_by(p.stride as usize)
+        .flat_map(|dy| {
+            (-p.radius..=p.radius)
+                .step_by(p.stride as usize)
+                .map(move |dx| (dx, dy))
+        })
+        .collect();
+    let n = offsets.len() as f32;
+    let vs = grid.voxel_size().min();
+    let step = p.pixel_step;
+    let (mw, mh) = (w.div_ceil(step), h.div_ceil(step));
+    let rows: Vec<Vec<f32>> = (0..mh)
+        .into_par_iter()
+        .map(|my| {
+            let y = my * step;
+            let mut row = vec![f32::NAN; mw];
+            let mut refv = vec![0f32; offsets.len()];
+            let mut srcv = vec![0f32; offsets.len()];
+            let mut scores = Vec::with_capacity(transfers.len());
+            let mut samples: Vec<(f64, f64)> = Vec::new();
+            let r = p.radius as usize;
+            for (mx, out) in row.iter_mut().enumerate() {
+                let x = mx * step;
+                if !masks[i].get(x as u32, y as u32) || x < r || y < r || x + r >= w || y + r >= h {
+                    continue;
+                }
+                // The reference window, centred (mean 0), and its spread.
+                let mut mean = 0.0;
+                for (k, &(dx, dy)) in offsets.iter().enumerate() {
+                    let v = plane.v
+                        [(y as i64 + dy as i64) as usize * w + (x as i64 + dx as i64) as usize];
+                    refv[k] = v;
+                    mean += v;
+                }
+                mean /= n;
+                let mut var = 0.0;
+                for v in refv.iter_mut() {
+                    *v -= mean;
+                    var += *v * *v;
+                }
+                if ((var / n) as f64).sqrt() < p.min_texture {
+                    continue;
+                }
+                let Some((near, far)) = hull_interval(grid, cam, &kinv, x as f64, y as f64) else {
+                    continue;
+                };
+                // Camera depth per step: the ray's depth grows by |dir| per unit of t, and t is
+                // the camera depth itself.
+                let ray = kinv * Vector3::new(x as f64, y as f64, 1.0);
+                let dt = p.step * vs / (cam.r.transpose() * ray).norm();
+                // The score of depth d: the mean NCC of the best sources.
+                let mut score = |d: f64| -> f64 {
+                    scores.clear();
+                    for tr in &transfers {
+                        let src = &planes[tr.src];
+                        let base = tr.a * Vector3::new(x as f64, y as f64, 1.0) * d + tr.b;
+                        let (ax, ay) = (tr.a.column(0) * d, tr.a.column(1) * d);
+                        let mut ok = true;
+                        let mut smean = 0.0;
+                        for (k, &(dx, dy)) in offsets.iter().enumerate() {
+                            let q = base + ax * dx as f64 + ay * dy as f64;
+                            if q.z <= 1e-9 {
+                                ok = false;
+                                break;
+                            }
+                            match src.sample(q.x / q.z, q.y / q.z) {
+                                Some(v) => {
+                                    srcv[k] = v;
+                                    smean += v;
+                                }
+                                None => {
+                                    ok = false;
+                                    break;
+                                }
+                            }
+                        }
+                        if !ok {
+                            continue;
+                        }
+                        smean /= n;
+                        let (mut cov, mut svar) = (0.0f32, 0.0f32);
+                        for k in 0..offsets.len() {
+                            let s = srcv[k] - smean;
+                            cov += refv[k] * s;
+                            svar += s * s;
+                        }
+                        scores.push(if svar > 1e-6 {
+                            cov / (var * svar).sqrt()
+                        } else {
+                            0.0
+                        });
+                    }
+                    if scores.len() < p.best {
+                        return f64::NEG_INFINITY;
+                    }
+                    scores.sort_by(|a, b| b.total_cmp(a));
+                    scores[..p.best].iter().sum::<f32>() as f64 / p.best as f64
+                };
+                // Coarse to fine: every `coarse` steps, then every step around the best.
+                let coarse = dt * p.coarse as f64;
+                samples.clear();
+                let mut d = near;
+                while d <= far + 1e-9 {
+                    samples.push((d, score(d)));
+                    d += coarse;
+                }
+                let Some(&(coarse_d, coarse_s)) = samples.iter().max_by(|a, b| a.1.total_cmp(&b.1))
+                else {
+                    continue;
+                };
+                // Distinct: no other depth, farther than `apart` voxels, scores nearly as well
+                // (a repeated pattern matches at several depths; none of them is trusted).
+                let apart = p.apart * vs / (cam.r.transpose() * ray).norm();
+                let rival = samples
+                    .iter()
+                    .filter(|(d, _)| (d - coarse_d).abs() > apart)
+                    .map(|&(_, s)| s)
+                    .fold(f64::NEG_INFINITY, f64::max);
+                if coarse_s - rival < p.distinct {
+                    continue;
+                }
+                let (mut best_d, mut best_s) = (coarse_d, coarse_s);
+                if p.coarse > 1 {
+                    for k in 1..p.coarse as i64 {
+                        for d in [coarse_d - k as f64 * dt, coarse_d + k as f64 * dt] {
+                            if d < near - 1e-9 || d > far + 1e-9 {
+                                continue;
+                            }
+                            let s = score(d);
+                            if s > best_s {
+                                (best_s, best_d) = (s, d);
+                            }
+                        }
+                    }
+                }
+                if best_s >= p.min_ncc {
+                    *out = best_d as f32;
+                }
+            }
+            row
+        })
+        .collect();
+    DepthMap {
+        w: mw,
+        h: mh,
+        step,
+        depth: rows.concat(),
+    }
+}
+
+/// Keeps the depths another photo's map confirms (the point lands within `agree` voxels of a
+/// depth there).
+fn confirm(maps: &[DepthMap], cams: &[Camera], agree: f64, confirmations: usize) -> Vec<DepthMap> {
+    (0..maps.len())
+        .into_par_iter()
+        .map(|i| {
+            let m = &maps[i];
+            let cam = &cams[i];
+            let kinv = cam
+                .k
+                .try_inverse()
+                .expect("K is invertible: checked by Camera::new");
+            let c = cam.centre();
+            let mut out = m.clone();
+            for y in 0..m.h {
+                for x in 0..m.w {
+                    let d = m.depth[y * m.w + x];
+                    if !d.is_finite() {
+                        continue;
+                    }
+                    let (px, py) = ((x * m.step) as f64, (y * m.step) as f64);
+                    let dir = cam.r.transpose() * (kinv * Vector3::new(px, py, 1.0));
+                    let pt = c + dir * d as f64;
+                    let agreeing = (0..maps.len())
+                        .filter(|&j| j != i)
+                        .filter(|&j| {
+                            cams[j].project(&pt).is_some_and(|(u, v, z)| {
+                                let (cu, cv) = maps[j].cell(u, v);
+                                let dj = maps[j].at(cu, cv);
+                                dj.is_finite() && ((dj as f64) - z).abs() <= agree
+                            })
+                        })
+                        .count();
+                    let ok = agreeing >= confirmations;
+                    if !ok {
+                        out.depth[y * m.w + x] = f32::NAN;
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// Depth maps of every photo (plane sweep inside `grid`, confirmed across photos).
+pub fn depth_maps(
+    grid: &VoxelGrid,
+    cams: &[Camera],
+    images: &[RgbImage],
+    masks: &[Mask],
+    p: &StereoParams,
+) -> Result<(Vec<DepthMap>, StereoSummary)> {
+    p.check()?;
+    if cams.len() != images.len() || cams.len() != masks.len() {
+        return Err(Error::CountMismatch {
+            what: "cameras vs photos vs silhouettes".into(),
+            a: cams.len(),
+            b: images.len().min(masks.len()),
+        });
+    }
+    let planes: Vec<Plane> = images.iter().map(Plane::luma).collect();
+    let centre = grid.bounds().centre();
+    let raw: Vec<DepthMap> = (0..cams.len())
+        .map(|i| sweep(i, grid, cams, &planes, masks, &centre, p))
+        .collect();
+    let vs = grid.voxel_size().min();
+    let maps = confirm(&raw, cams, p.agree * vs, p.confirmations);
+    let summary = StereoSummary {
+        matched: raw.iter().map(DepthMap::count).sum(),
+        confirmed: maps.iter().map(DepthMap::count).sum(),
+        silhouette: masks.iter().map(|m| m.count_ones() as usize).sum(),
+        carved: 0,
+        unseen: 0,
+    };
+    Ok((maps, summary))
+}
+
+/// Carves from `grid` every voxel that lies more than `margin` voxels in front of the confirmed
+/// depth at every confirmed pixel of its 3x3 neighbourhood in some photo (empty space the photos
+/// see through). Returns the depth maps and what was done.
+pub fn carve_by_stereo(
+    grid: &mut VoxelGrid,
+    cams: &[Camera],
+    images: &[RgbImage],
+    masks: &[Mask],
+    p: &StereoParams,
+) -> Result<(Vec<DepthMap>, StereoSummary)> {
+    p.check()?;
+    let mut total = StereoSummary::default();
+    let mut maps = Vec::new();
+    for pass in 0..p.passes {
+        let (m, s) = depth_maps(grid, cams, images, masks, p)?;
+        let carved = carve_free_space(grid, cams, &m, p.margin);
+        maps = m;
+        // The last pass's depths (each pass re-measures inside what is left).
+        total = StereoSummary {
+            carved: total.carved + carved,
+            unseen: total.unseen,
+            ..s
+        };
+        if pass == 0 {
+            if let Some(k) = p.unseen_keep {
+                total.unseen = carve_unseen(grid, cams, masks, k);
+            }
+        }
+        if carved == 0 {
+            break;
+        }
+    }
+    Ok((maps, total))
+}
+
+/// Carves every voxel that lies more than `margin` voxels in front of the depth at every cell of
+/// its 3x3 neighbourhood in some map that has a depth (at least 5 of the 9); returns how many.
+fn carve_free_space(
+    grid: &mut VoxelGrid,
+    cams: &[Camera],
+    maps: &[DepthMap],
+    margin: f64,
+) -> usize {
+    let margin = margin * grid.voxel_size().min();
+    let occupied = grid.occupied();
+    let carve: Vec<usize> = occupied
+        .par_iter()
+        .copied()
+        .filter(|&idx| {
+            let x = grid.centre(grid.coords(idx));
+            cams.iter().zip(maps).any(|(cam, m)| {
+                let Some((u, v, z)) = cam.project(&x) else {
+                    return false;
+                };
+                let (ui, vi) = m.cell(u, v);
+                let mut seen = 0;
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let d = m.at(ui + dx, vi + dy);
+                        if d.is_nan() {
+                            continue;
+                        }
+                        if z >= d as f64 - margin {
+                            return false;
+                        }
+                        seen += 1;
+                    }
+                }
+                seen >= 5
+            })
+        })
+        .collect();
+    for &i in &carve {
+        grid.set_index(i, false);
+    }
+    carve.len()
+}
+
+/// Keeps only the voxels within `keep` voxels (6-connected steps through occupied voxels) of a
+/// voxel some photo sees first along one of its silhouette rays; carves the rest. A few views'
+/// hull keeps phantom volume that every photo sees only from behind a real surface (under a
+/// base plate that every camera looks down on, between parts): no photo can show it, and a new
+/// view would show it as a wall. Returns how many voxels were carved.
+pub fn carve_unseen(grid: &mut VoxelGrid, cams: &[Camera], masks: &[Mask], keep: usize) -> usize {
+    let n = grid.dims().iter().product::<usize>();
+    let seen_lists: Vec<Vec<usize>> = cams
+        .par_iter()
+        .zip(masks)
+        .map(|(cam, m)| {
+            let kinv = cam
+                .k
+                .try_inverse()
+                .expect("K is invertible: checked by Camera::new");
+            let mut hits = Vec::new();
+            for y in 0..m.height() {
+                for x in 0..m.width() {
+                    if !m.get(x, y) {
+                        continue;
+                    }
+                    if let Some(v) = first_hit(grid, cam, &kinv, x as f64, y as f64) {
+                        hits.push(v);
+                    }
+                }
+            }
+            hits
+        })
+        .collect();
+    let mut dist = vec![u16::MAX; n];
+    let mut queue = std::collections::VecDeque::new();
+    for &i in seen_lists.iter().flatten() {
+        if dist[i] != 0 {
+            dist[i] = 0;
+            queue.push_back(i);
+        }
+    }
+    let [nx, ny, nz] = grid.dims();
+    while let Some(i) = queue.pop_front() {
+        let d = dist[i];
+        if d as usize >= keep {
+            continue;
+        }
+        let [x, y, z] = grid.coords(i);
+        let (x, y, z) = (x as i64, y as i64, z as i64);
+        for (dx, dy, dz) in [
+            (1, 0, 0),
+            (-1, 0, 0),
+            (0, 1, 0),
+            (0, -1, 0),
+            (0, 0, 1),
+            (0, 0, -1),
+        ] {
+            let (a, b, c) = (x + dx, y + dy, z + dz);
+            if a < 0 || b < 0 || c < 0 || a >= nx as i64 || b >= ny as i64 || c >= nz as i64 {
+                continue;
+            }
+            if !grid.get(a, b, c) {
+                continue;
+            }
+            let j = grid.index(a as usize, b as usize, c as usize);
+            if dist[j] == u16::MAX {
+                dist[j] = d + 1;
+                queue.push_back(j);
+            }
+        }
+    }
+    let mut carved = 0;
+    for i in grid.occupied() {
+        if dist[i] == u16::MAX {
+            grid.set_index(i, false);
+            carved += 1;
+        }
+    }
+    carved
+}
+
+/// The first occupied voxel along pixel `(u, v)`'s ray (sampled every half voxel).
+fn first_hit(grid: &VoxelGrid, cam: &Camera, kinv: &Matrix3<f64>, u: f64, v: f64) -> Option<usize> {
+    let dir = cam.r.transpose() * (kinv * Vector3::new(u, v, 1.0));
+    let c = cam.centre();
+    let b = grid.bounds();
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for k in 0..3 {
+        if dir[k].abs() < 1e-12 {
+            if c[k] < b.min[k] || c[k] > b.max[k] {
+                return None;
+            }
+            continue;
+        }
+        let (a, e) = ((b.min[k] - c[k]) / dir[k], (b.max[k] - c[k]) / dir[k]);
+        t0 = t0.max(a.min(e));
+        t1 = t1.min(a.max(e));
+    }
+    let dt = 0.5 * grid.voxel_size().min() / dir.norm();
+    let mut t = t0;
+    while t <= t1 {
+        if let Some(v) = grid.voxel_of(&(c + dir * t)) {
+            if grid.get(v[0] as i64, v[1] as i64, v[2] as i64) {
+                return Some(grid.index(v[0], v[1], v[2]));
+            }
+        }
+        t += dt;
+    }
+    None
+}
