@@ -175,8 +175,17 @@ fn carving_removes_what_is_not_the_object_and_keeps_what_is() {
     // this object, with free space carved only where its repeated texture lets stereo work,
     // about 40 % of the surface voxels). Measured here so that a change shows.
     let all = carve(&StereoParams::default());
-    eprintln!("{}\n{}\n{}", lines("free space", free), lines("distinct 0.2", strict), lines("default", all));
-    assert!(all.1 > free.1 + 0.3 && all.2 < 0.45, "{}", lines("default", all));
+    eprintln!(
+        "{}\n{}\n{}",
+        lines("free space", free),
+        lines("distinct 0.2", strict),
+        lines("default", all)
+    );
+    assert!(
+        all.1 > free.1 + 0.3 && all.2 < 0.45,
+        "{}",
+        lines("default", all)
+    );
 }
 
 #[test]
