@@ -263,3 +263,72 @@ fn settings_out_of_range_are_refused_by_name() {
     .to_string();
     assert!(e.contains("cameras vs photos"), "{e}");
 }
+
+/// The geometry check, measured against vt-synth's analytic surface (two-way mean
+/// distance in voxels, model to truth / truth to model) on 8 and 36 views at 96^3. Known gap,
+/// guarded here so that it can only shrink: on this object's repeating texture vt's default model
+/// (stereo carving, then the photo hull) lies farther from the truth than the visual hull
+/// (measured: 8 views 2.26 / 2.09 against 1.72 / 1.59; 36 views 3.04 / 2.15 against 1.46 /
+/// 1.41), while on the real photos (lego, temple, kettle) it scores better (the report). The
+/// photo hull alone is already off at 36 views (3.47 / 1.51): colour carving with many grazing
+/// views carves pits.
+#[test]
+fn default_model_distance_to_the_truth_is_guarded() {
+    use vt_fv::dataset::ModelParams;
+    for (views, bound) in [(8usize, [2.5, 2.4]), (36, [3.4, 2.5])] {
+        let ring = RingParams {
+            views,
+            size: 200,
+            seed: 0,
+        };
+        let d = generate(&ring.scene())
+            .unwrap()
+            .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
+            .unwrap();
+        let vh = visual_hull(
+            &d.cameras,
+            &d.masks,
+            &HullParams {
+                dims: [96; 3],
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let vs = vh.voxel_size().min();
+        let distance = |g: &VoxelGrid, surface: &[usize]| {
+            let pts: Vec<Vector3<f64>> = surface.iter().map(|&i| g.centre(g.coords(i))).collect();
+            d.object.compare_surface(&pts, vs, 50_000, 1).unwrap()
+        };
+        let vh_surface: Vec<usize> = vh
+            .occupied()
+            .into_iter()
+            .filter(|&i| vh.is_surface(vh.coords(i)))
+            .collect();
+        let before = distance(&vh, &vh_surface);
+        let photo = ModelParams::default().photo();
+        assert!(photo.stereo.is_some(), "vt's models carve by stereo");
+        let model = vt_fv::photo_hull_keeping(
+            vh.clone(),
+            &d.cameras,
+            &d.photos,
+            Some(&d.masks),
+            &photo,
+            &mut |_, _, _| {},
+        )
+        .unwrap();
+        let surface: Vec<usize> = model.surface.iter().map(|v| v.index).collect();
+        let after = distance(&model.grid, &surface);
+        let line = format!(
+            "{views} views: visual hull {:.2} / {:.2}, default model {:.2} / {:.2} voxels",
+            before.to_truth.mean,
+            before.from_truth.mean,
+            after.to_truth.mean,
+            after.from_truth.mean
+        );
+        eprintln!("{line}");
+        assert!(
+            after.to_truth.mean < bound[0] && after.from_truth.mean < bound[1],
+            "{line}: beyond the guard {bound:?}"
+        );
+    }
+}
