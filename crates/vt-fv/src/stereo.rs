@@ -13,7 +13,9 @@
 //! confirmed by another photo's depth map: the point, projected into another photo, lands on a
 //! depth within `agree` voxels. Finally every hull voxel that lies in front of a confirmed depth
 //! by more than `margin` voxels, in every confirmed pixel around its projection, is empty space
-//! and is carved.
+//! and is carved, unless another photo's depth puts it on a surface (`protect`). This runs
+//! `passes` times; after the first, what no photo can see beyond `unseen_keep` voxels from
+//! what they see goes too ([`carve_unseen`]).
 
 use image::RgbImage;
 use nalgebra::{Matrix3, Vector3};
@@ -61,6 +63,9 @@ pub struct StereoParams {
     pub confirmations: usize,
     /// A voxel is carved when it lies this many voxels in front of the confirmed depths (2).
     pub margin: f64,
+    /// ... unless some photo's confirmed depth puts it on a surface, within this many voxels
+    /// (1.5; 0: no protection).
+    pub protect: f64,
     /// After the first pass, keep only voxels within this many voxels of one a photo sees
     /// ([`carve_unseen`]; 3); `None` keeps them all.
     pub unseen_keep: Option<usize>,
@@ -86,6 +91,7 @@ impl Default for StereoParams {
             agree: 1.5,
             confirmations: 1,
             margin: 2.0,
+            protect: 1.5,
             unseen_keep: Some(3),
             passes: 2,
         }
@@ -136,6 +142,7 @@ impl StereoParams {
             ("stereo_min_texture", self.min_texture),
             ("stereo_agree", self.agree),
             ("stereo_margin", self.margin),
+            ("stereo_protect", self.protect),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return bad(n, v.to_string(), "a finite number >= 0");
@@ -564,7 +571,7 @@ pub fn carve_by_stereo(
     let mut maps = Vec::new();
     for pass in 0..p.passes {
         let (m, s) = depth_maps(grid, cams, images, masks, p)?;
-        let carved = carve_free_space(grid, cams, &m, p.margin);
+        let carved = carve_free_space(grid, cams, &m, p.margin, p.protect);
         maps = m;
         // The last pass's depths (each pass re-measures inside what is left).
         total = StereoSummary {
@@ -591,34 +598,47 @@ fn carve_free_space(
     cams: &[Camera],
     maps: &[DepthMap],
     margin: f64,
+    protect: f64,
 ) -> usize {
     let margin = margin * grid.voxel_size().min();
+    let protect = protect * grid.voxel_size().min();
     let occupied = grid.occupied();
     let carve: Vec<usize> = occupied
         .par_iter()
         .copied()
         .filter(|&idx| {
             let x = grid.centre(grid.coords(idx));
-            cams.iter().zip(maps).any(|(cam, m)| {
-                let Some((u, v, z)) = cam.project(&x) else {
-                    return false;
-                };
-                let (ui, vi) = m.cell(u, v);
-                let mut seen = 0;
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let d = m.at(ui + dx, vi + dy);
-                        if d.is_nan() {
-                            continue;
+            // A voxel that some photo's depth puts on a surface is kept whatever another
+            // photo's (possibly too deep) depth says.
+            let on_surface = protect > 0.0
+                && cams.iter().zip(maps).any(|(cam, m)| {
+                    cam.project(&x).is_some_and(|(u, v, z)| {
+                        let (ui, vi) = m.cell(u, v);
+                        let d = m.at(ui, vi);
+                        d.is_finite() && (z - d as f64).abs() <= protect
+                    })
+                });
+            !on_surface
+                && cams.iter().zip(maps).any(|(cam, m)| {
+                    let Some((u, v, z)) = cam.project(&x) else {
+                        return false;
+                    };
+                    let (ui, vi) = m.cell(u, v);
+                    let mut seen = 0;
+                    for dy in -1..=1 {
+                        for dx in -1..=1 {
+                            let d = m.at(ui + dx, vi + dy);
+                            if d.is_nan() {
+                                continue;
+                            }
+                            if z >= d as f64 - margin {
+                                return false;
+                            }
+                            seen += 1;
                         }
-                        if z >= d as f64 - margin {
-                            return false;
-                        }
-                        seen += 1;
                     }
-                }
-                seen >= 5
-            })
+                    seen >= 5
+                })
         })
         .collect();
     for &i in &carve {

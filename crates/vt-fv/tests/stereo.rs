@@ -268,14 +268,14 @@ fn settings_out_of_range_are_refused_by_name() {
 /// distance in voxels, model to truth / truth to model) on 8 and 36 views at 96^3. Known gap,
 /// guarded here so that it can only shrink: on this object's repeating texture vt's default model
 /// (stereo carving, then the photo hull) lies farther from the truth than the visual hull
-/// (measured: 8 views 2.26 / 2.09 against 1.72 / 1.59; 36 views 3.04 / 2.15 against 1.46 /
-/// 1.41), while on the real photos (lego, temple, kettle) it scores better (the report). The
-/// photo hull alone is already off at 36 views (3.47 / 1.51): colour carving with many grazing
-/// views carves pits.
+/// (measured: 8 views 2.02 / 2.01 against 1.72 / 1.59; 36 views 2.07 / 1.84 against 1.46 /
+/// 1.41; without `protect` 2.26 / 2.09 and 3.04 / 2.15), while on the real photos (lego,
+/// temple, kettle) it scores better (the report). The photo hull alone is already off at 36
+/// views (3.47 / 1.51): colour carving with many grazing views carves pits.
 #[test]
 fn default_model_distance_to_the_truth_is_guarded() {
     use vt_fv::dataset::ModelParams;
-    for (views, bound) in [(8usize, [2.5, 2.4]), (36, [3.4, 2.5])] {
+    for (views, bound) in [(8usize, [2.3, 2.3]), (36, [2.4, 2.1])] {
         let ring = RingParams {
             views,
             size: 200,

@@ -178,6 +178,10 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             ),
             ("margin 3 voxels".into(), StereoParams { margin: 3.0, ..d }),
             (
+                "no surface protection".into(),
+                StereoParams { protect: 0.0, ..d },
+            ),
+            (
                 "unseen voxels kept".into(),
                 StereoParams {
                     unseen_keep: None,
