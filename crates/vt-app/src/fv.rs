@@ -489,6 +489,20 @@ pub struct EvalJob {
     pub save: Option<PathBuf>,
 }
 
+/// `--save DIR`: a fresh output folder (or one replacing a previous vt output), refused when
+/// DIR is a file.
+fn save_folder(save: Option<&Path>, inputs: &[&Path]) -> Result<Option<Output>> {
+    match save {
+        Some(dir) if dir.exists() && !dir.is_dir() => Err(Error::Param {
+            name: "save",
+            value: dir.display().to_string(),
+            why: "exists and is not a folder".into(),
+        }),
+        Some(dir) => Ok(Some(Output::dir(dir, OutputKind::Folder, inputs)?)),
+        None => Ok(None),
+    }
+}
+
 /// What [`eval`] measured against a test set.
 pub struct TestEvaluated {
     /// The training data as loaded.
@@ -537,17 +551,7 @@ pub fn eval_test(job: &EvalJob, progress: &mut dyn Progress) -> Result<TestEvalu
     let test_at = test_path(given, &job.data.data)?;
     let mut inputs = job.data.inputs();
     inputs.push(test_at.as_path());
-    let save = match &job.save {
-        Some(dir) if dir.exists() && !dir.is_dir() => {
-            return Err(Error::Param {
-                name: "save",
-                value: dir.display().to_string(),
-                why: "exists and is not a folder".into(),
-            })
-        }
-        Some(dir) => Some(Output::dir(dir, OutputKind::Folder, &inputs)?),
-        None => None,
-    };
+    let save = save_folder(job.save.as_deref(), &inputs)?;
     let d = job.data.load(progress)?;
     // The test photos over the same background as the training photos (and the views).
     let mut opt = job.data.options.clone();
@@ -611,17 +615,7 @@ pub struct Evaluated {
 pub fn eval(job: &EvalJob, progress: &mut dyn Progress) -> Result<Evaluated> {
     job.data.check()?;
     let inputs = job.data.inputs();
-    let save = match &job.save {
-        Some(dir) if dir.exists() && !dir.is_dir() => {
-            return Err(Error::Param {
-                name: "save",
-                value: dir.display().to_string(),
-                why: "exists and is not a folder".into(),
-            })
-        }
-        Some(dir) => Some(Output::dir(dir, OutputKind::Folder, &inputs)?),
-        None => None,
-    };
+    let save = save_folder(job.save.as_deref(), &inputs)?;
     if job.data.model_file.is_some() && job.leave_out.len() != 1 {
         return Err(Error::Param {
             name: "model",

@@ -258,24 +258,24 @@ impl Transfer {
     }
 }
 
-/// The stretch `[near, far]` of camera depth along pixel `(u, v)`'s ray that lies in occupied
-/// voxels of `grid` (sampled every half voxel), or `None`.
-fn hull_interval(
-    grid: &VoxelGrid,
+/// The occupied voxels along pixel `(u, v)`'s ray, sampled every half voxel inside the grid's
+/// bounds: `(t, voxel index)` in order, `t` the ray parameter, which is the camera depth.
+fn occupied_along<'a>(
+    grid: &'a VoxelGrid,
     cam: &Camera,
     kinv: &Matrix3<f64>,
     u: f64,
     v: f64,
-) -> Option<(f64, f64)> {
+) -> impl Iterator<Item = (f64, usize)> + 'a {
     let dir = cam.r.transpose() * (kinv * Vector3::new(u, v, 1.0));
     let c = cam.centre();
     let b = grid.bounds();
-    // Slab intersection with the bounds, in the ray parameter (= camera depth).
+    // Slab intersection with the bounds.
     let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
     for k in 0..3 {
         if dir[k].abs() < 1e-12 {
             if c[k] < b.min[k] || c[k] > b.max[k] {
-                return None;
+                t1 = -1.0;
             }
             continue;
         }
@@ -283,25 +283,33 @@ fn hull_interval(
         t0 = t0.max(a.min(e));
         t1 = t1.min(a.max(e));
     }
-    if t0 >= t1 {
-        return None;
-    }
-    let vs = grid.voxel_size().min();
-    let dt = 0.5 * vs / dir.norm();
-    let (mut near, mut far) = (f64::NAN, f64::NAN);
-    let mut t = t0;
-    while t <= t1 {
-        if let Some(v) = grid.voxel_of(&(c + dir * t)) {
-            if grid.get(v[0] as i64, v[1] as i64, v[2] as i64) {
-                if near.is_nan() {
-                    near = t;
-                }
-                far = t;
-            }
-        }
-        t += dt;
-    }
-    (!near.is_nan()).then_some((near, far))
+    let dt = 0.5 * grid.voxel_size().min() / dir.norm();
+    let steps = if t1 >= t0 {
+        ((t1 - t0) / dt) as usize + 1
+    } else {
+        0
+    };
+    (0..steps).filter_map(move |k| {
+        let t = t0 + k as f64 * dt;
+        let v = grid.voxel_of(&(c + dir * t))?;
+        grid.get(v[0] as i64, v[1] as i64, v[2] as i64)
+            .then(|| (t, grid.index(v[0], v[1], v[2])))
+    })
+}
+
+/// The stretch `[near, far]` of camera depth along pixel `(u, v)`'s ray that lies in occupied
+/// voxels of `grid`, or `None`.
+fn hull_interval(
+    grid: &VoxelGrid,
+    cam: &Camera,
+    kinv: &Matrix3<f64>,
+    u: f64,
+    v: f64,
+) -> Option<(f64, f64)> {
+    let mut along = occupied_along(grid, cam, kinv, u, v);
+    let (near, _) = along.next()?;
+    let far = along.last().map_or(near, |(t, _)| t);
+    Some((near, far))
 }
 
 /// The depth map of photo `i` by plane sweep inside `grid` against its nearest photos.
@@ -724,32 +732,7 @@ pub fn carve_unseen(grid: &mut VoxelGrid, cams: &[Camera], masks: &[Mask], keep:
     carved
 }
 
-/// The first occupied voxel along pixel `(u, v)`'s ray (sampled every half voxel).
+/// The first occupied voxel along pixel `(u, v)`'s ray.
 fn first_hit(grid: &VoxelGrid, cam: &Camera, kinv: &Matrix3<f64>, u: f64, v: f64) -> Option<usize> {
-    let dir = cam.r.transpose() * (kinv * Vector3::new(u, v, 1.0));
-    let c = cam.centre();
-    let b = grid.bounds();
-    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-    for k in 0..3 {
-        if dir[k].abs() < 1e-12 {
-            if c[k] < b.min[k] || c[k] > b.max[k] {
-                return None;
-            }
-            continue;
-        }
-        let (a, e) = ((b.min[k] - c[k]) / dir[k], (b.max[k] - c[k]) / dir[k]);
-        t0 = t0.max(a.min(e));
-        t1 = t1.min(a.max(e));
-    }
-    let dt = 0.5 * grid.voxel_size().min() / dir.norm();
-    let mut t = t0;
-    while t <= t1 {
-        if let Some(v) = grid.voxel_of(&(c + dir * t)) {
-            if grid.get(v[0] as i64, v[1] as i64, v[2] as i64) {
-                return Some(grid.index(v[0], v[1], v[2]));
-            }
-        }
-        t += dt;
-    }
-    None
+    occupied_along(grid, cam, kinv, u, v).next().map(|(_, i)| i)
 }

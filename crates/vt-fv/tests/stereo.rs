@@ -11,8 +11,13 @@ use vt_synth::object::{generate, RingParams, SynthData};
 
 /// `vt synth object`'s ring (8 views, seed 0) at 200x200, and its visual hull at 96^3.
 fn scene() -> (SynthData<Camera>, VoxelGrid) {
+    ring(8)
+}
+
+/// The ring of `views` views (seed 0) at 200x200, and its visual hull at 96^3.
+fn ring(views: usize) -> (SynthData<Camera>, VoxelGrid) {
     let ring = RingParams {
-        views: 8,
+        views,
         size: 200,
         seed: 0,
     };
@@ -276,24 +281,7 @@ fn settings_out_of_range_are_refused_by_name() {
 fn default_model_distance_to_the_truth_is_guarded() {
     use vt_fv::dataset::ModelParams;
     for (views, bound) in [(8usize, [2.3, 2.3]), (36, [2.4, 2.1])] {
-        let ring = RingParams {
-            views,
-            size: 200,
-            seed: 0,
-        };
-        let d = generate(&ring.scene())
-            .unwrap()
-            .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
-            .unwrap();
-        let vh = visual_hull(
-            &d.cameras,
-            &d.masks,
-            &HullParams {
-                dims: [96; 3],
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let (d, vh) = ring(views);
         let vs = vh.voxel_size().min();
         let distance = |g: &VoxelGrid, surface: &[usize]| {
             let pts: Vec<Vector3<f64>> = surface.iter().map(|&i| g.centre(g.coords(i))).collect();
