@@ -1,6 +1,6 @@
 //! The README's "Your own footage" commands, run as written on the shipped test data: tree.avi as
 //! the one-camera clip, three views made from it by `vt synth real` as the cameras on a line, and
-//! the kettle's COLMAP folder as the photos. Where vt refuses a clip as too short and says which
+//! the kettle's COLMAP folder as the photos, testdata/nerf-lego as the NeRF folder. Where vt refuses a clip as too short and says which
 //! `--min-length` to pass, the command is run again with that advice, as the README tells a user
 //! to. `vt view` and `vt mark` serve pages until stopped and are left out (the viewer tests run
 //! them).
@@ -83,6 +83,8 @@ fn your_own_footage_commands_work_as_written() {
         .unwrap();
     }
     common::copy_dir(&testdata.join("kettle"), &dir.join("photos"));
+    // The NeRF synthetic lego folder (testdata keeps the benchmark's 8 training views).
+    common::copy_dir(&testdata.join("nerf-lego"), &dir.join("lego"));
 
     let mut ran = Vec::new();
     for args in &cmds {
