@@ -445,14 +445,7 @@ pub fn orbit(job: &OrbitJob, progress: &mut dyn Progress) -> Result<Orbited> {
         (w, h),
         &view,
         &mut |i, angle, v| {
-            let frame = match d.background {
-                Some(bg) => std::borrow::Cow::Owned(vt_fv::composite::onto(
-                    &v.guided,
-                    &v.rough.coverage,
-                    bg,
-                )),
-                None => std::borrow::Cow::Borrowed(&v.guided),
-            };
+            let frame = vt_fv::composite::placed(&v.guided, &v.rough.coverage, d.background);
             video.write(&frame).map_err(|e| Error::In {
                 what: format!("frame {i} (angle {angle:.1})"),
                 cause: Box::new(e.into()),

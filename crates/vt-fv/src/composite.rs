@@ -141,6 +141,19 @@ pub fn onto(img: &RgbImage, coverage: &Mask, bg: [u8; 3]) -> RgbImage {
     over(&with_alpha(img, coverage), bg)
 }
 
+/// A new view as shown on `background`: composited over it ([`onto`]), or as it is (black
+/// where uncovered) without one.
+pub fn placed<'a>(
+    img: &'a RgbImage,
+    coverage: &Mask,
+    background: Option<[u8; 3]>,
+) -> std::borrow::Cow<'a, RgbImage> {
+    match background {
+        Some(bg) => std::borrow::Cow::Owned(onto(img, coverage, bg)),
+        None => std::borrow::Cow::Borrowed(img),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -540,6 +540,17 @@ pub fn depth_maps(
     p: &StereoParams,
 ) -> Result<(Vec<DepthMap>, StereoSummary)> {
     p.check()?;
+    Ok(measure(
+        grid,
+        cams,
+        &planes_of(cams, images, masks)?,
+        masks,
+        p,
+    ))
+}
+
+/// The photos' luma planes, once the counts agree.
+fn planes_of(cams: &[Camera], images: &[RgbImage], masks: &[Mask]) -> Result<Vec<Plane>> {
     if cams.len() != images.len() || cams.len() != masks.len() {
         return Err(Error::CountMismatch {
             what: "cameras vs photos vs silhouettes".into(),
@@ -547,10 +558,20 @@ pub fn depth_maps(
             b: images.len().min(masks.len()),
         });
     }
-    let planes: Vec<Plane> = images.iter().map(Plane::luma).collect();
+    Ok(images.iter().map(Plane::luma).collect())
+}
+
+/// [`depth_maps`] from the photos' luma planes (settings checked).
+fn measure(
+    grid: &VoxelGrid,
+    cams: &[Camera],
+    planes: &[Plane],
+    masks: &[Mask],
+    p: &StereoParams,
+) -> (Vec<DepthMap>, StereoSummary) {
     let centre = grid.bounds().centre();
     let raw: Vec<DepthMap> = (0..cams.len())
-        .map(|i| sweep(i, grid, cams, &planes, masks, &centre, p))
+        .map(|i| sweep(i, grid, cams, planes, masks, &centre, p))
         .collect();
     let vs = grid.voxel_size().min();
     let maps = confirm(&raw, cams, p.agree * vs, p.confirmations);
@@ -561,7 +582,7 @@ pub fn depth_maps(
         carved: 0,
         unseen: 0,
     };
-    Ok((maps, summary))
+    (maps, summary)
 }
 
 /// Carves from `grid` every voxel that lies more than `margin` voxels in front of the confirmed
@@ -575,10 +596,12 @@ pub fn carve_by_stereo(
     p: &StereoParams,
 ) -> Result<(Vec<DepthMap>, StereoSummary)> {
     p.check()?;
+    // The luma planes serve every pass.
+    let planes = planes_of(cams, images, masks)?;
     let mut total = StereoSummary::default();
     let mut maps = Vec::new();
     for pass in 0..p.passes {
-        let (m, s) = depth_maps(grid, cams, images, masks, p)?;
+        let (m, s) = measure(grid, cams, &planes, masks, p);
         let carved = carve_free_space(grid, cams, &m, p.margin, p.protect);
         maps = m;
         // The last pass's depths (each pass re-measures inside what is left).

@@ -3,7 +3,7 @@
 //! the whole image over the data's background, and inside the test photo's silhouette.
 
 use super::*;
-use crate::composite::onto;
+use crate::composite::placed;
 use crate::eval::psnr;
 use crate::pipeline::novel_view_in;
 use crate::texture::{model_centre, nearest_by_direction};
@@ -45,7 +45,7 @@ pub struct TestView {
     pub secs: f64,
 }
 
-/// A test view's images, for the contact sheet: truth, the view, the error map.
+/// A test view's images, for the contact sheet (which adds the error map) and `--save`.
 pub struct TestImages {
     /// The test photo (over the background).
     pub truth: RgbImage,
@@ -201,12 +201,8 @@ impl Dataset {
             )?;
             let secs = t.elapsed().as_secs_f64();
             let coverage = &v.rough.coverage;
-            let place = |img: &RgbImage| match self.background {
-                Some(bg) => onto(img, coverage, bg),
-                None => img.clone(),
-            };
-            let made = place(&v.guided);
-            let rough = place(&v.rough.image);
+            let made = placed(&v.guided, coverage, self.background).into_owned();
+            let rough = placed(&v.rough.image, coverage, self.background);
             let nearest = nearest_by_direction(&self.cams, cam, &centre, 1)[0];
             let nearest_photo = if self.images[nearest].dimensions() == (w, h) {
                 rgb_score(&self.images[nearest], truth, None)?
@@ -247,12 +243,12 @@ pub fn contact_sheet(images: &[TestImages], views: &[usize]) -> RgbImage {
     let (w, h) = images.first().map_or((1, 1), |i| i.truth.dimensions());
     let mut sheet =
         RgbImage::from_pixel(3 * w, (views.len().max(1) as u32) * h, image::Rgb([255; 3]));
+    let all = Mask::from_index_fn(w, h, |_| true);
     for (row, &i) in views.iter().enumerate() {
         let im = &images[i];
         if im.truth.dimensions() != (w, h) {
             continue;
         }
-        let all = Mask::from_index_fn(w, h, |_| true);
         let err = crate::pipeline::error_map(&im.view, &im.truth, &all);
         for (col, img) in [&im.truth, &im.view, &err].into_iter().enumerate() {
             image::imageops::replace(
