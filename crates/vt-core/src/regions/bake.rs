@@ -1,0 +1,293 @@
+//! Baking the labels into L + 1 frames: feathered tiles, the wrap correction spread over frames.
+
+use super::*;
+
+/// One pixel's place along one axis: its tile, the tile it blends with, and the second's
+/// weight.
+pub type AxisBlend = (usize, usize, f32);
+
+/// Per pixel along one axis: the two tiles blended and the second's weight.
+fn axis_blend(len: u32, tile: u32, count: usize, feather: u32) -> Vec<AxisBlend> {
+    (0..len)
+        .map(|x| {
+            let c = (x / tile) as usize;
+            let d = (x % tile) as f32 + 0.5;
+            let half = feather as f32 / 2.0;
+            if feather > 0 && d < half && c > 0 {
+                (c, c - 1, 0.5 - d / feather as f32)
+            } else if feather > 0 && tile as f32 - d < half && c + 1 < count {
+                (c, c + 1, 0.5 - (tile as f32 - d) / feather as f32)
+            } else {
+                (c, c, 0.0)
+            }
+        })
+        .collect()
+}
+
+/// The baked loop: `L + 1` frames (frame `L` is frame 0 again) and their masks, each pixel's
+/// colour the feathered mix of its tiles' source frames, its mask bit its own tile's; with
+/// `rl.blend`, plus the wrap correction of [`correction`].
+pub fn compose(
+    frames: &[RgbImage],
+    masks: &[Mask],
+    rl: &RegionLoop,
+    feather: u32,
+) -> (Vec<RgbImage>, Vec<Mask>) {
+    let (w, h) = frames[0].dimensions();
+    let (cols, rows) = rl.grid;
+    let bx = axis_blend(w, rl.tile, cols, feather);
+    let by = axis_blend(h, rl.tile, rows, feather);
+    let spread = match rl.blend {
+        Some(_) => spreads(frames, rl),
+        None => vec![1; rl.labels.len()],
+    };
+    let out: Vec<(RgbImage, Mask)> = (0..=rl.length)
+        .into_par_iter()
+        .map(|t| {
+            let t = (t + rl.phase) % rl.length;
+            let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
+            let shown = ramps(rl, &spread, t);
+            let raw: Vec<&[u8]> = frames.iter().map(|f| f.as_raw().as_slice()).collect();
+            // Unsmoothed, the correction is added pixel by pixel below; smoothed, as a field.
+            let inline = rl.blend == Some(0.0);
+            let corr = rl
+                .blend
+                .filter(|&s| s > 0.0)
+                .map(|sigma| correction(frames, rl, &spread, (&bx, &by), t, sigma));
+            let mut img = RgbImage::new(w, h);
+            let out = img.as_mut();
+            for y in 0..h as usize {
+                for x in 0..w as usize {
+                    let i = 3 * (y * w as usize + x);
+                    let mut acc = [0f32; 3];
+                    for (tile, wt) in tile_weights(bx[x], by[y], cols) {
+                        if wt > 0.0 {
+                            let (f, s, e, r) = shown[tile];
+                            let p = &raw[f][i..i + 3];
+                            if inline {
+                                let (a, b) = (&raw[s][i..i + 3], &raw[e][i..i + 3]);
+                                for c in 0..3 {
+                                    acc[c] += wt * (p[c] as f32 + r * (b[c] as f32 - a[c] as f32));
+                                }
+                            } else {
+                                for c in 0..3 {
+                                    acc[c] += wt * p[c] as f32;
+                                }
+                            }
+                        }
+                    }
+                    if let Some(corr) = &corr {
+                        for c in 0..3 {
+                            acc[c] += corr[i + c];
+                        }
+                    }
+                    for c in 0..3 {
+                        out[i + c] = acc[c].round().clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+            let mask = Mask::from_fn(w, h, |x, y| {
+                let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
+                masks[f].get(x, y)
+            });
+            (img, mask)
+        })
+        .collect();
+    out.into_iter().unzip()
+}
+
+/// Per tile at labels' time `t`: the source frame shown, its wrap's two frames `s` and `s + p`,
+/// and the share of their difference the correction adds at cycle position `k` (see
+/// [`correction`]): `((p - 1) / 2 - k) / p` when spread over the whole cycle, and over the
+/// tile's `K` frames of [`spreads`] the same ramp with `K` for `p`, zero in the middle of the
+/// cycle.
+fn ramps(rl: &RegionLoop, spread: &[usize], t: usize) -> Vec<(usize, usize, usize, f32)> {
+    rl.labels
+        .iter()
+        .zip(spread)
+        .map(|(l, &k_len)| {
+            let p = l.period;
+            let k = l.frame(t) - l.start;
+            // Over the whole cycle (k_len = p): ((p - 1) / 2 - k) / p. Over the k_len frames
+            // around the wrap: the same ramp, flat (zero) in the middle of the cycle.
+            let h = (k_len.max(1) - 1) as f32 / 2.0;
+            let front = (h - k as f32).max(0.0);
+            let back = (h - (p - 1 - k) as f32).max(0.0);
+            (
+                l.frame(t),
+                l.start,
+                l.start + p,
+                (front - back) / k_len.max(1) as f32,
+            )
+        })
+        .collect()
+}
+
+/// Per tile, the frames its wrap correction is spread over: enough that each carries at most
+/// `rl.spread` of the tile's median ordinary step (a tile whose wrap mismatch is already that
+/// small gets none), at most its whole cycle (`rl.spread` 0: the whole cycle). The less it is
+/// spread, the closer the frames stay to the source's.
+pub fn spreads(frames: &[RgbImage], rl: &RegionLoop) -> Vec<usize> {
+    if rl.spread == 0.0 {
+        return rl.labels.iter().map(|l| l.period).collect();
+    }
+    let (w, h) = frames[0].dimensions();
+    let tile_px = tile_pixels(rl, w, h);
+    let ones = vec![1f32; (w * h) as usize];
+    let tile_mad = |a: &RgbImage, b: &RgbImage, px: &[usize]| {
+        let (s, n) = mad(a, b, px, &ones);
+        s / n.max(1e-9)
+    };
+    rl.labels
+        .par_iter()
+        .zip(&tile_px)
+        .map(|(l, px)| {
+            let d = tile_mad(&frames[l.start + l.period], &frames[l.start], px);
+            let steps: Vec<f64> = (l.start..l.start + l.period - 1)
+                .map(|f| tile_mad(&frames[f + 1], &frames[f], px))
+                .collect();
+            let step = median(steps).max(crate::seam::MIN_UNIT);
+            ((d / (rl.spread as f64 * step)).ceil() as usize).clamp(1, l.period)
+        })
+        .collect()
+}
+
+/// Each tile's full-resolution pixel indices, row by row, tiles in `rl.labels` order.
+pub(super) fn tile_pixels(rl: &RegionLoop, w: u32, h: u32) -> Vec<Vec<usize>> {
+    let cols = rl.grid.0;
+    let mut tile_px = vec![Vec::new(); rl.labels.len()];
+    for y in 0..h {
+        for x in 0..w {
+            tile_px[(y / rl.tile) as usize * cols + (x / rl.tile) as usize]
+                .push((y * w + x) as usize);
+        }
+    }
+    tile_px
+}
+
+/// The four tiles a pixel mixes and their weights, from its column's and row's
+/// [`axis_blend`] entries, on a grid `cols` tiles wide.
+fn tile_weights(
+    (cx, ox, ax): (usize, usize, f32),
+    (cy, oy, ay): (usize, usize, f32),
+    cols: usize,
+) -> [(usize, f32); 4] {
+    [
+        (cy * cols + cx, (1.0 - ax) * (1.0 - ay)),
+        (cy * cols + ox, ax * (1.0 - ay)),
+        (oy * cols + cx, (1.0 - ax) * ay),
+        (oy * cols + ox, ax * ay),
+    ]
+}
+
+/// The wrap correction of output time `t` (labels' time), `3 * w * h` values to add.
+///
+/// A tile looping `(s, p)` shows `V(s + k)` at cycle position `k`; at its wrap `V(s)` follows
+/// `V(s + p - 1)` where the source goes on to `V(s + p)`, so its temporal gradients differ from
+/// the source's by `D = V(s + p) - V(s)` at that one step. The least-squares fit of a cyclic
+/// sequence to the source's gradients (the temporal Poisson equation, screened to keep the
+/// mean) spreads `D` evenly over the cycle: `c_k = D ((p - 1) / 2 - k) / p` added at position
+/// `k`, so every step carries `-D / p` and the wrap no longer one `D`. Spread over only the
+/// tile's `spread` frames around the wrap ([`spreads`]: as few as keep each step's share under
+/// `rl.spread` of an ordinary step), the frames in the middle of the cycle stay the
+/// source's. Pixels mixing tiles mix
+/// their tiles' corrections with the same weights; the field is then low-passed by a Gaussian
+/// of `sigma` pixels (0: none), which keeps only its smooth part (after Liao, Finch and Hoppe
+/// 2015, whose multigrid solve makes a spatially smooth correction): what it removes of `D`,
+/// the fine detail, stays at the wrap, so the frames keep the source's detail.
+pub fn correction(
+    frames: &[RgbImage],
+    rl: &RegionLoop,
+    spread: &[usize],
+    (bx, by): (&[AxisBlend], &[AxisBlend]),
+    t: usize,
+    sigma: f32,
+) -> Vec<f32> {
+    let (w, h) = frames[0].dimensions();
+    let cols = rl.grid.0;
+    let ramp = ramps(rl, spread, t);
+    let mut out = vec![0f32; 3 * (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let i = 3 * (y * w + x) as usize;
+            for (tile, wt) in tile_weights(bx[x as usize], by[y as usize], cols) {
+                if wt > 0.0 {
+                    let (_, s, e, r) = ramp[tile];
+                    let (a, b) = (frames[s].get_pixel(x, y), frames[e].get_pixel(x, y));
+                    for c in 0..3 {
+                        out[i + c] += wt * r * (b[c] as f32 - a[c] as f32);
+                    }
+                }
+            }
+        }
+    }
+    if sigma > 0.0 {
+        blur_planes(&mut out, w as usize, h as usize, sigma);
+    }
+    out
+}
+
+/// Separable Gaussian blur of interleaved RGB `f32` values, border reflected (reflect-101):
+/// the kernel and border of [`crate::blur`], on floats.
+fn blur_planes(v: &mut [f32], w: usize, h: usize, sigma: f32) {
+    let r = (3.0 * sigma).ceil() as usize;
+    let k: Vec<f32> = crate::blur::gaussian_kernel(2 * r + 1, sigma as f64)
+        .expect("an odd size and a finite sigma")
+        .into_iter()
+        .map(|x| x as f32)
+        .collect();
+    let mut tmp = vec![0f32; v.len()];
+    // One pass along x (step 1 pixel, `w` of them per line) or y (step `w`, `h` of them).
+    let pass = |src: &[f32], dst: &mut [f32], along_x: bool| {
+        let (len, stride) = if along_x { (w, 1) } else { (h, w) };
+        for y in 0..h {
+            for x in 0..w {
+                let (pos, base) = if along_x { (x, y * w) } else { (y, x) };
+                let mut acc = [0f32; 3];
+                for (j, kv) in k.iter().enumerate() {
+                    let at = crate::blur::reflect101(pos as isize + j as isize - r as isize, len);
+                    let i = 3 * (base + at * stride);
+                    for c in 0..3 {
+                        acc[c] += kv * src[i + c];
+                    }
+                }
+                dst[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&acc);
+            }
+        }
+    };
+    pass(v, &mut tmp, true);
+    pass(&tmp, v, false);
+}
+
+/// Rotates a baked loop (`L + 1` frames, the last the first again) so that its frame 0 is the
+/// old frame `by`: the player's wrap `L -> 1` then shows the old step `by -> by + 1`.
+pub fn rotate<T: Clone>(baked: &mut Vec<T>, rl: &mut RegionLoop, by: usize) {
+    let l = rl.length;
+    baked.truncate(l);
+    baked.rotate_left(by % l);
+    baked.push(baked[0].clone());
+    rl.phase = (rl.phase + by) % l;
+}
+
+/// A single loop as a [`RegionLoop`] (every tile the same label, output frame 0 its start), to
+/// measure the thesis's loop
+/// as the per-region ones are.
+pub fn single_loop(label: Label, frame: (u32, u32), tile: u32) -> RegionLoop {
+    let grid = (
+        frame.0.div_ceil(tile) as usize,
+        frame.1.div_ceil(tile) as usize,
+    );
+    RegionLoop {
+        length: label.period,
+        tile,
+        grid,
+        labels: vec![label; grid.0 * grid.1],
+        energy: 0.0,
+        single_energy: 0.0,
+        periods: vec![label.period],
+        solve_secs: 0.0,
+        phase: label.start % label.period,
+        blend: None,
+        spread: DEFAULT_SPREAD,
+    }
+}

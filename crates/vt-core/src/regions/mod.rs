@@ -1,0 +1,299 @@
+//! Per-region loops baked into one seamless loop (issue 23, beyond the thesis's one loop per
+//! view; after Liao, Joshi and Hoppe 2013, "Automated video looping with progressive dynamism").
+//!
+//! The view is cut into square tiles. Each tile gets its own label: a start `s` and a period `p`
+//! from a small set of periods that all divide one loop length `L`, so that output frame `t` shows
+//! at that tile source frame `phi(t) = s + ((t - s) mod p)` and the whole output repeats after
+//! `L` frames. Labels minimise, at reduced resolution and weighted by the dynamic region,
+//!
+//! - the temporal cost of each tile's own wrap, `|V(s) - V(s + p)|^2 + |V(s - 1) - V(s + p - 1)|^2`
+//!   summed over the tile's pixels (what would follow frame `s + p - 1` against what does), and
+//! - `lambda` times the spatial cost of each pair of neighbouring tiles, the mean over the loop's
+//!   `L` frames of `|V(phi_a(t)) - V(phi_b(t))|^2` on the pixels either side of their shared
+//!   edge (zero where the two tiles share a label),
+//!
+//! by iterated conditional modes ([`Problem::icm`]) from the best single label and from each
+//! tile's own best label (the lower energy kept), for each loop
+//! length in a short list (the thesis's own period among them, so its single loop stays a
+//! candidate), keeping the lowest energy. [`compose`] then bakes the `L + 1` frames (frame `L`
+//! repeats frame 0, so a player looping `(0, L)` wraps onto the frame that would come next),
+//! feathering each tile into its neighbours over `feather` pixels; masks follow each pixel's own
+//! tile. Everything is computed offline: the renderer plays the baked frames as any loop.
+
+use std::borrow::Borrow;
+
+use image::RgbImage;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Mask, Result};
+
+mod bake;
+mod quality;
+mod solve;
+
+use bake::*;
+pub use bake::{compose, correction, rotate, single_loop, spreads, AxisBlend};
+use quality::{mad, median};
+pub use quality::{quality, single_frames, Quality};
+pub use solve::{solve, Problem, Strips, Temporal};
+
+/// The parameters of per-region loops.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RegionParams {
+    /// Tile side, full-resolution pixels.
+    pub tile: u32,
+    /// Reduction of the frames the labels are chosen on (block mean of `scale` x `scale`), at
+    /// least: doubled for large frames while it divides the tile side, to at most 32,768
+    /// reduced pixels.
+    pub scale: u32,
+    /// Longest baked loop, frames.
+    pub max_length: usize,
+    /// Weight of the spatial term against the temporal one.
+    pub spatial: f32,
+    /// Width of the feather between tiles with different labels, full-resolution pixels.
+    pub feather: u32,
+    /// Most ICM sweeps per loop length.
+    pub sweeps: usize,
+    /// Most source frames considered (a window holding the thesis's loop).
+    pub max_frames: usize,
+    /// The wrap correction ([`correction`]): the Gaussian sigma (pixels) of its spatial
+    /// low-pass, 0 for none (the default: on tree.avi's frames 0-53 it brings the tiles' wraps
+    /// from 1.83x to 1.11x their ordinary step, measured before the correction was spread over
+    /// only the frames it needs ([`spreads`]): sigma 1 and 2 kept 1.56x and 1.75x); None: no
+    /// correction (each tile's wrap is one step).
+    #[serde(default)]
+    pub blend: Option<f32>,
+    /// Keep the baked loop only where it measures better than the thesis's loop on the same
+    /// frames ([`Quality::better_than`]); the view keeps its thesis loop otherwise
+    /// (`vt analyze --loops auto`, the default). False: always bake (`--loops regions`).
+    #[serde(default)]
+    pub only_if_better: bool,
+    /// The most a frame of a tile's wrap correction may add, in the tile's ordinary steps: the
+    /// correction is spread over as few frames around the wrap as that allows ([`spreads`]), so
+    /// the rest keep their source frames; 0: over the whole cycle (the least-squares solution).
+    #[serde(default = "default_spread")]
+    pub spread: f32,
+}
+
+fn default_spread() -> f32 {
+    DEFAULT_SPREAD
+}
+
+/// Default [`RegionParams::spread`]: on tree.avi's frames 0-53 the tiles' wraps 1.11x their
+/// ordinary step, sharpness near them 0.954, 0.34 grey levels from the source (0.5: 1.04x,
+/// 0.946, 0.47; 1: 1.18x, 0.957, 0.30; the whole cycle: 1.02x, 0.960, 2.02).
+pub const DEFAULT_SPREAD: f32 = 0.75;
+
+impl Default for RegionParams {
+    fn default() -> Self {
+        Self {
+            tile: 16,
+            scale: 2,
+            max_length: 240,
+            spatial: 10.0,
+            feather: 8,
+            sweeps: 12,
+            max_frames: 128,
+            blend: Some(0.0),
+            only_if_better: false,
+            spread: DEFAULT_SPREAD,
+        }
+    }
+}
+
+impl RegionParams {
+    /// The parameters' rules.
+    pub fn check(&self) -> Result<()> {
+        let bad = |name, value: String, why: &str| {
+            Err(Error::InvalidParameter {
+                name,
+                value,
+                why: why.into(),
+            })
+        };
+        if !(4..=256).contains(&self.tile) {
+            return bad("regions.tile", self.tile.to_string(), "4 to 256 pixels");
+        }
+        if self.scale == 0 || self.scale > self.tile || !self.tile.is_multiple_of(self.scale) {
+            return bad(
+                "regions.scale",
+                self.scale.to_string(),
+                "at least 1 and dividing the tile side",
+            );
+        }
+        if !(2..=2000).contains(&self.max_length) {
+            return bad(
+                "regions.max_length",
+                self.max_length.to_string(),
+                "2 to 2000 frames",
+            );
+        }
+        if !(self.spatial.is_finite() && (0.0..=1e6).contains(&self.spatial)) {
+            return bad("regions.spatial", self.spatial.to_string(), "0 to 1e6");
+        }
+        if self.feather > self.tile {
+            return bad(
+                "regions.feather",
+                self.feather.to_string(),
+                "at most the tile side",
+            );
+        }
+        if let Some(b) = self.blend {
+            if !(b.is_finite() && (0.0..=64.0).contains(&b)) {
+                return bad("regions.blend", b.to_string(), "0 to 64 pixels");
+            }
+        }
+        if !(self.spread.is_finite() && (0.0..=100.0).contains(&self.spread)) {
+            return bad(
+                "regions.spread",
+                self.spread.to_string(),
+                "0 (the whole cycle) to 100 ordinary steps",
+            );
+        }
+        if !(4..=1000).contains(&self.max_frames) {
+            return bad(
+                "regions.max_frames",
+                self.max_frames.to_string(),
+                "4 to 1000 frames",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// A tile's loop: output frame `t` shows source frame `start + ((t - start) mod period)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Label {
+    /// First source frame of the loop.
+    pub start: usize,
+    /// Frames per cycle.
+    pub period: usize,
+}
+
+impl Label {
+    /// The source frame shown at output frame `t`.
+    pub fn frame(&self, t: usize) -> usize {
+        let p = self.period;
+        self.start + (t + p - self.start % p) % p
+    }
+}
+
+/// Frames reduced for the label search: RGB as `f32`, per-pixel weights (the dynamic region).
+pub struct Reduced {
+    /// Width and height.
+    pub size: (usize, usize),
+    /// One `3 * w * h` plane per frame.
+    pub frames: Vec<Vec<f32>>,
+    /// Per-pixel weight.
+    pub weight: Vec<f32>,
+}
+
+/// Most pixels of the reduced frames the labels are chosen on (320 x 240 at scale 2 holds
+/// 19,200; 768 x 576 is reduced by 4 to 27,648).
+const MAX_REDUCED: usize = 32_768;
+
+/// Weight of pixels outside the dynamic region (labels there stay defined).
+const OUTSIDE: f32 = 0.02;
+
+/// Block-mean reduction of `frames` by `scale`, weighted by `alpha` (0..255; None: all 1).
+pub fn reduce(frames: &[RgbImage], alpha: Option<&image::GrayImage>, scale: u32) -> Reduced {
+    let (w, h) = frames[0].dimensions();
+    let (rw, rh) = (w.div_ceil(scale) as usize, h.div_ceil(scale) as usize);
+    let reduce_one = |f: &RgbImage| -> Vec<f32> {
+        let mut out = vec![0f32; 3 * rw * rh];
+        let mut count = vec![0f32; rw * rh];
+        for (x, y, px) in f.enumerate_pixels() {
+            let i = (y / scale) as usize * rw + (x / scale) as usize;
+            for c in 0..3 {
+                out[3 * i + c] += px[c] as f32;
+            }
+            count[i] += 1.0;
+        }
+        for (i, n) in count.iter().enumerate() {
+            for c in 0..3 {
+                out[3 * i + c] /= n;
+            }
+        }
+        out
+    };
+    let reduced: Vec<Vec<f32>> = frames.par_iter().map(reduce_one).collect();
+    let mut weight = vec![0f32; rw * rh];
+    let mut count = vec![0f32; rw * rh];
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y / scale) as usize * rw + (x / scale) as usize;
+            weight[i] += alpha.map_or(1.0, |a| a.get_pixel(x, y)[0] as f32 / 255.0);
+            count[i] += 1.0;
+        }
+    }
+    for (wt, n) in weight.iter_mut().zip(&count) {
+        *wt = (*wt / n).max(OUTSIDE);
+    }
+    Reduced {
+        size: (rw, rh),
+        frames: reduced,
+        weight,
+    }
+}
+
+/// Weighted squared RGB difference of frames `i` and `j` over `pixels`.
+fn diff(r: &Reduced, i: usize, j: usize, pixels: &[usize]) -> f32 {
+    let (a, b) = (&r.frames[i], &r.frames[j]);
+    pixels
+        .iter()
+        .map(|&k| {
+            let d0 = a[3 * k] - b[3 * k];
+            let d1 = a[3 * k + 1] - b[3 * k + 1];
+            let d2 = a[3 * k + 2] - b[3 * k + 2];
+            r.weight[k] * (d0 * d0 + d1 * d1 + d2 * d2)
+        })
+        .sum()
+}
+
+/// The chosen per-region loop of a view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionLoop {
+    /// Loop length `L` (the baked sequence holds `L + 1` frames).
+    pub length: usize,
+    /// Tile side, full-resolution pixels.
+    pub tile: u32,
+    /// Tiles across and down.
+    pub grid: (usize, usize),
+    /// One label per tile, row by row, in source frame numbers.
+    pub labels: Vec<Label>,
+    /// The energy reached, and that of the best single label of the same length.
+    pub energy: f64,
+    /// The best single label's energy (same loop length).
+    pub single_energy: f64,
+    /// Distinct periods used.
+    pub periods: Vec<usize>,
+    /// Seconds spent choosing labels.
+    pub solve_secs: f64,
+    /// Output frame 0 shows the labels' time `phase` (see [`rotate`]).
+    pub phase: usize,
+    /// The wrap correction's sigma ([`RegionParams::blend`]).
+    pub blend: Option<f32>,
+    /// How far the wrap correction is spread ([`RegionParams::spread`]).
+    pub spread: f32,
+}
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn label_frames_cycle() {
+        let l = Label {
+            start: 7,
+            period: 5,
+        };
+        let seq: Vec<usize> = (0..12).map(|t| l.frame(t)).collect();
+        assert_eq!(seq, vec![10, 11, 7, 8, 9, 10, 11, 7, 8, 9, 10, 11]);
+        // Every frame in the loop, its successor the next but for one wrap per cycle.
+        for t in 0..20 {
+            let (a, b) = (l.frame(t), l.frame(t + 1));
+            assert!((7..12).contains(&a));
+            assert!(b == a + 1 || (a == 11 && b == 7));
+        }
+    }
+}

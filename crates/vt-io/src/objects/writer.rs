@@ -1,0 +1,359 @@
+//! Writing a store frame by frame, and the analysis observer that writes one per view.
+
+use super::*;
+
+/// Writes a store frame by frame.
+pub struct ObjectWriter {
+    path: PathBuf,
+    out: BufWriter<std::fs::File>,
+    width: u32,
+    height: u32,
+    offsets: Vec<u64>,
+    pos: u64,
+    /// The record being built (reused).
+    rec: Vec<u8>,
+    /// Its box's mask bits as words (reused).
+    box_words: Vec<u64>,
+    /// Version 2's encoder; None for version 1.
+    encoding: Option<H264Writer>,
+    /// Version 2 through x264: the heads of the records (box, deflated mask) whose access
+    /// units have not come back yet, oldest first.
+    waiting: std::collections::VecDeque<Vec<u8>>,
+    /// Frames handed to the encoder.
+    sent: usize,
+}
+
+/// Which program encodes version 2's pictures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum H264Encoder {
+    /// x264 through ffmpeg when ffmpeg has libx264 (about 3x less CPU than openh264, in a
+    /// process of its own), else openh264.
+    Auto,
+    /// x264 through ffmpeg (an error when ffmpeg or its libx264 is missing).
+    X264,
+    /// openh264, in this process.
+    OpenH264,
+}
+
+enum H264Writer {
+    OpenH264(Box<Encoding>),
+    X264(X264),
+}
+
+impl ObjectWriter {
+    /// Creates a lossless (version 1) store.
+    pub fn create(path: &Path, width: u32, height: u32) -> Result<Self> {
+        Self::create_with(path, width, height, StoreQuality::Lossless)
+    }
+
+    /// Creates a store that keeps the pixels at `quality`.
+    pub fn create_with(
+        path: &Path,
+        width: u32,
+        height: u32,
+        quality: StoreQuality,
+    ) -> Result<Self> {
+        Self::create_with_encoder(path, width, height, quality, H264Encoder::Auto)
+    }
+
+    /// Creates a store that keeps the pixels at `quality`, H.264 made by `encoder`.
+    pub fn create_with_encoder(
+        path: &Path,
+        width: u32,
+        height: u32,
+        quality: StoreQuality,
+        encoder: H264Encoder,
+    ) -> Result<Self> {
+        let side = crate::limits::MAX_IMAGE_SIDE;
+        if width == 0 || height == 0 || width > side || height > side {
+            return Err(Error::Scene {
+                path: path.to_path_buf(),
+                message: format!("object store of {width}x{height} (1 to {side} per side)"),
+            });
+        }
+        let encoding = match quality {
+            StoreQuality::Lossless => None,
+            StoreQuality::H264 { qp } => {
+                let qp = qp.clamp(MIN_QP, 51);
+                let x264 = match encoder {
+                    H264Encoder::Auto => x264_available(),
+                    H264Encoder::X264 => true,
+                    H264Encoder::OpenH264 => false,
+                };
+                let bad = |e: String| Error::Scene {
+                    path: path.to_path_buf(),
+                    message: format!("H.264 encoder for {width}x{height}: {e}"),
+                };
+                Some(if x264 {
+                    let (pw, ph) = padded_size(width, height);
+                    H264Writer::X264(
+                        X264::new(qp, pw, ph).map_err(|e| bad(format!("ffmpeg: {e}")))?,
+                    )
+                } else {
+                    H264Writer::OpenH264(Box::new(
+                        Encoding::new(qp).map_err(|e| bad(e.to_string()))?,
+                    ))
+                })
+            }
+        };
+        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut out = BufWriter::new(file);
+        let mut head = Vec::with_capacity(HEADER_V2);
+        head.extend_from_slice(if encoding.is_some() { MAGIC_V2 } else { MAGIC });
+        head.extend_from_slice(&width.to_le_bytes());
+        head.extend_from_slice(&height.to_le_bytes());
+        if let StoreQuality::H264 { qp } = quality {
+            head.extend_from_slice(&GOP.to_le_bytes());
+            head.extend_from_slice(&u32::from(qp).to_le_bytes());
+        }
+        out.write_all(&head).map_err(|e| Error::io(path, e))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            out,
+            width,
+            height,
+            offsets: Vec::new(),
+            pos: head.len() as u64,
+            rec: Vec::new(),
+            box_words: Vec::new(),
+            encoding,
+            waiting: Default::default(),
+            sent: 0,
+        })
+    }
+
+    /// Appends the next frame: the pixels of `raw` under `mask`.
+    pub fn push(&mut self, mask: &Mask, raw: &RgbImage) -> Result<()> {
+        if (mask.width(), mask.height()) != (self.width, self.height)
+            || raw.dimensions() != (self.width, self.height)
+        {
+            return Err(Error::Scene {
+                path: self.path.clone(),
+                message: "object frame of the wrong size".into(),
+            });
+        }
+        if self.encoding.is_some() {
+            return self.push_h264(mask, raw);
+        }
+        let (x0, y0, x1, y1) = mask.bounding_box().unwrap_or((0, 0, 0, 0));
+        let n_bits = ((x1 - x0) * (y1 - y0)) as usize;
+        let nb = n_bits.div_ceil(8);
+        // One record buffer and one bit buffer, reused from frame to frame: the header, the
+        // box's bits (filled in below), then its set pixels' RGB appended as found.
+        let (rec, box_words) = (&mut self.rec, &mut self.box_words);
+        rec.clear();
+        for v in [x0, y0, x1, y1] {
+            rec.extend_from_slice(&v.to_le_bytes());
+        }
+        rec.resize(16 + nb, 0);
+        // 64 mask bits at a time: bits copied as words, pixels as runs.
+        let px = raw.as_raw();
+        pack_box(mask, (x0, y0, x1, y1), box_words, |start, mut bits| {
+            let mut k = 0;
+            while bits != 0 {
+                let skip = bits.trailing_zeros() as usize;
+                bits >>= skip;
+                let len = bits.trailing_ones() as usize;
+                bits = if len == 64 { 0 } else { bits >> len };
+                let at = start + k + skip;
+                rec.extend_from_slice(&px[3 * at..3 * (at + len)]);
+                k += skip + len;
+            }
+        });
+        for (dst, src) in rec[16..16 + nb]
+            .iter_mut()
+            .zip(box_words.iter().flat_map(|w| w.to_le_bytes()))
+        {
+            *dst = src;
+        }
+        let rec = &self.rec;
+        self.offsets.push(self.pos);
+        self.pos += rec.len() as u64;
+        self.out
+            .write_all(rec)
+            .map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Version 2's record: box, deflated mask bits, access unit.
+    fn push_h264(&mut self, mask: &Mask, raw: &RgbImage) -> Result<()> {
+        let bbox = mask.bounding_box().unwrap_or((0, 0, 0, 0));
+        let n_bits = ((bbox.2 - bbox.0) * (bbox.3 - bbox.1)) as usize;
+        pack_box(mask, bbox, &mut self.box_words, |_, _| {});
+        let bytes: Vec<u8> = self
+            .box_words
+            .iter()
+            .flat_map(|w| w.to_le_bytes())
+            .take(n_bits.div_ceil(8))
+            .collect();
+        let deflated = miniz_oxide::deflate::compress_to_vec(&bytes, 6);
+        let rec = &mut self.rec;
+        rec.clear();
+        for v in [bbox.0, bbox.1, bbox.2, bbox.3] {
+            rec.extend_from_slice(&v.to_le_bytes());
+        }
+        rec.extend_from_slice(&(deflated.len() as u32).to_le_bytes());
+        rec.extend_from_slice(&deflated);
+        let at = rec.len();
+        let index = self.sent;
+        self.sent += 1;
+        let bad = |path: &Path, m: String| Error::Scene {
+            path: path.to_path_buf(),
+            message: format!("H.264 encoder, frame {index}: {m}"),
+        };
+        match self
+            .encoding
+            .as_mut()
+            .expect("push_h264 only with an encoder")
+        {
+            H264Writer::OpenH264(encoding) => {
+                let encoded = encoding.encode(raw, index, rec);
+                if let Err(e) = encoded {
+                    return Err(bad(&self.path, e.to_string()));
+                }
+                if rec.len() == at {
+                    return Err(bad(&self.path, "skipped".into()));
+                }
+                self.write_record()
+            }
+            H264Writer::X264(x) => {
+                x.send(raw).map_err(|e| bad(&self.path, e))?;
+                self.waiting.push_back(rec.clone());
+                let units = x.units(false).map_err(|e| bad(&self.path, e))?;
+                self.write_units(units)
+            }
+        }
+    }
+
+    /// Appends `self.rec`, a whole record.
+    fn write_record(&mut self) -> Result<()> {
+        self.offsets.push(self.pos);
+        self.pos += self.rec.len() as u64;
+        self.out
+            .write_all(&self.rec)
+            .map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Completes the waiting records with `units`, in order, and appends them.
+    fn write_units(&mut self, units: Vec<Vec<u8>>) -> Result<()> {
+        for unit in units {
+            let Some(head) = self.waiting.pop_front() else {
+                return Err(Error::Scene {
+                    path: self.path.clone(),
+                    message: "H.264 encoder gave more pictures than frames".into(),
+                });
+            };
+            if unit.is_empty() {
+                return Err(Error::Scene {
+                    path: self.path.clone(),
+                    message: format!("H.264 encoder skipped frame {}", self.offsets.len()),
+                });
+            }
+            self.rec = head;
+            self.rec.extend_from_slice(&unit);
+            self.write_record()?;
+        }
+        Ok(())
+    }
+
+    /// Whether [`H264Encoder::Auto`] picks x264 (ffmpeg runs and has libx264).
+    pub fn x264_available() -> bool {
+        x264_available()
+    }
+
+    /// Frames pushed so far.
+    pub fn len(&self) -> usize {
+        self.offsets.len() + self.waiting.len()
+    }
+
+    /// True before the first push.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Writes the offset table and trailer and closes the file.
+    pub fn finish(mut self) -> Result<()> {
+        if let Some(H264Writer::X264(x)) = self.encoding.as_mut() {
+            let units = x.units(true).map_err(|e| Error::Scene {
+                path: self.path.clone(),
+                message: format!("H.264 encoder: {e}"),
+            })?;
+            self.write_units(units)?;
+            if !self.waiting.is_empty() {
+                return Err(Error::Scene {
+                    path: self.path.clone(),
+                    message: format!(
+                        "H.264 encoder gave {} pictures for {} frames",
+                        self.offsets.len(),
+                        self.sent
+                    ),
+                });
+            }
+        }
+        let n = self.offsets.len() as u64;
+        self.offsets.push(self.pos);
+        let mut tail: Vec<u8> = self.offsets.iter().flat_map(|o| o.to_le_bytes()).collect();
+        tail.extend_from_slice(&n.to_le_bytes());
+        tail.extend_from_slice(END);
+        let io = |e| Error::io(&self.path, e);
+        self.out.write_all(&tail).map_err(io)?;
+        self.out.flush().map_err(io)?;
+        Ok(())
+    }
+}
+
+/// An analysis observer that writes each view's moving-object store (`objects_NNN.bin`) into a
+/// scene directory as its masks arrive, one view at a time: what `vt analyze` keeps of every
+/// frame. Call [`StoreWriter::finish`] after the analysis to close the last store.
+pub struct StoreWriter {
+    dir: PathBuf,
+    quality: StoreQuality,
+    writer: Option<(usize, ObjectWriter)>,
+}
+
+impl StoreWriter {
+    /// Writes stores at the default quality into `dir` (usually a scene's temporary directory).
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self::with_quality(dir, StoreQuality::default())
+    }
+
+    /// Writes stores at `quality` into `dir`.
+    pub fn with_quality(dir: impl Into<PathBuf>, quality: StoreQuality) -> Self {
+        Self {
+            dir: dir.into(),
+            quality,
+            writer: None,
+        }
+    }
+
+    /// Closes the last store.
+    pub fn finish(&mut self) -> vt_core::Result<()> {
+        if let Some((p, w)) = self.writer.take() {
+            w.finish()
+                .map_err(|e| vt_core::Error::external(format!("view {p}"), e))?;
+        }
+        Ok(())
+    }
+}
+
+impl vt_core::analysis::Observer for StoreWriter {
+    fn object_frame(
+        &mut self,
+        view: usize,
+        _frame: usize,
+        mask: &Mask,
+        raw: &RgbImage,
+    ) -> vt_core::Result<()> {
+        let to_core = |e: Error| vt_core::Error::external(format!("view {view}"), e);
+        if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
+            self.finish()?;
+            let path = self.dir.join(crate::scene::objects_name(view));
+            self.writer = Some((
+                view,
+                ObjectWriter::create_with(&path, raw.width(), raw.height(), self.quality)
+                    .map_err(to_core)?,
+            ));
+        }
+        let (_, w) = self.writer.as_mut().expect("set above");
+        w.push(mask, raw).map_err(to_core)
+    }
+}
