@@ -103,7 +103,7 @@ pub struct DataArgs {
 pub struct ModelArgs {
     /// Voxels along the longest side of the volume (paper: 256); voxels are cubes. 128 is
     /// measured best under the time budget: on templeSparseRing the result scores the same at
-    /// 128, 192 and 256 and one leave-one-out takes 2.4x longer at 256 (vt-fv's README).
+    /// 128, 192 and 256 and one leave-one-out takes 2.4x longer at 256 (docs/system-b.md).
     #[arg(long, default_value_t = ModelParams::default().grid)]
     grid: usize,
     /// Volume to carve, x0,y0,z0,x1,y1,z1 in world units. Default: found from the silhouettes.
@@ -132,7 +132,7 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 7)]
     patch: usize,
     /// Paper-exact synthesis: sequential scanline order, full patches, one resolution level
-    /// (default: the speed options, see vt-fv's README).
+    /// (default: the speed options, see docs/system-b.md).
     #[arg(long)]
     exact: bool,
     /// How new views are made, the same for render, orbit and eval: `textured` (default, the

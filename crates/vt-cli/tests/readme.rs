@@ -1,4 +1,4 @@
-//! The README's "Your own footage" commands, run as written on the shipped test data: tree.avi as
+//! The README's "Your own footage" and "Your own photos" commands, run as written on the shipped test data: tree.avi as
 //! the one-camera clip, three views made from it by `vt synth real` as the cameras on a line, and
 //! the kettle's COLMAP folder as the photos, testdata/nerf-lego as the NeRF folder. Where vt refuses a clip as too short and says which
 //! `--min-length` to pass, the command is run again with that advice, as the README tells a user
@@ -54,7 +54,8 @@ fn your_own_footage_commands_work_as_written() {
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let cmds = commands(&readme, "## Your own footage");
+    let mut cmds = commands(&readme, "## Your own footage");
+    cmds.extend(commands(&readme, "## Your own photos"));
     assert!(cmds.len() >= 9, "found {} commands", cmds.len());
 
     let tmp = tempfile::tempdir().unwrap();

@@ -43,7 +43,7 @@ pub enum Method {
     Textured,
 }
 
-/// New-view settings. [`Default`] is the measured best (see the crate README): view-dependent
+/// New-view settings. [`Default`] is the measured best (see docs/system-b.md): view-dependent
 /// texturing without synthesis refinement.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewParams {

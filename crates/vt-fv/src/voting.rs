@@ -1,5 +1,5 @@
 //! Patch-voting synthesis (ebsynth style), coarse to fine: an alternative refinement of a guide
-//! from a reference photo, measured against the default (see the crate README).
+//! from a reference photo, measured against the default (see docs/system-b.md).
 //!
 //! Per pyramid level (coarsest first) and per EM iteration, PatchMatch matches every patch of
 //! the query image `(1 - guide_weight) * output + guide_weight * guide` to the input photo;

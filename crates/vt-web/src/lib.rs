@@ -26,7 +26,7 @@
 //! the shader converts (BT.601 limited range, each chroma sample for its 2x2 block, as vt's own
 //! 4:2:0 conversion: the browser's conversion cost 4.7 dB at CRF 10, bilinear chroma 6 dB on a
 //! tree frame); or one JPEG per frame box. Either way the pixels outside the object are filled
-//! from the background, so the edge costs no bits. Measured against vt's frames (the README has
+//! from the background, so the edge costs no bits. Measured against vt's frames (docs/system-a.md has
 //! the table): tree.avi 5 views 45.5-47.9 dB at 1.02x its scene; a fixed CRF 12 with bilinear
 //! chroma was 41.3-43.8 dB at 0.72x, JPEG quality 92 43.4-46.0 dB at 2.6x.
 

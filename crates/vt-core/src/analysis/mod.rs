@@ -155,7 +155,7 @@ impl FrameSource for MemorySource {
 }
 
 /// Background subtraction. The thesis gives no threshold; vt's rule, documented here and
-/// in the README: after both are smoothed, a pixel is *moving* when
+/// in docs/system-a.md: after both are smoothed, a pixel is *moving* when
 /// `max over R,G,B of |frame - background| > threshold`. Then an optional opening (removes
 /// specks) and closing (fills holes), radii in pixels, 0 = off (the thesis has neither).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -16,7 +16,7 @@ pub enum Interpolation {
     /// and integer weights `(32 - ay)(32 - ax)` etc., rounded once, `(sum + 512) >> 10`. With
     /// the constant border it reproduces OpenCV's `warpPerspective(INTER_LINEAR)` bit for bit;
     /// against [`Interpolation::Bilinear`] it differs by up to `R/32 + 1` levels, `R` the local
-    /// value range (a speed/accuracy knob, measured in `crates/vt-cv/README.md`).
+    /// value range (a speed/accuracy knob, measured in docs/measuring.md).
     BilinearFixed,
 }
 

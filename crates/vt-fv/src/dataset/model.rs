@@ -206,7 +206,7 @@ pub fn check_in_front(cams: &[Camera], bounds: &Aabb) -> crate::Result<()> {
 pub struct ModelParams {
     /// Voxels along the longest side of the volume (128; paper: 256); voxels are cubes. 128 is
     /// measured best under the time budget: on templeSparseRing the result scores the same at
-    /// 128, 192 and 256, and one leave-one-out takes 2.4x longer at 256 (the crate README).
+    /// 128, 192 and 256, and one leave-one-out takes 2.4x longer at 256 (docs/system-b.md).
     pub grid: usize,
     /// The volume to carve; `None`: found from the silhouettes.
     pub bounds: Option<Aabb>,

@@ -248,7 +248,7 @@ pub(super) fn check_blur_exact(
 
 /// Bilinear warp rows. vt-core against OpenCV: every value within [`quantisation_bound`], with
 /// the share of pixels within one grey level reported (">= 99.9% within 1" holds on smooth
-/// images, not at sharp edges, see the README). The model against OpenCV: identical, which
+/// images, not at sharp edges, see its README). The model against OpenCV: identical, which
 /// shows that `INTER_BITS` is the whole difference.
 pub(super) fn check_warp_bilinear(
     t: &mut Table,
