@@ -21,6 +21,21 @@ tasks:
                 (default DIR: target/report; --quick: under 3 minutes on 2 cores)
 ";
 
+/// The Cargo profile this xtask was built with (`dev`, `release`, or the test command's
+/// `checked`), and whether it is optimised (opt-level 2 or 3).
+const PROFILE: &str = env!("XTASK_PROFILE");
+const OPTIMISED: bool = matches!(env!("XTASK_OPT_LEVEL").as_bytes(), b"2" | b"3");
+
+/// The profile the cross-check is built with: this xtask's own when optimised (so the test
+/// command's one `checked` build serves both), else release.
+fn tool_profile() -> &'static str {
+    if OPTIMISED {
+        PROFILE
+    } else {
+        "release"
+    }
+}
+
 fn cargo() -> Command {
     Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
 }
@@ -61,7 +76,8 @@ fn main() -> Result<()> {
             let mut c = cargo();
             c.args([
                 "run",
-                "--release",
+                "--profile",
+                tool_profile(),
                 "--quiet",
                 "-p",
                 "vt-cv",
@@ -85,8 +101,8 @@ fn main() -> Result<()> {
             Ok(())
         }
         "report" => {
-            // Measurements need optimised code: a debug build re-runs itself in release.
-            if cfg!(debug_assertions) {
+            // Measurements need optimised code: an unoptimised build re-runs itself in release.
+            if !OPTIMISED {
                 let mut c = cargo();
                 c.args(["run", "--release", "--quiet", "-p", "xtask", "--", "report"])
                     .args(rest);

@@ -116,9 +116,9 @@ fn load_full() -> (Vec<Camera>, Vec<RgbImage>, Vec<Mask>, Vec<Mask>) {
 /// 0.612 against blur2 0.435 / 0.431), IoU 0.935; templeSR0010 rough 17.42 / 16.84, blur2
 /// 18.99 / 18.50, result 20.75 / 19.98 dB (SSIM 0.642 / 0.581 against 0.456 / 0.435), IoU
 /// 0.946; about 3 s per view in release, minutes unoptimised, so it is ignored by a plain
-/// `cargo test` (the harness says so) and `scripts/test-all` runs it in release with `--ignored`.
+/// `cargo test` (the harness says so) and `scripts/test-all` runs it optimised (its `checked` profile) with `--ignored`.
 #[test]
-#[ignore = "slow unoptimised; run: cargo test --release -p vt-fv --test temple -- --ignored"]
+#[ignore = "slow unoptimised; run: cargo test --profile checked -p vt-fv --test temple -- --ignored"]
 fn temple_default_beats_rough_and_blur_by_a_margin() {
     let (cams, imgs, carve, score) = load_full();
     for name in ["templeSR0009.png", "templeSR0010.png"] {
