@@ -112,6 +112,11 @@ pub fn analyze(job: &AnalyzeJob, progress: &mut dyn Progress) -> Result<Analyzed
         .collect::<Result<Vec<_>>>()?
         .into_iter()
         .unzip();
+    for (path, source) in job.views.iter().zip(&sources) {
+        for note in source.notes() {
+            progress.note(&format!("{}: {note}", path.display()));
+        }
+    }
     // Sizes are known before decoding: refuse mismatched views before any work.
     let size = vt_io::frames::common_size(&job.views, &sources)?;
     let points = match &job.points {

@@ -73,6 +73,15 @@ impl ViewSource {
         })
     }
 
+    /// What decoding a video does beyond reading its coded frames (turning a portrait clip,
+    /// square pixels, deinterlacing), in words; empty for a folder or a plain video.
+    pub fn notes(&self) -> Vec<String> {
+        match self {
+            ViewSource::Video(v) => v.notes(),
+            ViewSource::Folder(_) => Vec::new(),
+        }
+    }
+
     /// Frame size.
     pub fn size(&self) -> (u32, u32) {
         match self {
@@ -110,6 +119,11 @@ pub struct VideoSource {
     /// The 4:2:0 form the decoder gives, when the stream is 4:2:0 (then frames are decoded as
     /// such and converted by [`vt_core::yuv`]); None: ffmpeg converts to RGB.
     yuv: Option<(YuvMatrix, YuvRange)>,
+    /// How a player shows the stream (rotation, pixel aspect, interlacing), and so what the
+    /// frames are decoded into; `width` and `height` are the shown size.
+    display: crate::display::Display,
+    /// The stream's coded frame size.
+    coded: (u32, u32),
 }
 
 fn missing_tool(tool: &str, path: &Path, e: std::io::Error) -> Error {
@@ -142,11 +156,13 @@ impl VideoSource {
     /// [`VideoSource::open`], and with `timed` the real frame rate from the same `ffprobe`
     /// run (its packets' timestamps: the whole file is read).
     fn probe(path: &Path, timed: bool) -> Result<(Self, Option<f64>)> {
-        let entries = if timed {
-            "stream=width,height,pix_fmt,color_space,color_range:packet=pts_time"
-        } else {
-            "stream=width,height,pix_fmt,color_space,color_range"
-        };
+        let mut entries = format!(
+            "stream=width,height,pix_fmt,color_space,color_range:{}",
+            crate::display::PROBE_ENTRIES
+        );
+        if timed {
+            entries.push_str(":packet=pts_time");
+        }
         let out = Command::new("ffprobe")
             .args([
                 "-v",
@@ -154,7 +170,7 @@ impl VideoSource {
                 "-select_streams",
                 "v:0",
                 "-show_entries",
-                entries,
+                &entries,
                 "-of",
                 "default=noprint_wrappers=1",
             ])
@@ -186,6 +202,31 @@ impl VideoSource {
             }
         };
         check_image_size(path, dims)?;
+        let display = crate::display::Display::from_probe(path, field)?;
+        let coded = dims;
+        let dims = display.shown_size(coded);
+        check_image_size(path, dims)?;
+        // The frames' own size, as the decode will hand them out, against what the header
+        // says: a mismatch is refused rather than read as rows of another width.
+        let decoded = crate::display::first_frame_size(path, display.filters().as_deref())?;
+        if decoded != dims {
+            return Err(Error::Video {
+                path: path.to_path_buf(),
+                message: format!(
+                    "its frames decode as {}x{}, not the {}x{} its stream header gives                      ({}x{} coded{}); not read",
+                    decoded.0,
+                    decoded.1,
+                    dims.0,
+                    dims.1,
+                    coded.0,
+                    coded.1,
+                    match display.describe(coded).first() {
+                        Some(d) => format!(", {d}"),
+                        None => String::new(),
+                    }
+                ),
+            });
+        }
         let even = dims.0 % 2 == 0 && dims.1 % 2 == 0;
         let yuv = match field("pix_fmt") {
             Some(fmt @ ("yuv420p" | "yuvj420p")) if even => {
@@ -221,14 +262,26 @@ impl VideoSource {
                 width: dims.0,
                 height: dims.1,
                 yuv,
+                display,
+                coded,
             },
             rate,
         ))
     }
 
-    /// Frame size.
+    /// Frame size: what a player shows (turned, square pixels).
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
+    }
+
+    /// How a player shows the stream, which the frames are decoded into.
+    pub fn display(&self) -> crate::display::Display {
+        self.display
+    }
+
+    /// What decoding does beyond reading the coded frames, in words (empty when nothing).
+    pub fn notes(&self) -> Vec<String> {
+        self.display.describe(self.coded)
     }
 }
 
@@ -256,9 +309,14 @@ impl VideoSource {
         let mut child = Command::new("ffmpeg")
             .args(["-v", "error", "-xerror", "-nostdin", "-i"])
             .arg(&self.path)
+            .args(["-map", "0:v:0"])
+            .args(
+                self.display
+                    .filters()
+                    .map(|f| vec!["-vf".to_string(), f])
+                    .unwrap_or_default(),
+            )
             .args([
-                "-map",
-                "0:v:0",
                 "-fps_mode",
                 "passthrough",
                 "-f",

@@ -5,6 +5,7 @@
 #![deny(missing_docs)]
 
 pub mod atomic;
+pub mod display;
 mod error;
 pub mod frames;
 pub mod limits;
