@@ -614,3 +614,76 @@ fn demo_prints_the_paths_it_leaves() {
     );
     assert!(!refused.exists());
 }
+
+/// Issue #37: a portrait phone clip (landscape frames with a display rotation) analyses to the
+/// scene of the clip ffmpeg turns beforehand, at rotations 90 and 270; before, its frames were
+/// read as rows of the probed width (noise, exit 0).
+#[test]
+fn portrait_clips_analyse_as_the_turned_clip() {
+    if !vt_io::video::ffmpeg_available() {
+        eprintln!("skipped: the portrait clips are made by ffmpeg, which is not installed");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let p = |name: &str| tmp.path().join(name);
+    let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
+    let ffmpeg = |args: &[&str]| {
+        let ok = std::process::Command::new("ffmpeg")
+            .args(["-v", "error", "-y", "-nostdin"])
+            .args(args)
+            .status()
+            .unwrap()
+            .success();
+        assert!(ok, "ffmpeg {args:?}");
+    };
+    // 30 frames, lossless, so the two clips differ by the rotation only.
+    let lossless = ["-c:v", "libx264", "-qp", "0", "-pix_fmt", "yuv420p"];
+    let clip = p("clip.mp4");
+    ffmpeg(
+        &[
+            &["-i", s(&tree), "-frames:v", "30"][..],
+            &lossless,
+            &[s(&clip)],
+        ]
+        .concat(),
+    );
+    for rotate in ["90", "270"] {
+        let portrait = p(&format!("portrait{rotate}.mp4"));
+        let meta = format!("rotate={rotate}");
+        ffmpeg(&[
+            "-i",
+            s(&clip),
+            "-c",
+            "copy",
+            "-metadata:s:v:0",
+            &meta,
+            s(&portrait),
+        ]);
+        let turned = p(&format!("turned{rotate}.mp4"));
+        ffmpeg(&[&["-i", s(&portrait)][..], &lossless, &[s(&turned)]].concat());
+        let analyse = |input: &Path, name: &str| {
+            let out = p(name);
+            let run = vt(&["analyze", s(input), "--min-length", "20", "--out", s(&out)]);
+            assert!(run.status.success(), "{run:?}");
+            let bg = image::open(out.join("background_000.png"))
+                .unwrap()
+                .to_rgb8();
+            (bg, String::from_utf8_lossy(&run.stderr).to_string())
+        };
+        let (a, said) = analyse(&portrait, &format!("scene{rotate}"));
+        let (b, _) = analyse(&turned, &format!("turned_scene{rotate}"));
+        assert_eq!(a.dimensions(), (240, 320), "rotate={rotate}");
+        assert!(said.contains("display rotation"), "rotate={rotate}: {said}");
+        let worst = a
+            .as_raw()
+            .iter()
+            .zip(b.as_raw())
+            .map(|(x, y)| x.abs_diff(*y))
+            .max()
+            .unwrap();
+        assert!(
+            worst <= 1,
+            "rotate={rotate}: backgrounds differ by {worst} grey levels"
+        );
+    }
+}
