@@ -105,6 +105,7 @@ pub fn demo(out: &Path, frames: usize, progress: &mut dyn Progress) -> Result<De
         fps: Some(30.0),
         duration: None,
         long: false,
+        cycle: false,
         params: Default::default(),
         encode: Default::default(),
     };

@@ -25,6 +25,10 @@ pub struct RenderJob {
     pub duration: Option<f64>,
     /// Allow more than 10 minutes of output.
     pub long: bool,
+    /// Exactly one cycle of the shown view's loop at the path's one viewpoint, so that the file
+    /// repeats seamlessly: it starts where the player starts after a wrap and ends on the
+    /// frame before the wrap (with `duration` None and no crossfade or dissolve).
+    pub cycle: bool,
     /// The renderer's options.
     pub params: RenderParams,
     /// The mp4 encoder's options.
@@ -38,6 +42,24 @@ impl RenderJob {
     /// Checks the renderer's and the encoder's options (before any file is touched).
     pub fn check(&self) -> Result<()> {
         self.params.check()?;
+        if self.cycle {
+            let clash = if self.duration.is_some() {
+                Some(("duration", "the cycle's length is the loop's"))
+            } else if self.params.crossfade > 0 {
+                Some(("crossfade", "it blends frames from before the file's start"))
+            } else if self.params.dissolve > 0 {
+                Some(("dissolve", "it blends frames from before the file's start"))
+            } else {
+                None
+            };
+            if let Some((name, why)) = clash {
+                return Err(Error::Param {
+                    name,
+                    value: "with --cycle".into(),
+                    why: why.into(),
+                });
+            }
+        }
         self.encode.check().map_err(|why| Error::Param {
             name: "crf",
             value: self.encode.crf.to_string(),
@@ -63,26 +85,48 @@ pub fn render(job: &RenderJob, progress: &mut dyn Progress) -> Result<Rendered> 
     job.check()?;
     let scene = LoadedScene::open(&job.scene)?;
     let fps = job.fps.unwrap_or_else(|| scene.source_fps(MAX_FPS));
-    let qs = vt_io::path::viewpoints(
+    let mut qs = vt_io::path::viewpoints(
         &job.path,
         scene.render.views.len(),
         fps,
         job.duration,
         job.long,
     )?;
+    // One cycle: the loop's frames once, and one frame more, the wrap, rendered for the seam
+    // meter only (the file's join when it repeats) and not written.
+    let written = if job.cycle {
+        let q = qs[0];
+        if qs.iter().any(|&x| x != q) {
+            return Err(Error::Param {
+                name: "path",
+                value: job.path.clone(),
+                why: "--cycle plays one view at one viewpoint: give one, e.g. 0s:0".into(),
+            });
+        }
+        let v = &scene.render.views[vt_core::render::split_q(q).nearest];
+        let length = v.loop_end - v.loop_start;
+        qs = vec![q; length + 1];
+        length
+    } else {
+        qs.len()
+    };
     let (w, h) = (scene.file.width, scene.file.height);
     let mut inputs: Vec<&Path> = vec![job.scene.as_path()];
     if let Some(f) = job.path.strip_prefix('@') {
         inputs.push(Path::new(f));
     }
     let mut sink = FrameWriter::create_with(&job.out, &inputs, w, h, fps, &job.encode)?;
-    progress.start("render", Some(qs.len() as u64));
+    progress.start("render", Some(written as u64));
     let mut done = 0;
-    let playback = play(&scene, &qs, job.params, &mut |frame, _| -> Result<()> {
+    let mut playback = play(&scene, &qs, job.params, &mut |frame, _| -> Result<()> {
+        if done == written {
+            return Ok(());
+        }
         done += 1;
-        progress.at(done, None);
+        progress.at(done as u64, None);
         Ok(sink.write(frame)?)
     })?;
+    playback.frames = written;
     progress.finish();
     let out = sink.finish()?;
     Ok(Rendered { playback, fps, out })

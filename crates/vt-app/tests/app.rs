@@ -98,6 +98,7 @@ fn analysed_scene_renders_the_same_through_play_and_the_render_job() {
         fps: None,
         duration: None,
         long: false,
+        cycle: false,
         params: RenderParams::default(),
         encode: Default::default(),
     };
@@ -134,6 +135,7 @@ fn parameters_are_refused_by_name_before_any_file_is_touched() {
         fps: None,
         duration: None,
         long: false,
+        cycle: false,
         params: RenderParams {
             crossfade: vt_core::render::MAX_CROSSFADE + 1,
             ..Default::default()

@@ -38,6 +38,11 @@ pub struct RenderArgs {
     /// Allow a render longer than 10 minutes of output (up to 24 hours).
     #[arg(long)]
     long: bool,
+    /// Exactly one cycle of the view's loop at the path's one viewpoint (`--path 0s:0`), so the
+    /// file repeats seamlessly where a player loops it (a GIF does by itself; `<video loop>`);
+    /// the seam score printed is the file's join.
+    #[arg(long)]
+    cycle: bool,
     #[command(flatten)]
     options: RenderOptions,
 }
@@ -98,11 +103,25 @@ pub fn run(args: RenderArgs) -> Result<()> {
         fps: args.fps,
         duration: args.duration,
         long: args.long,
+        cycle: args.cycle,
         params: args.options.params(),
         encode: vt_io::writer::EncodeParams { crf: args.crf },
     };
     let done = vt_app::render::render(&job, &mut Bars::default()).map_err(flagged)?;
-    print_rendered(&done.playback, &args.out);
+    if args.cycle {
+        // The one wrap the player made is the file's join, not in the file.
+        let join = match done.playback.mean_seam {
+            Some(m) => format!("seam score {m:.3}, 1 = as large as an ordinary step"),
+            None => "not measured".into(),
+        };
+        println!(
+            "rendered {} frames to {}: one cycle of the loop, whose join when it repeats has {join}",
+            done.playback.frames,
+            args.out.display()
+        );
+    } else {
+        print_rendered(&done.playback, &args.out);
+    }
     Ok(())
 }
 

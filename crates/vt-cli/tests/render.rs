@@ -496,3 +496,131 @@ fn loaded_scene_holds_each_transition_table_once() {
         assert!(kept.next_seam.is_empty() && kept.prev_seam.is_empty());
     }
 }
+
+/// Issue #37: `vt render --cycle` writes one cycle of tree.avi's loop (frames 0-53, the default
+/// per-region loop) that repeats seamlessly: the file twice over is what the player shows over
+/// two cycles, frame for frame, and its join (last frame to first) is no larger than the median
+/// ordinary step, measured here on the written frames; mp4 and GIF hold the same frame count.
+#[test]
+fn one_cycle_files_repeat_seamlessly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
+    let clip = dir.join("frames0-53");
+    std::fs::create_dir(&clip).unwrap();
+    let frames = vt_io::frames::ViewSource::open(&tree)
+        .unwrap()
+        .read_all()
+        .unwrap();
+    for (i, f) in frames.iter().take(54).enumerate() {
+        f.save(clip.join(format!("{i:03}.png"))).unwrap();
+    }
+    let scene = dir.join("scene");
+    vt_ok(&[
+        "analyze",
+        s(&clip),
+        "--min-length",
+        "20",
+        "--out",
+        s(&scene),
+    ]);
+    let l = &read_json(&scene.join("scene.json"))["views"][0]["loop"];
+    let length = (l["end"].as_u64().unwrap() - l["start"].as_u64().unwrap()) as usize;
+
+    let cycle = dir.join("cycle");
+    let stdout = vt_ok(&[
+        "render",
+        s(&scene),
+        "--path",
+        "0s:0",
+        "--cycle",
+        "--out",
+        s(&cycle),
+    ]);
+    assert!(
+        stdout.contains(&format!("rendered {length} frames")),
+        "{stdout}"
+    );
+    let read = |d: &Path| -> Vec<RgbImage> {
+        let mut names: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "png"))
+            .collect();
+        names.sort();
+        names
+            .iter()
+            .map(|p| image::open(p).unwrap().to_rgb8())
+            .collect()
+    };
+    let one = read(&cycle);
+    assert_eq!(one.len(), length);
+    // The player over two cycles (and one frame) at the same viewpoint: the file, twice.
+    let fps = read_json(&scene.join("scene.json"))["fps"].as_f64();
+    let two = dir.join("two");
+    let fps_arg = format!("{}", fps.unwrap_or(30.0));
+    let secs = format!("{}", (2 * length) as f64 / fps.unwrap_or(30.0));
+    vt_ok(&[
+        "render",
+        s(&scene),
+        "--path",
+        "0s:0",
+        "--fps",
+        &fps_arg,
+        "--duration",
+        &secs,
+        "--out",
+        s(&two),
+    ]);
+    let played = read(&two);
+    assert!(played.len() >= 2 * length, "{} frames", played.len());
+    for (i, f) in played.iter().take(2 * length).enumerate() {
+        assert!(
+            *f == one[i % length],
+            "frame {i} differs from the cycle's frame {}",
+            i % length
+        );
+    }
+    // The join, measured as vt measures wraps: its step over the median ordinary step.
+    let mut steps: Vec<f64> = one.windows(2).map(|w| mad(&w[0], &w[1])).collect();
+    steps.sort_by(f64::total_cmp);
+    let join = mad(&one[length - 1], &one[0]) / steps[steps.len() / 2];
+    eprintln!(
+        "one cycle of tree.avi 0-53: {length} frames, join {join:.3} ordinary steps; {stdout}"
+    );
+    assert!(join <= 1.0, "the file's join is {join:.3} ordinary steps");
+    for ext in ["mp4", "gif"] {
+        let file = dir.join(format!("cycle.{ext}"));
+        vt_ok(&[
+            "render",
+            s(&scene),
+            "--path",
+            "0s:0",
+            "--cycle",
+            "--out",
+            s(&file),
+        ]);
+        let probe = std::process::Command::new("ffprobe")
+            .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+            .args(["-show_entries", "stream=nb_read_frames", "-of", "csv=p=0"])
+            .arg(&file)
+            .output()
+            .unwrap();
+        let n: usize = String::from_utf8_lossy(&probe.stdout)
+            .trim()
+            .parse()
+            .unwrap();
+        assert_eq!(n, length, "{ext}");
+    }
+    // Refused: a length of its own, a crossfade (a one-view scene has no moving viewpoint).
+    for (extra, want) in [
+        (vec!["--path", "0s:0", "--duration", "4"], "--duration"),
+        (vec!["--path", "0s:0", "--crossfade", "2"], "--crossfade"),
+    ] {
+        let out = dir.join("refused");
+        let mut args = vec!["render", s(&scene), "--cycle", "--out", s(&out)];
+        args.extend(extra);
+        vt_err(&args, &[want, "--cycle"]);
+        assert!(!out.exists());
+    }
+}
