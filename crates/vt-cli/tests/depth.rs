@@ -177,17 +177,26 @@ fn synthetic_scenes_with_depth_improve_too() {
     for rig in ["parallel", "converging"] {
         let syn = synth(tmp.path(), rig, &["--rig", rig]);
         let auto = tmp.path().join(format!("{rig}-auto"));
-        let plane = tmp.path().join(format!("{rig}-plane"));
         analyze(&syn, &auto, &["--min-length", "40"]);
-        analyze(
-            &syn,
-            &plane,
-            &["--min-length", "40", "--background", "plane"],
-        );
-        let (a, b) = (
-            LoadedScene::open(&auto).unwrap(),
-            LoadedScene::open(&plane).unwrap(),
-        );
+        let a = LoadedScene::open(&auto).unwrap();
+        let b = without_parallax(&a);
+        // Once with marked points, as once without on Dolls: the plane warp's own analysis
+        // renders what the default scene without its parallax does.
+        if rig == "parallel" {
+            let plane = tmp.path().join(format!("{rig}-plane"));
+            analyze(
+                &syn,
+                &plane,
+                &["--min-length", "40", "--background", "plane"],
+            );
+            let analysed = LoadedScene::open(&plane).unwrap();
+            for q in [0.5, 1.5] {
+                assert!(
+                    render(&analysed, q) == render_as(&a, b.clone(), q),
+                    "q = {q}"
+                );
+            }
+        }
         for q in ["00.50", "01.50"] {
             let t0 = image::open(syn.dir.join(format!("truth/q{q}_phase000.png")))
                 .unwrap()
@@ -199,7 +208,7 @@ fn synthetic_scenes_with_depth_improve_too() {
                 t0.get_pixel(x, y) == t8.get_pixel(x, y)
             });
             let qf: f64 = q.parse().unwrap();
-            let (ra, rb) = (render(&a, qf), render(&b, qf));
+            let (ra, rb) = (render(&a, qf), render_as(&a, b.clone(), qf));
             let pa = vt_core::metrics::psnr(&ra, &t0, Some(&mask)).unwrap();
             let pb = vt_core::metrics::psnr(&rb, &t0, Some(&mask)).unwrap();
             eprintln!("{rig} q={q}: plane {pb:.2} dB, auto {pa:.2} dB (static pixels)");

@@ -456,6 +456,17 @@ fn loop_options(ctx: &mut Ctx) -> Result<Vec<Curve>> {
             }),
         ),
     ];
+    // Quick: the thesis, the default and `--loops regions` (three points a curve).
+    let options: Vec<_> = if ctx.quick {
+        options
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| matches!(i, 0 | 1 | 3))
+            .map(|(_, o)| o)
+            .collect()
+    } else {
+        options
+    };
     let default = AnalyzeParams::default().regions;
     let tr = crate::report::data::tree(ctx)?;
     let tree_clip = vec![tr.frames[..54.min(tr.frames.len())].to_vec()];
