@@ -18,7 +18,7 @@ tasks:
   report        [--quick] [--out DIR]: measure every knob's speed/accuracy trade, stability,
                 model choice, real-data accuracy and performance against OpenCV; writes
                 DIR/index.html (plots beside it), report.json and README.md
-                (default DIR: target/report; --quick: under 3 minutes on 2 cores)
+                (default DIR: target/report; --quick: about 4 minutes on 2 cores)
 ";
 
 /// The Cargo profile this xtask was built with (`dev`, `release`, or the test command's
