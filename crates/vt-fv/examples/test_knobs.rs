@@ -1,0 +1,80 @@
+//! A data folder's test set (`vt fv eval DATA --test FILE`) under several texturing settings,
+//! from one model, side by side:
+//!
+//! ```sh
+//! cargo run --release -p vt-fv --example test_knobs -- DATA TESTFILE [name:key=value,...]...
+//! ```
+//!
+//! Keys as `loo_data`'s texturing keys: `refs`, `smooth`, `sweep`, `step`, `window`, `fill`,
+//! `tol`, `soft`, `agree`, `eps`. Prints per setting the means of the whole-image PSNR and SSIM,
+//! the PSNR inside the test silhouettes, and the seconds per view.
+
+use std::path::Path;
+
+use vt_fv::dataset::{DataOptions, Dataset, ModelParams, TestSummary};
+use vt_fv::pipeline::ViewParams;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 3 {
+        eprintln!("usage: test_knobs DATA TESTFILE [name:key=value,...]...");
+        std::process::exit(2);
+    }
+    let dir = Path::new(&args[1]);
+    let train = Dataset::load(dir, &DataOptions::default()).unwrap();
+    let test = Dataset::load_set(&dir.join(&args[2]), &DataOptions::default()).unwrap();
+    // GEOMETRY=DIR builds the model from another folder's photos of the same scene (the same
+    // world frame, e.g. all the training views) and textures from DATA's: the texturing's
+    // ceiling with better geometry.
+    let geometry = std::env::var_os("GEOMETRY")
+        .map(|d| Dataset::load(Path::new(&d), &DataOptions::default()).unwrap());
+    let t = std::time::Instant::now();
+    let (model, _) = geometry
+        .as_ref()
+        .unwrap_or(&train)
+        .build_without(None, &ModelParams::default(), &mut |_, _, _| {})
+        .unwrap();
+    let model_secs = t.elapsed().as_secs_f64();
+    println!("model {model_secs:.1} s");
+    let configs: Vec<String> = if args.len() > 3 {
+        args[3..].to_vec()
+    } else {
+        vec!["default:".into()]
+    };
+    for cfg in &configs {
+        let (name, kv) = cfg.split_once(':').unwrap_or((cfg, ""));
+        let mut view = ViewParams::default();
+        for pair in kv.split(',').filter(|p| !p.is_empty()) {
+            let (k, v) = pair.split_once('=').expect("key=value");
+            let f = || v.parse::<f64>().unwrap();
+            let t = &mut view.texture;
+            match k {
+                "refs" => t.references = f() as usize,
+                "smooth" => t.depth_smooth = f() as u32,
+                "sweep" => t.sweep = f() as usize,
+                "step" => t.sweep_step = f(),
+                "window" => t.sweep_window = f() as u32,
+                "fill" => t.fill_radius = f() as u32,
+                "tol" => t.depth_tolerance = f(),
+                "soft" => t.soften_sigma = f(),
+                "agree" => t.agree_sd = f(),
+                "eps" => t.eps_deg = f(),
+                _ => panic!("unknown key {k}"),
+            }
+        }
+        let (views, _) = train
+            .score_test_set(&model, &test, &view, &mut |_| {})
+            .unwrap();
+        let s = TestSummary::new(
+            view.name(),
+            train.background,
+            train.cams.len(),
+            model_secs,
+            views,
+        );
+        println!(
+            "{name:>12}: whole {:.2} dB / {:.3}, inside {:.2} dB, IoU {:.3}, {:.2} s a view",
+            s.whole.psnr, s.whole.ssim, s.inside.psnr, s.coverage_iou, s.view_secs_median
+        );
+    }
+}
