@@ -5,8 +5,7 @@
 //! cargo run --release -p vt-fv --example loo_data -- DATA GRID [name:key=value,...]...
 //! ```
 //!
-//! Keys: `refs`, `smooth`, `sweep`, `step`, `window`, `fill`, `tol`, `soft`, `agree`, `eps`,
-//! `pthr` (photo threshold), `grow`, `slack` and `close` (of the clip). Prints, per setting, the
+//! Keys: `common/settings.rs`'s (texturing, photo threshold, clip). Prints, per setting, the
 //! mean PSNR inside the silhouette of the result and of the rough render blurred (sigma 2), and
 //! the smallest per-view lead; then checks that do not reward an outline grown past the object:
 //! the lead over the silhouette united with each image's own coverage, the result's PSNR there,
@@ -18,6 +17,9 @@ use std::path::Path;
 
 use vt_fv::dataset::{DataOptions, Dataset, ModelParams};
 use vt_fv::pipeline::{score_with_region, ViewParams};
+
+#[path = "common/settings.rs"]
+mod settings;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -39,31 +41,7 @@ fn main() {
             grid,
             ..Default::default()
         };
-        for pair in kv.split(',').filter(|p| !p.is_empty()) {
-            let (k, v) = pair.split_once('=').expect("key=value");
-            let f = || v.parse::<f64>().unwrap();
-            let t = &mut view.texture;
-            match k {
-                "refs" => t.references = f() as usize,
-                "smooth" => t.depth_smooth = f() as u32,
-                "sweep" => t.sweep = f() as usize,
-                "step" => t.sweep_step = f(),
-                "window" => t.sweep_window = f() as u32,
-                "fill" => t.fill_radius = f() as u32,
-                "tol" => t.depth_tolerance = f(),
-                "soft" => t.soften_sigma = f(),
-                "agree" => t.agree_sd = f(),
-                "reach" => t.reach_deg = f(),
-                "consensus" => t.consensus = f(),
-                "within" => t.soften_within = f() > 0.0,
-                "eps" => t.eps_deg = f(),
-                "pthr" => model.photo_threshold = f(),
-                "grow" => view.grow = f() as u32,
-                "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
-                "close" => view.clip.as_mut().expect("clip").close = f() as u32,
-                _ => panic!("unknown key {k}"),
-            }
-        }
+        settings::apply(kv, &mut view, &mut model);
         let (mut sum, mut min, mut below, mut base, mut secs) = (0.0, f64::INFINITY, 0, 0.0, 0.0);
         let n = data.cams.len();
         let mut per = Vec::new();

@@ -5,12 +5,16 @@
 //! cargo run --release -p vt-fv --example synth_tex -- SIZE GRID [name:key=value,...]...
 //! ```
 //!
-//! Keys: `refs`, `soft`, `agree`, `reach`, `consensus`, `within` (0/1). Prints the mean PSNR
-//! and SSIM inside the true silhouettes.
+//! Keys: `common/settings.rs`'s texturing and clip keys (the model is built here). Prints the
+//! mean PSNR and SSIM inside the true silhouettes.
 
+use vt_fv::dataset::ModelParams;
 use vt_fv::eval::{psnr, ssim};
 use vt_fv::pipeline::{novel_view, ViewParams};
 use vt_synth::object::{generate, SceneParams};
+
+#[path = "common/settings.rs"]
+mod settings;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -45,20 +49,7 @@ fn main() {
     for cfg in &configs {
         let (name, kv) = cfg.split_once(':').unwrap_or((cfg, ""));
         let mut view = ViewParams::default();
-        for pair in kv.split(',').filter(|p| !p.is_empty()) {
-            let (k, v) = pair.split_once('=').expect("key=value");
-            let f = || v.parse::<f64>().unwrap();
-            let t = &mut view.texture;
-            match k {
-                "refs" => t.references = f() as usize,
-                "soft" => t.soften_sigma = f(),
-                "agree" => t.agree_sd = f(),
-                "reach" => t.reach_deg = f(),
-                "consensus" => t.consensus = f(),
-                "within" => t.soften_within = f() > 0.0,
-                _ => panic!("unknown key {k}"),
-            }
-        }
+        settings::apply(kv, &mut view, &mut ModelParams::default());
         let (w, h) = d.photos[0].dimensions();
         let (mut p, mut s) = (0.0, 0.0);
         for (k, cam) in d.extra_cameras.iter().enumerate() {

@@ -5,14 +5,16 @@
 //! cargo run --release -p vt-fv --example test_knobs -- DATA TESTFILE [name:key=value,...]...
 //! ```
 //!
-//! Keys as `loo_data`'s texturing keys: `refs`, `smooth`, `sweep`, `step`, `window`, `fill`,
-//! `tol`, `soft`, `agree`, `eps`. Prints per setting the means of the whole-image PSNR and SSIM,
+//! Keys: `common/settings.rs`'s texturing and clip keys (the model is the default). Prints per setting the means of the whole-image PSNR and SSIM,
 //! the PSNR inside the test silhouettes, and the seconds per view.
 
 use std::path::Path;
 
 use vt_fv::dataset::{DataOptions, Dataset, ModelParams, TestSummary};
 use vt_fv::pipeline::ViewParams;
+
+#[path = "common/settings.rs"]
+mod settings;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -44,24 +46,7 @@ fn main() {
     for cfg in &configs {
         let (name, kv) = cfg.split_once(':').unwrap_or((cfg, ""));
         let mut view = ViewParams::default();
-        for pair in kv.split(',').filter(|p| !p.is_empty()) {
-            let (k, v) = pair.split_once('=').expect("key=value");
-            let f = || v.parse::<f64>().unwrap();
-            let t = &mut view.texture;
-            match k {
-                "refs" => t.references = f() as usize,
-                "smooth" => t.depth_smooth = f() as u32,
-                "sweep" => t.sweep = f() as usize,
-                "step" => t.sweep_step = f(),
-                "window" => t.sweep_window = f() as u32,
-                "fill" => t.fill_radius = f() as u32,
-                "tol" => t.depth_tolerance = f(),
-                "soft" => t.soften_sigma = f(),
-                "agree" => t.agree_sd = f(),
-                "eps" => t.eps_deg = f(),
-                _ => panic!("unknown key {k}"),
-            }
-        }
+        settings::apply(kv, &mut view, &mut ModelParams::default());
         let (views, _) = train
             .score_test_set(&model, &test, &view, &mut |_| {})
             .unwrap();
