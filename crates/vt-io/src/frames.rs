@@ -213,7 +213,8 @@ impl VideoSource {
             return Err(Error::Video {
                 path: path.to_path_buf(),
                 message: format!(
-                    "its frames decode as {}x{}, not the {}x{} its stream header gives                      ({}x{} coded{}); not read",
+                    "its frames decode as {}x{}, not the {}x{} its stream header gives \
+                     ({}x{} coded{}); not read",
                     decoded.0,
                     decoded.1,
                     dims.0,
