@@ -1,7 +1,9 @@
 //! The examples' settings, `key=value,...`, applied to the view's and the model's parameters.
 //!
 //! Texturing: `refs`, `smooth`, `sweep`, `step`, `window`, `fill`, `tol`, `soft`, `agree`,
-//! `reach`, `consensus`, `within`, `eps`; the model: `pthr` (photo threshold); the clip:
+//! `reach`, `consensus`, `within`, `eps`; the model: `pthr` (photo threshold), and the stereo
+//! carving's `sources`, `best`, `radius`, `stride`, `step_v` (depth step in voxels), `coarse`,
+//! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `stereo` (0: off); the clip:
 //! `grow`, `slack`, `close`.
 
 use vt_fv::dataset::ModelParams;
@@ -28,6 +30,19 @@ pub fn apply(kv: &str, view: &mut ViewParams, model: &mut ModelParams) {
             "within" => t.soften_within = f() > 0.0,
             "eps" => t.eps_deg = f(),
             "pthr" => model.photo_threshold = f(),
+            "sources" => model.stereo_params.sources = f() as usize,
+            "best" => model.stereo_params.best = f() as usize,
+            "radius" => model.stereo_params.radius = f() as i32,
+            "stride" => model.stereo_params.stride = f() as i32,
+            "step_v" => model.stereo_params.step = f(),
+            "coarse" => model.stereo_params.coarse = f() as usize,
+            "pixel" => model.stereo_params.pixel_step = f() as usize,
+            "min_ncc" => model.stereo_params.min_ncc = f(),
+            "agree_v" => model.stereo_params.agree = f(),
+            "margin" => model.stereo_params.margin = f(),
+            "protect" => model.stereo_params.protect = f(),
+            "passes" => model.stereo_params.passes = f() as usize,
+            "stereo" => model.stereo = f() > 0.0,
             "grow" => view.grow = f() as u32,
             "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
             "close" => view.clip.as_mut().expect("clip").close = f() as u32,
