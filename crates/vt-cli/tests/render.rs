@@ -500,7 +500,8 @@ fn loaded_scene_holds_each_transition_table_once() {
 /// Issue #37: `vt render --cycle` writes one cycle of tree.avi's loop (frames 0-53, the default
 /// per-region loop) that repeats seamlessly: the file twice over is what the player shows over
 /// two cycles, frame for frame, and its join (last frame to first) is no larger than the median
-/// ordinary step, measured here on the written frames; mp4 and GIF hold the same frame count.
+/// ordinary step, measured here on the written frames; mp4 and GIF hold the same frame count,
+/// and the mp4 plays on repeat as a looping `<video>` in headless Chromium.
 #[test]
 fn one_cycle_files_repeat_seamlessly() {
     let tmp = tempfile::tempdir().unwrap();
@@ -611,6 +612,41 @@ fn one_cycle_files_repeat_seamlessly() {
             .parse()
             .unwrap();
         assert_eq!(n, length, "{ext}");
+    }
+    // The mp4 plays on repeat as a looping <video> in Chromium: at 20 fps (one cycle a
+    // second) it wraps twice and never ends, with no media error.
+    let fast = dir.join("fast.mp4");
+    vt_ok(&[
+        "render",
+        s(&scene),
+        "--path",
+        "0s:0",
+        "--cycle",
+        "--fps",
+        "20",
+        "--out",
+        s(&fast),
+    ]);
+    std::fs::write(
+        dir.join("loop.html"),
+        "<video id=v src=fast.mp4 muted loop autoplay playsinline></video><script>\n\
+         window.wraps = 0; let last = 0; const v = document.getElementById('v');\n\
+         v.addEventListener('timeupdate', () => { if (v.currentTime < last) wraps++; \
+         last = v.currentTime; });\n</script>",
+    )
+    .unwrap();
+    let profile = tempfile::tempdir().unwrap();
+    match common::cdp::chromium_webgl(profile.path()) {
+        None => eprintln!("skipped: the looping <video> check needs chromium, not installed"),
+        Some(browser) => {
+            let url = format!("file://{}", dir.join("loop.html").display());
+            let mut page = common::cdp::Page::open(&browser.ws, &url);
+            page.wait_until(
+                "window.wraps >= 2 && !v.ended && v.error === null",
+                "the one-cycle mp4 to loop twice",
+                "JSON.stringify({wraps, t: v.currentTime, ended: v.ended, error: v.error && v.error.code, state: v.readyState})",
+            );
+        }
     }
     // Refused: a length of its own, a crossfade (a one-view scene has no moving viewpoint).
     for (extra, want) in [
