@@ -35,7 +35,8 @@ impl Display {
     pub fn from_probe<'a>(path: &Path, field: impl Fn(&str) -> Option<&'a str>) -> Result<Self> {
         // The display matrix's rotation (side data); a `rotate` tag where a demuxer leaves
         // one (ffprobe reports a file's tag 90 as rotation 90: the same number).
-        let degrees = match (field("rotation"), field("rotate")) {
+        let tag = field("rotate").or_else(|| field("TAG:rotate"));
+        let degrees = match (field("rotation"), tag) {
             (Some(r), _) => r.parse::<f64>().ok(),
             (None, Some(t)) => t.parse::<f64>().ok(),
             (None, None) => Some(0.0),
@@ -50,7 +51,7 @@ impl Display {
                 message: format!(
                     "display rotation {} is not a multiple of 90 degrees: turn the video \
                      beforehand (ffmpeg -i IN -vf rotate=... OUT)",
-                    field("rotation").or(field("rotate")).unwrap_or("?")
+                    field("rotation").or(tag).unwrap_or("?")
                 ),
             })?;
         let sar = field("sample_aspect_ratio")
@@ -216,6 +217,8 @@ mod tests {
         assert_eq!(probe(&[("rotation", "-90")]).unwrap().rotation, 270);
         assert_eq!(probe(&[("rotation", "180")]).unwrap().rotation, 180);
         assert_eq!(probe(&[("rotate", "90")]).unwrap().rotation, 90);
+        // ffprobe's default writer prints a tag as TAG:key.
+        assert_eq!(probe(&[("TAG:rotate", "270")]).unwrap().rotation, 270);
         assert_eq!(probe(&[]).unwrap().rotation, 0);
         let e = probe(&[("rotation", "45")]).unwrap_err().to_string();
         assert!(e.contains("clip.mp4") && e.contains("45"), "{e}");
