@@ -7,8 +7,8 @@
 //! DATA: a folder with one `*_par.txt` and its images (scored inside
 //! `SilhouetteParams::scoring()` unless the keys `sthr`, `sdil`, `sero` say otherwise, carved
 //! from `SilhouetteParams::carving()` unless `dil`/`ero`/`thr` say otherwise); VIEWS: `1,2,3` (0-based); GRID: voxels along the longest side; CONFIG:
-//! `name:key=value,...` with keys `method` (textured|paper|refine), `refs`, `smooth`, `sweep`,
-//! `step`, `window`, `fill`, `tol`, `threshold`, `keep` (0|1), `patch`, `cagree` (carving: `Consistency::Agree` share), `cagreemin` (its fewest cameras). Prints one row per view
+//! `name:key=value,...` with keys `method` (textured|paper|refine), `common/settings.rs`'s
+//! texturing and clip keys, `threshold`, `keep` (0|1), `patch`, `cagree` (carving: `Consistency::Agree` share), `cagreemin` (its fewest cameras). Prints one row per view
 //! and configuration, then the means.
 
 use std::path::Path;
@@ -19,6 +19,9 @@ use vt_fv::hull::{auto_bounds, dims_for, HullParams};
 use vt_fv::pipeline::{leave_one_out, Method, ViewParams};
 use vt_fv::silhouette::{threshold_silhouette, SilhouetteParams};
 use vt_fv::PhotoParams;
+
+#[path = "common/settings.rs"]
+mod settings;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -64,16 +67,6 @@ fn main() {
                     }
                     _ => view.method = Method::Textured,
                 },
-                "refs" => view.texture.references = f() as usize,
-                "smooth" => view.texture.depth_smooth = f() as u32,
-                "sweep" => view.texture.sweep = f() as usize,
-                "step" => view.texture.sweep_step = f(),
-                "window" => view.texture.sweep_window = f() as u32,
-                "fill" => view.texture.fill_radius = f() as u32,
-                "tol" => view.texture.depth_tolerance = f(),
-                "soft" => view.texture.soften_sigma = f(),
-                "agree" => view.texture.agree_sd = f(),
-                "eps" => view.texture.eps_deg = f(),
                 "threshold" => photo.threshold = f(),
                 "keep" => photo.keep_silhouettes = f() != 0.0,
                 "cagree" => photo.consistency = vt_fv::Consistency::Agree(f()),
@@ -98,7 +91,6 @@ fn main() {
                     }
                 }
                 "pthr" => photo.threshold = f(),
-                "grow" => view.grow = f() as u32,
                 "vlevels" => view.voting.as_mut().expect("method=vote first").levels = f() as usize,
                 "vgw" => {
                     view.voting
@@ -109,6 +101,7 @@ fn main() {
                 "vem" => view.voting.as_mut().expect("method=vote first").em_iters = f() as usize,
                 "ero" => sil.erode = f() as u32,
                 "patch" => view.guided = GuidedParams::fast_for(f() as usize),
+                _ if settings::apply_view(k, v, &mut view) => {}
                 _ => panic!("unknown key {k}"),
             }
         }

@@ -6,6 +6,9 @@
 //! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `stereo` (0: off); the clip:
 //! `grow`, `slack`, `close`.
 
+// Each example includes this file and uses part of it.
+#![allow(dead_code)]
+
 use vt_fv::dataset::ModelParams;
 use vt_fv::pipeline::ViewParams;
 
@@ -13,40 +16,58 @@ use vt_fv::pipeline::ViewParams;
 pub fn apply(kv: &str, view: &mut ViewParams, model: &mut ModelParams) {
     for pair in kv.split(',').filter(|p| !p.is_empty()) {
         let (k, v) = pair.split_once('=').expect("key=value");
-        let f = || v.parse::<f64>().unwrap();
-        let t = &mut view.texture;
-        match k {
-            "refs" => t.references = f() as usize,
-            "smooth" => t.depth_smooth = f() as u32,
-            "sweep" => t.sweep = f() as usize,
-            "step" => t.sweep_step = f(),
-            "window" => t.sweep_window = f() as u32,
-            "fill" => t.fill_radius = f() as u32,
-            "tol" => t.depth_tolerance = f(),
-            "soft" => t.soften_sigma = f(),
-            "agree" => t.agree_sd = f(),
-            "reach" => t.reach_deg = f(),
-            "consensus" => t.consensus = f(),
-            "within" => t.soften_within = f() > 0.0,
-            "eps" => t.eps_deg = f(),
-            "pthr" => model.photo_threshold = f(),
-            "sources" => model.stereo_params.sources = f() as usize,
-            "best" => model.stereo_params.best = f() as usize,
-            "radius" => model.stereo_params.radius = f() as i32,
-            "stride" => model.stereo_params.stride = f() as i32,
-            "step_v" => model.stereo_params.step = f(),
-            "coarse" => model.stereo_params.coarse = f() as usize,
-            "pixel" => model.stereo_params.pixel_step = f() as usize,
-            "min_ncc" => model.stereo_params.min_ncc = f(),
-            "agree_v" => model.stereo_params.agree = f(),
-            "margin" => model.stereo_params.margin = f(),
-            "protect" => model.stereo_params.protect = f(),
-            "passes" => model.stereo_params.passes = f() as usize,
-            "stereo" => model.stereo = f() > 0.0,
-            "grow" => view.grow = f() as u32,
-            "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
-            "close" => view.clip.as_mut().expect("clip").close = f() as u32,
-            _ => panic!("unknown key {k}"),
+        if !apply_view(k, v, view) && !apply_model(k, v, model) {
+            panic!("unknown key {k}");
         }
     }
+}
+
+/// One texturing or clip key; false when `k` is not one.
+pub fn apply_view(k: &str, v: &str, view: &mut ViewParams) -> bool {
+    let f = || v.parse::<f64>().unwrap();
+    let t = &mut view.texture;
+    match k {
+        "refs" => t.references = f() as usize,
+        "smooth" => t.depth_smooth = f() as u32,
+        "sweep" => t.sweep = f() as usize,
+        "step" => t.sweep_step = f(),
+        "window" => t.sweep_window = f() as u32,
+        "fill" => t.fill_radius = f() as u32,
+        "tol" => t.depth_tolerance = f(),
+        "soft" => t.soften_sigma = f(),
+        "agree" => t.agree_sd = f(),
+        "reach" => t.reach_deg = f(),
+        "consensus" => t.consensus = f(),
+        "within" => t.soften_within = f() > 0.0,
+        "eps" => t.eps_deg = f(),
+        "grow" => view.grow = f() as u32,
+        "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
+        "close" => view.clip.as_mut().expect("clip").close = f() as u32,
+        _ => return false,
+    }
+    true
+}
+
+/// One model key; false when `k` is not one.
+fn apply_model(k: &str, v: &str, model: &mut ModelParams) -> bool {
+    let f = || v.parse::<f64>().unwrap();
+    let st = &mut model.stereo_params;
+    match k {
+        "pthr" => model.photo_threshold = f(),
+        "sources" => st.sources = f() as usize,
+        "best" => st.best = f() as usize,
+        "radius" => st.radius = f() as i32,
+        "stride" => st.stride = f() as i32,
+        "step_v" => st.step = f(),
+        "coarse" => st.coarse = f() as usize,
+        "pixel" => st.pixel_step = f() as usize,
+        "min_ncc" => st.min_ncc = f(),
+        "agree_v" => st.agree = f(),
+        "margin" => st.margin = f(),
+        "protect" => st.protect = f(),
+        "passes" => st.passes = f() as usize,
+        "stereo" => model.stereo = f() > 0.0,
+        _ => return false,
+    }
+    true
 }
