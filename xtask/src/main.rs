@@ -21,20 +21,9 @@ tasks:
                 (default DIR: target/report; --quick: about 4 minutes on 2 cores)
 ";
 
-/// The Cargo profile this xtask was built with (`dev`, `release`, or the test command's
-/// `checked`), and whether it is optimised (opt-level 2 or 3).
-const PROFILE: &str = env!("XTASK_PROFILE");
+/// Whether this xtask was built optimised (opt-level 2 or 3: release, or the test command's
+/// `checked` profile), so the report can measure in-process.
 const OPTIMISED: bool = matches!(env!("XTASK_OPT_LEVEL").as_bytes(), b"2" | b"3");
-
-/// The profile the cross-check is built with: this xtask's own when optimised (so the test
-/// command's one `checked` build serves both), else release.
-fn tool_profile() -> &'static str {
-    if OPTIMISED {
-        PROFILE
-    } else {
-        "release"
-    }
-}
 
 fn cargo() -> Command {
     Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
@@ -76,8 +65,7 @@ fn main() -> Result<()> {
             let mut c = cargo();
             c.args([
                 "run",
-                "--profile",
-                tool_profile(),
+                "--release",
                 "--quiet",
                 "-p",
                 "vt-cv",
