@@ -344,6 +344,14 @@ impl std::fmt::Display for AnalysisSummary<'_> {
         scene.seam_score
     )?;
         for (p, v) in a.views.iter().enumerate() {
+            if let Some(shake) = v.shake.as_ref().filter(|s| {
+                matches!(
+                    s.verdict,
+                    vt_core::stabilize::Verdict::Steadied | vt_core::stabilize::Verdict::Untextured
+                )
+            }) {
+                writeln!(f, "view {p}: {}", shake.describe())?;
+            }
             if let Some(bytes) = v.regions_over_cache {
                 writeln!(f,
                     "view {p}: no per-region loop: its {} frames and the baked loop need {} MiB held as RGB, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
@@ -469,9 +477,11 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             homographies,
             transitions,
             parallax,
+            shake,
         } = a.timings;
         writeln!(f,
-        "time: {total_s:.2} s (decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2}, parallax {:.2}, seams {seams_s:.2})",
+        "time: {total_s:.2} s (shake {:.2}, decode {:.2}, median {:.2}, masks {:.2}, loops {:.2}, homographies {:.3}, transitions {:.2}, parallax {:.2}, seams {seams_s:.2})",
+        shake.as_secs_f64(),
         decode.as_secs_f64(),
         median.as_secs_f64(),
         masks.as_secs_f64(),

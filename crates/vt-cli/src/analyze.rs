@@ -114,6 +114,11 @@ pub struct AnalyzeArgs {
     /// whole cycle).
     #[arg(long, default_value_t = vt_core::regions::DEFAULT_SPREAD)]
     region_spread: f32,
+    /// Handheld clips: auto measures each view's camera shake and, when the camera moves,
+    /// warps every frame to one still camera and crops to the area every frame covers (a cut
+    /// or a pan is refused); off takes the frames as they are.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "off"])]
+    stabilize: String,
 }
 
 impl AnalyzeArgs {
@@ -161,6 +166,10 @@ impl AnalyzeArgs {
                 ..Default::default()
             },
             register: Default::default(),
+            stabilize: vt_core::stabilize::StabilizeParams {
+                mode: self.stabilize.parse()?,
+                ..Default::default()
+            },
             regions: (self.loops != "single").then(|| vt_core::regions::RegionParams {
                 tile: self.region_tile,
                 spatial: self.region_spatial,

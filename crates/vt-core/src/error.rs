@@ -82,6 +82,14 @@ pub enum Error {
         /// The figures: features, matches, inliers, coverage, residual.
         why: String,
     },
+    /// A clip whose camera moves in a way vt cannot hold still (a cut, a pan).
+    #[error("{view}: {why}; pass --stabilize off to take the frames as they are")]
+    Unsteady {
+        /// Which clip.
+        view: String,
+        /// What was measured.
+        why: String,
+    },
     /// Point correspondences that cannot determine a transformation.
     #[error("degenerate points: {0}")]
     DegeneratePoints(String),

@@ -31,6 +31,7 @@ pub mod render;
 pub mod rng;
 pub mod seam;
 mod simd;
+pub mod stabilize;
 pub mod transition;
 pub mod warp;
 pub mod yuv;

@@ -261,6 +261,10 @@ pub struct AnalyzeParams {
     /// (otherwise that view keeps its one loop).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub regions: Option<crate::regions::RegionParams>,
+    /// Handheld views made still before anything else reads their frames
+    /// ([`crate::stabilize`]); what was measured goes into each view's result.
+    #[serde(skip, default)]
+    pub stabilize: crate::stabilize::StabilizeParams,
 }
 
 fn default_cache() -> usize {
@@ -371,6 +375,7 @@ impl AnalyzeParams {
         }
         self.noise.check()?;
         self.register.check()?;
+        self.stabilize.check()?;
         if let Some(r) = &self.regions {
             r.check()?;
         }
@@ -401,6 +406,7 @@ impl Default for AnalyzeParams {
                 only_if_better: true,
                 ..Default::default()
             }),
+            stabilize: crate::stabilize::StabilizeParams::default(),
         }
     }
 }
@@ -420,6 +426,8 @@ pub enum Stage {
     Registration,
     /// Eq. (2).
     Transitions,
+    /// Measuring the camera's shake and the still camera ([`crate::stabilize`]).
+    Shake,
 }
 
 impl std::fmt::Display for Stage {
@@ -432,6 +440,7 @@ impl std::fmt::Display for Stage {
             Stage::Homographies => "model + homographies",
             Stage::Registration => "registration",
             Stage::Transitions => "transitions",
+            Stage::Shake => "camera shake",
         })
     }
 }
@@ -478,6 +487,9 @@ pub struct Timings {
     pub transitions: Duration,
     /// The dense parallax between neighbouring backgrounds.
     pub parallax: Duration,
+    /// Measuring the camera's shake ([`crate::stabilize::measure`]; warping the frames of a
+    /// steadied view counts as decoding).
+    pub shake: Duration,
 }
 
 /// One view's results.
@@ -531,6 +543,9 @@ pub struct ViewResult {
     /// loop held as RGB; it keeps the thesis's loop. None when they were made or not asked
     /// for.
     pub regions_over_cache: Option<u64>,
+    /// The camera's measured shake and the still camera the frames were warped to (None
+    /// until the pipeline sets it).
+    pub shake: Option<crate::stabilize::Shake>,
 }
 
 /// A view's per-region loop ([`crate::regions`]) and what it measures, beside the thesis's

@@ -13,6 +13,36 @@ pub(super) fn size_err(what: String, expected: (u32, u32), got: (u32, u32)) -> E
     }
 }
 
+/// Each view's crop of its still camera, when some view is steadied: one size for all (the
+/// smallest area any view keeps), centred in each view's own area. None for every view when no
+/// view is steadied (frames as they are).
+fn view_crops(shakes: &[crate::stabilize::Shake]) -> Result<Vec<Option<crate::stabilize::Crop>>> {
+    if !shakes.iter().any(crate::stabilize::Shake::steadied) {
+        return Ok(vec![None; shakes.len()]);
+    }
+    if let Some(s) = shakes.iter().find(|s| s.size != shakes[0].size) {
+        return Err(size_err(
+            format!("view {} (made still)", s.name),
+            shakes[0].size,
+            s.size,
+        ));
+    }
+    let w = shakes.iter().map(|s| s.area.width).min().unwrap_or(0);
+    let h = shakes.iter().map(|s| s.area.height).min().unwrap_or(0);
+    Ok(shakes
+        .iter()
+        .map(|s| {
+            let a = s.area;
+            Some(crate::stabilize::Crop {
+                x: a.x + (a.width - w) / 2,
+                y: a.y + (a.height - h) / 2,
+                width: w,
+                height: h,
+            })
+        })
+        .collect())
+}
+
 /// Runs A-1..A-3 on `sources` (one per view, in order) with `points[p]` the marked points of view p
 /// (the same K physical points in every view). With several views and `points` empty, each
 /// neighbour pair is registered from its median backgrounds ([`crate::register`]): the model is
@@ -63,12 +93,65 @@ pub fn analyze(
         selection = Some(sel);
     }
 
+    // Handheld views made still before anything else reads their frames.
+    let t_shake = Instant::now();
+    let mut shakes = Vec::with_capacity(m);
+    for (p, src) in sources.iter_mut().enumerate() {
+        observer.start(Stage::Shake, Some(p), None);
+        let shake = crate::stabilize::measure(&mut **src, &params.stabilize);
+        observer.finish();
+        shakes.push(shake?);
+    }
+    let crops = view_crops(&shakes)?;
+    timings.shake += t_shake.elapsed();
+    let mut steady: Vec<crate::stabilize::Steady> = sources
+        .iter_mut()
+        .zip(&shakes)
+        .zip(&crops)
+        .map(|((src, shake), crop)| {
+            let maps = crop.map(|c| crate::stabilize::crop_maps(shake, c));
+            let size = crop.map_or(shake.size, |c| (c.width, c.height));
+            crate::stabilize::Steady::new(&mut **src, maps, size)
+        })
+        .collect();
+    // Marked points (on each view's first frame) follow it to the still camera.
+    let moved_points: Vec<Vec<Point>>;
+    let points = if crops.iter().any(Option::is_some) && !points.is_empty() {
+        moved_points = points
+            .iter()
+            .zip(shakes.iter().zip(&crops))
+            .map(|(pts, (shake, crop))| match crop {
+                Some(c) => {
+                    let map = &crate::stabilize::crop_maps(shake, *c)[0];
+                    pts.iter()
+                        .map(|q| map.apply(*q).unwrap_or(*q))
+                        .collect::<Vec<Point>>()
+                }
+                None => pts.clone(),
+            })
+            .collect();
+        if m > 1 && !auto {
+            let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
+                .map(|p| (moved_points[p].as_slice(), moved_points[p + 1].as_slice()))
+                .collect();
+            selection = Some(crate::model::select_model_for_points(
+                &pairs,
+                &params.model,
+            )?);
+        }
+        moved_points.as_slice()
+    } else {
+        points
+    };
+
     let mut views = Vec::with_capacity(m);
     let mut size: Option<(u32, u32)> = None;
-    for (p, src) in sources.iter_mut().enumerate() {
-        let v = analyze_view(p, &mut **src, params, &mut size, observer, &mut timings)?;
+    for (p, (src, shake)) in steady.iter_mut().zip(shakes).enumerate() {
+        let mut v = analyze_view(p, src, params, &mut size, observer, &mut timings)?;
+        v.shake = Some(shake);
         views.push(v);
     }
+    drop(steady);
     let (width, height) = size.expect("every view has at least one frame");
 
     // Features of every background, detected once, when registration or the parallax needs

@@ -544,5 +544,6 @@ pub(super) fn analyze_view(
         region_rejected: regions_worse,
         region_not_needed: thesis_smooth,
         regions_over_cache,
+        shake: None,
     })
 }

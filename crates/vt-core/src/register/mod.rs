@@ -408,6 +408,13 @@ pub fn footprint(masks: &[Mask]) -> Option<RgbImage> {
     Some(out)
 }
 
+/// Where the patch around `a`'s pixel `at` lies in `b`, sub-pixel, predicted by `h` (a to b):
+/// [`refine_inliers`]'s patch match for one point (None when it fails). For measuring motion
+/// (tests, reports); each call converts both images, so batch callers use their own.
+pub fn locate(a: &GrayImage, b: &GrayImage, h: &Homography, at: (i64, i64)) -> Option<Point> {
+    refine_point(&Grey::from_luma(a), &Grey::from_luma(b), h, at)
+}
+
 /// Half size of the patches of [`refine_inliers`].
 const PATCH: i64 = 7;
 
@@ -415,7 +422,7 @@ const PATCH: i64 = 7;
 /// (so perspective and scale are accounted for), shifted by the translation (with gain and
 /// offset) that minimises the squared difference (Gauss-Newton). None when the patch leaves
 /// either image, is flat, moves more than 3 px, or correlates below 0.8.
-fn refine_point(a: &Grey, b: &Grey, h: &Homography, xa: (i64, i64)) -> Option<Point> {
+pub(crate) fn refine_point(a: &Grey, b: &Grey, h: &Homography, xa: (i64, i64)) -> Option<Point> {
     let mut samples = Vec::with_capacity(((2 * PATCH + 1) * (2 * PATCH + 1)) as usize);
     for dy in -PATCH..=PATCH {
         for dx in -PATCH..=PATCH {

@@ -1,0 +1,984 @@
+//! Handheld clips made still: every frame registered to the first, the camera path replaced by
+//! its mean (a still camera, not a smoothed path: the loops and view switches need one), the
+//! frames warped to it and cropped to the area every frame covers.
+//!
+//! # Steps ([`measure`])
+//! 1. **Probe.** Every [`StabilizeParams::probe_every`]-th frame and the last are registered to
+//!    frame 0 with vt's automatic registration ([`crate::register`]: FAST corners and steered
+//!    BRIEF, RANSAC, the inliers made sub-pixel). When no probed frame's corners move more than
+//!    [`StabilizeParams::still_px`], the camera is still and nothing is warped: a tripod clip
+//!    costs one decoding pass and a few registrations.
+//! 2. **Every frame** is registered otherwise, and one model is selected for the clip by GRIC
+//!    on all frames' inliers ([`crate::model::select_model`]: translation, similarity, affine or
+//!    homography, the simplest the matches allow), with GRIC's noise taken from the residuals.
+//! 3. **The still camera** is the mean of the frames' maps to frame 0; each frame's map to it is
+//!    `G_k = A^-1 H_k`, so no frame moves farther than the shake requires.
+//! 4. **The crop** is the largest rectangle every mapped frame covers (a uniform margin by
+//!    bisection, then each side pushed out as far as it stays covered), even-sized.
+//!
+//! A frame that cannot be registered (a cut, a pan that leaves frame 0's view) is an error
+//! naming it, and so is a crop that keeps less than [`StabilizeParams::min_kept`] of the width or
+//! height: vt refuses rather than analyse a scene that is not one. A frame 0 without texture
+//! enough to register is taken as still, and [`Shake::verdict`] says so.
+//!
+//! [`Steady`] wraps the frame source and hands out the warped, cropped frames (bilinear, edge
+//! replicated), 4:2:0 frames warped plane by plane so the analysis keeps their half size.
+
+use image::{GrayImage, RgbImage};
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::align::Grey;
+use crate::analysis::{FrameRef, FrameSource};
+use crate::model::{select_model, ModelParams, MotionModel};
+use crate::register::{detect, grey, refine_point, register_features, Feature, RegisterParams};
+use crate::warp::{warp_rgb_into, Border, Interpolation};
+use crate::yuv::Yuv420Image;
+use crate::{Error, Homography, Point, Result};
+
+/// Whether clips are made still.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StabilizeMode {
+    /// Measure the shake; warp when the camera moves (the default).
+    #[default]
+    Auto,
+    /// Take the frames as they are.
+    Off,
+}
+
+impl std::str::FromStr for StabilizeMode {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "auto" => Ok(StabilizeMode::Auto),
+            "off" => Ok(StabilizeMode::Off),
+            _ => Err(Error::InvalidParameter {
+                name: "stabilize",
+                value: s.into(),
+                why: "expected auto or off".into(),
+            }),
+        }
+    }
+}
+
+/// Settings of [`measure`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StabilizeParams {
+    /// Auto or off.
+    pub mode: StabilizeMode,
+    /// A camera whose frame corners move at most this many pixels is still (0.5).
+    pub still_px: f64,
+    /// Frames probed for motion: every this many (8), and the last.
+    pub probe_every: usize,
+    /// Least fraction of the frame's width and of its height the crop keeps (0.6); a camera
+    /// that moves farther (a pan) is refused.
+    pub min_kept: f64,
+    /// The registration of each frame to frame 0.
+    pub register: RegisterParams,
+}
+
+impl Default for StabilizeParams {
+    fn default() -> Self {
+        Self {
+            mode: StabilizeMode::Auto,
+            still_px: 0.5,
+            probe_every: 8,
+            min_kept: 0.6,
+            register: RegisterParams::default(),
+        }
+    }
+}
+
+impl StabilizeParams {
+    /// Checks the ranges (errors name the field as `stabilize.<name>`).
+    pub fn check(&self) -> Result<()> {
+        let bad = |name, value: String, why: &str| {
+            Err(Error::InvalidParameter {
+                name,
+                value,
+                why: why.into(),
+            })
+        };
+        if !(self.still_px.is_finite() && self.still_px >= 0.0 && self.still_px <= 100.0) {
+            return bad(
+                "stabilize.still_px",
+                self.still_px.to_string(),
+                "0 to 100 pixels",
+            );
+        }
+        if self.probe_every == 0 {
+            return bad("stabilize.probe_every", "0".into(), "at least 1");
+        }
+        if !(self.min_kept > 0.0 && self.min_kept <= 1.0) {
+            return bad("stabilize.min_kept", self.min_kept.to_string(), "in (0, 1]");
+        }
+        self.register.check()
+    }
+}
+
+/// What [`measure`] concluded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Verdict {
+    /// No probed frame moved more than the still threshold: frames as they are.
+    Still,
+    /// The camera moves: frames warped to the mean camera and cropped.
+    Steadied,
+    /// Not measured (`--stabilize off`).
+    Off,
+    /// Frame 0 has too few features to register: taken as still.
+    Untextured,
+}
+
+/// A rectangle of pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Crop {
+    /// Left column.
+    pub x: u32,
+    /// Top row.
+    pub y: u32,
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+}
+
+/// One clip's measured camera motion and the still camera made from it.
+#[derive(Debug, Clone)]
+pub struct Shake {
+    /// The clip's name (its source's).
+    pub name: String,
+    /// Frames in the clip.
+    pub frames: usize,
+    /// The frames' size.
+    pub size: (u32, u32),
+    /// What was found.
+    pub verdict: Verdict,
+    /// The model selected by GRIC for the maps (None unless steadied).
+    pub model: Option<MotionModel>,
+    /// Per frame, the map from its pixels to the still camera's (identity unless steadied).
+    pub maps: Vec<Homography>,
+    /// Largest motion of a frame corner against the still camera, pixels (of the probed
+    /// frames against frame 0 when still).
+    pub largest_px: f64,
+    /// Largest rotation of a frame against the still camera, degrees.
+    pub largest_deg: f64,
+    /// The area every frame covers, in the still camera's pixels (the whole frame unless
+    /// steadied).
+    pub area: Crop,
+    /// Corners of frame 0 found to hold still with the camera (0 unless steadied), and the
+    /// median over frames of their RMS distance from the selected model's map, pixels.
+    pub registered: (usize, f64),
+}
+
+impl Shake {
+    /// The clip as it is: identity maps, the whole frame.
+    fn still(
+        name: &str,
+        frames: usize,
+        size: (u32, u32),
+        verdict: Verdict,
+        largest_px: f64,
+    ) -> Shake {
+        Shake {
+            name: name.to_string(),
+            frames,
+            size,
+            verdict,
+            model: None,
+            maps: vec![Homography::identity(); frames],
+            largest_px,
+            largest_deg: 0.0,
+            area: Crop {
+                x: 0,
+                y: 0,
+                width: size.0,
+                height: size.1,
+            },
+            registered: (0, 0.0),
+        }
+    }
+
+    /// Whether the frames are warped.
+    pub fn steadied(&self) -> bool {
+        self.verdict == Verdict::Steadied
+    }
+
+    /// One line for a summary.
+    pub fn describe(&self) -> String {
+        match self.verdict {
+            Verdict::Off => "camera taken as still (--stabilize off)".into(),
+            Verdict::Untextured => {
+                "camera taken as still: too little texture in frame 0 to measure it".into()
+            }
+            Verdict::Still => format!(
+                "camera still (frame corners within {:.2} px)",
+                self.largest_px
+            ),
+            Verdict::Steadied => format!(
+                "camera shake up to {:.1} px and {:.2} deg, {} map per frame ({} still corners, \
+                 median residual {:.2} px): steadied, cropped to {}x{} at ({}, {}) of {}x{}",
+                self.largest_px,
+                self.largest_deg,
+                self.model.map_or("no", MotionModel::name),
+                self.registered.0,
+                self.registered.1,
+                self.area.width,
+                self.area.height,
+                self.area.x,
+                self.area.y,
+                self.size.0,
+                self.size.1,
+            ),
+        }
+    }
+}
+
+/// An error naming the clip.
+fn unsteady(name: &str, why: String) -> Error {
+    Error::Unsteady {
+        view: name.to_string(),
+        why,
+    }
+}
+
+/// Frame 0's registration data: its features, and the anchors tracked into every frame.
+struct Reference {
+    grey: GrayImage,
+    fine: Grey,
+    features: Vec<Feature>,
+    anchors: Vec<(i64, i64)>,
+}
+
+impl Reference {
+    fn new(grey: GrayImage, params: &RegisterParams) -> Reference {
+        let features = detect(&grey, params);
+        // The anchors: the strongest corners of a sparser detection, each pixel once.
+        let sparse = RegisterParams {
+            max_features: ANCHORS,
+            ..*params
+        };
+        let mut anchors: Vec<(i64, i64)> = detect(&grey, &sparse)
+            .iter()
+            .map(|f| (f.pos.x.round() as i64, f.pos.y.round() as i64))
+            .collect();
+        anchors.sort_unstable();
+        anchors.dedup();
+        Reference {
+            fine: Grey::from_luma(&grey),
+            grey,
+            features,
+            anchors,
+        }
+    }
+}
+
+/// Anchors (corners of frame 0) tracked into every frame.
+const ANCHORS: usize = 600;
+
+/// Where frame 0's anchors lie in one frame (None where not found).
+struct Tracked {
+    frame: usize,
+    at: Vec<Option<Point>>,
+}
+
+/// Tracks frame 0's anchors into a batch of frames, side by side: each frame registered to
+/// frame 0 by features (RANSAC), then each anchor's patch found in it under that map
+/// ([`crate::register::refine_point`]: sub-pixel, gain and offset, correlation at least 0.8).
+fn track_batch(
+    name: &str,
+    reference: &Reference,
+    batch: &mut Vec<(usize, GrayImage)>,
+    params: &RegisterParams,
+    out: &mut Vec<Tracked>,
+) -> Result<()> {
+    let size = reference.grey.dimensions();
+    let tracked: Vec<Result<Tracked>> = batch
+        .par_iter()
+        .map(|(k, g)| {
+            let f = detect(g, params);
+            let r = register_features(&f, &reference.features, size, None, params, (*k, 0))
+                .map_err(|e| {
+                    let why = match e {
+                        Error::Registration { why, .. } => why,
+                        e => e.to_string(),
+                    };
+                    unsteady(
+                        name,
+                        format!(
+                            "frame {k} cannot be registered to frame 0 (a cut, or the camera \
+                             moves too far): {why}"
+                        ),
+                    )
+                })?;
+            let prior = r.homography.inverse();
+            let fine = Grey::from_luma(g);
+            let at = reference
+                .anchors
+                .iter()
+                .map(|&a| refine_point(&reference.fine, &fine, &prior, a))
+                .collect();
+            Ok(Tracked { frame: *k, at })
+        })
+        .collect();
+    batch.clear();
+    for t in tracked {
+        out.push(t?);
+    }
+    Ok(())
+}
+
+/// Frames registered side by side.
+const BATCH: usize = 8;
+
+/// Largest distance a corner of a `w x h` frame moves under `h`, pixels.
+fn corner_motion(h: &Homography, (w, hh): (u32, u32)) -> f64 {
+    let (w, hh) = (w as f64 - 1.0, hh as f64 - 1.0);
+    [(0.0, 0.0), (w, 0.0), (0.0, hh), (w, hh)]
+        .into_iter()
+        .map(|(x, y)| {
+            h.apply(Point::new(x, y)).map_or(f64::INFINITY, |q| {
+                ((q.x - x).powi(2) + (q.y - y).powi(2)).sqrt()
+            })
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The camera's motion as the still anchors show it: per frame, the median distance its
+/// agreeing still anchors have moved from their places in frame 0; the largest over frames,
+/// pixels. (A median, since anchors on slow parts of a moving scene may pass as still.)
+fn anchor_motion(reference: &Reference, tracks: &[Tracked], still: &StillAnchors) -> f64 {
+    tracks
+        .iter()
+        .zip(&still.per_frame)
+        .map(|(t, agree)| {
+            let mut d: Vec<f64> = agree
+                .iter()
+                .filter_map(|&a| {
+                    let (x, y) = reference.anchors[a];
+                    t.at[a].map(|q| (q.x - x as f64).hypot(q.y - y as f64))
+                })
+                .collect();
+            if d.is_empty() {
+                return 0.0;
+            }
+            d.sort_by(f64::total_cmp);
+            d[d.len() / 2]
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Rotation of `h`'s linear part, degrees.
+fn rotation_deg(h: &Homography) -> f64 {
+    let m = h.matrix();
+    (m[(1, 0)] - m[(0, 1)])
+        .atan2(m[(0, 0)] + m[(1, 1)])
+        .to_degrees()
+}
+
+/// The anchors that hold still with the camera, and each frame's map to frame 0 from them.
+///
+/// Per frame, the features' RANSAC fits whatever moves most, and in a clip of a tree in wind
+/// that is the tree. What sets the background apart is time: its anchors follow one map per
+/// frame in *every* frame, a leaf agrees with the crowd only now and then. So the anchors are
+/// chosen jointly over the frames: a hypothesis is two anchors far apart (a similarity per
+/// frame from their tracks), an anchor supports it when it lies within [`AGREE_PX`] of that map
+/// in at least [`AGREE_SHARE`] of the frames it is found in; the best supported set is then
+/// refined by homographies fitted to it per frame, twice, with the bound halved. None when
+/// fewer than `min_inliers` anchors hold still (in some frame).
+fn still_anchors(
+    reference: &Reference,
+    tracks: &[Tracked],
+    min_inliers: usize,
+    seed: u64,
+) -> Option<StillAnchors> {
+    let anchors: Vec<Point> = reference
+        .anchors
+        .iter()
+        .map(|&(x, y)| Point::new(x as f64, y as f64))
+        .collect();
+    let frames = tracks.len();
+    // Anchors found in most frames.
+    let found: Vec<usize> = (0..anchors.len())
+        .filter(|&a| {
+            let n = tracks.iter().filter(|t| t.at[a].is_some()).count();
+            n as f64 >= FOUND_SHARE * frames as f64 && n > 0
+        })
+        .collect();
+    if found.len() < min_inliers {
+        return None;
+    }
+    let supports = |a: usize, at: &dyn Fn(usize, Point) -> Option<Point>, bound: f64| {
+        let (mut n, mut good) = (0usize, 0usize);
+        for (k, t) in tracks.iter().enumerate() {
+            if let (Some(q), Some(p)) = (t.at[a], at(k, anchors[a])) {
+                n += 1;
+                if (q - p).norm() <= bound {
+                    good += 1;
+                }
+            }
+        }
+        n > 0 && good as f64 >= AGREE_SHARE * n as f64
+    };
+    let (w, h) = reference.grey.dimensions();
+    let far = (w.min(h) as f64) / 3.0;
+    let mut rng = crate::rng::Rng::new(seed);
+    let mut best: Vec<usize> = Vec::new();
+    let mut tries = 0;
+    while tries < HYPOTHESES {
+        let i = found[rng.range(0, found.len() as i64 - 1) as usize];
+        let j = found[rng.range(0, found.len() as i64 - 1) as usize];
+        if (anchors[i] - anchors[j]).norm() < far {
+            tries += 1;
+            continue;
+        }
+        tries += 1;
+        // Per frame, the similarity taking anchors i and j (frame 0) to where they are found.
+        let maps: Vec<Option<[f64; 4]>> = tracks
+            .iter()
+            .map(|t| {
+                let (qi, qj) = (t.at[i]?, t.at[j]?);
+                let (pi, pj) = (anchors[i], anchors[j]);
+                let (dx, dy) = (pj.x - pi.x, pj.y - pi.y);
+                let (ex, ey) = (qj.x - qi.x, qj.y - qi.y);
+                let d2 = dx * dx + dy * dy;
+                // s = e / d as complex numbers.
+                let (a, b) = ((ex * dx + ey * dy) / d2, (ey * dx - ex * dy) / d2);
+                Some([
+                    a,
+                    b,
+                    qi.x - (a * pi.x - b * pi.y),
+                    qi.y - (b * pi.x + a * pi.y),
+                ])
+            })
+            .collect();
+        let at = |k: usize, p: Point| {
+            maps[k].map(|[a, b, tx, ty]| Point::new(a * p.x - b * p.y + tx, b * p.x + a * p.y + ty))
+        };
+        let set: Vec<usize> = found
+            .iter()
+            .copied()
+            .filter(|&a| supports(a, &at, AGREE_PX))
+            .collect();
+        if set.len() > best.len() {
+            best = set;
+        }
+    }
+    // Refined: a homography per frame from the set, the set chosen again.
+    let mut maps: Vec<Option<Homography>> = Vec::new();
+    for bound in GROW_PX {
+        if best.len() < min_inliers {
+            return None;
+        }
+        maps = tracks
+            .iter()
+            .map(|t| {
+                let (src, dst): (Vec<Point>, Vec<Point>) = best
+                    .iter()
+                    .filter_map(|&a| Some((anchors[a], t.at[a]?)))
+                    .unzip();
+                (src.len() >= min_inliers)
+                    .then(|| Homography::from_correspondences(&src, &dst).ok())
+                    .flatten()
+                    .map(|f| f.homography)
+            })
+            .collect();
+        let at = |k: usize, p: Point| maps[k].as_ref().and_then(|m| m.apply(p));
+        best = found
+            .iter()
+            .copied()
+            .filter(|&a| supports(a, &at, bound))
+            .collect();
+    }
+    if best.len() < min_inliers {
+        return None;
+    }
+    // Per frame, the set's anchors that agree in that frame (a still anchor may be mistracked
+    // in a tenth of the frames).
+    let mut per_frame = Vec::with_capacity(frames);
+    for (t, m) in tracks.iter().zip(&maps) {
+        let m = m.as_ref()?;
+        let agree: Vec<usize> = best
+            .iter()
+            .copied()
+            .filter(|&a| match (t.at[a], m.apply(anchors[a])) {
+                (Some(q), Some(p)) => (q - p).norm() <= AGREE_PX,
+                _ => false,
+            })
+            .collect();
+        if agree.len() < min_inliers {
+            return None;
+        }
+        per_frame.push(agree);
+    }
+    Some(StillAnchors {
+        set: best,
+        per_frame,
+    })
+}
+
+/// What [`still_anchors`] found.
+struct StillAnchors {
+    /// The anchors that hold still with the camera.
+    set: Vec<usize>,
+    /// Per frame, those of them that agree with its map there.
+    per_frame: Vec<Vec<usize>>,
+}
+
+/// Least share of the frames an anchor must be found in.
+const FOUND_SHARE: f64 = 0.8;
+/// Least share of the frames it is found in where an anchor must agree with the camera.
+const AGREE_SHARE: f64 = 0.9;
+/// How near, in pixels, an anchor must lie to the camera's map to agree with it.
+const AGREE_PX: f64 = 0.35;
+/// The bounds of the refinements by homographies: looser first, so that anchors far from the
+/// hypothesis's pair, where a similarity is not the camera's map, join.
+const GROW_PX: [f64; 3] = [0.6, 0.6, AGREE_PX];
+/// Pairs of anchors tried as the camera.
+const HYPOTHESES: usize = 400;
+
+/// Measures the camera motion of `source` and the still camera that removes it.
+pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result<Shake> {
+    params.check()?;
+    let name = source.name().to_string();
+    if params.mode == StabilizeMode::Off {
+        // The count and size still come from the source, without registering.
+        let mut size = (0, 0);
+        let n = source.for_each_frame(&mut |i, f| {
+            if i == 0 {
+                size = f.dimensions();
+            }
+            Ok(())
+        })?;
+        return Ok(Shake::still(&name, n, size, Verdict::Off, 0.0));
+    }
+    let reg = &params.register;
+    let mut reference: Option<Reference> = None;
+    let mut batch = Vec::new();
+    let mut probes = Vec::new();
+    let mut last: Option<(usize, GrayImage)> = None;
+    let mut untextured = false;
+    let n = source.for_each_frame(&mut |i, rgb| {
+        if untextured {
+            return Ok(());
+        }
+        let g = grey(rgb);
+        let Some(r) = &reference else {
+            let r = Reference::new(g, reg);
+            untextured = r.features.len() < 4 * reg.min_inliers;
+            reference = Some(r);
+            return Ok(());
+        };
+        if i % params.probe_every == 0 {
+            batch.push((i, g));
+            last = None;
+            if batch.len() >= BATCH {
+                track_batch(&name, r, &mut batch, reg, &mut probes)?;
+            }
+        } else {
+            last = Some((i, g));
+        }
+        Ok(())
+    })?;
+    let Some(reference) = reference else {
+        return Ok(Shake::still(&name, 0, (0, 0), Verdict::Still, 0.0));
+    };
+    let size = reference.grey.dimensions();
+    if untextured || n == 1 {
+        return Ok(Shake::still(&name, n, size, Verdict::Untextured, 0.0));
+    }
+    batch.extend(last);
+    track_batch(&name, &reference, &mut batch, reg, &mut probes)?;
+    let Some(probed) = still_anchors(&reference, &probes, reg.min_inliers, reg.seed) else {
+        return Ok(Shake::still(&name, n, size, Verdict::Untextured, 0.0));
+    };
+    // How far the still corners themselves move (the frame's corners would extrapolate the
+    // map, and a background seen in one strip of the frame pins it down only there).
+    let probed_motion = anchor_motion(&reference, &probes, &probed);
+    if probed_motion <= params.still_px {
+        return Ok(Shake::still(&name, n, size, Verdict::Still, probed_motion));
+    }
+
+    // The camera moves: every frame tracked.
+    let probed_frames: std::collections::HashSet<usize> = probes.iter().map(|t| t.frame).collect();
+    let mut tracks = probes;
+    let count = source.for_each_frame(&mut |i, rgb| {
+        if i == 0 || probed_frames.contains(&i) {
+            return Ok(());
+        }
+        batch.push((i, grey(rgb)));
+        if batch.len() >= BATCH {
+            track_batch(&name, &reference, &mut batch, reg, &mut tracks)?;
+        }
+        Ok(())
+    })?;
+    track_batch(&name, &reference, &mut batch, reg, &mut tracks)?;
+    if count != n {
+        return Err(unsteady(
+            &name,
+            format!("the source gave {count} frames on its second reading, {n} on its first"),
+        ));
+    }
+    tracks.sort_by_key(|t| t.frame);
+    debug_assert_eq!(tracks.len(), n - 1);
+    let Some(still) = still_anchors(&reference, &tracks, reg.min_inliers, reg.seed) else {
+        return Err(unsteady(
+            &name,
+            format!(
+                "fewer than {} of frame 0's corners hold still with the camera through the \
+                 clip: nothing to hold the frames to",
+                reg.min_inliers
+            ),
+        ));
+    };
+
+    // One model for the clip, by GRIC on the still anchors' tracks, its noise from their
+    // residuals under homographies.
+    let pairs: Vec<(Vec<Point>, Vec<Point>)> = tracks
+        .iter()
+        .zip(&still.per_frame)
+        .map(|(t, agree)| {
+            agree
+                .iter()
+                .filter_map(|&a| {
+                    let (x, y) = reference.anchors[a];
+                    Some((t.at[a]?, Point::new(x as f64, y as f64)))
+                })
+                .unzip()
+        })
+        .collect();
+    let general: Vec<crate::model::ModelFit> = pairs
+        .iter()
+        .map(|(a, b)| crate::model::fit_model(MotionModel::Homography, a, b, 1.0))
+        .collect::<Result<_>>()
+        .map_err(|e| unsteady(&name, format!("no map fits a frame's still corners: {e}")))?;
+    let k = pairs.iter().map(|(a, _)| a.len()).sum::<usize>() as f64 / pairs.len() as f64;
+    // Frame 0's anchors are exact pixels: a residual carries one tracked point's noise, not
+    // two marked points' (implied_sigma halves for those).
+    let sigma = (2.0 * crate::model::implied_sigma(&general, k)).max(0.02);
+    let refs: Vec<(&[Point], &[Point])> = pairs
+        .iter()
+        .map(|(a, b)| (a.as_slice(), b.as_slice()))
+        .collect();
+    let selection = select_model(&refs, &ModelParams { sigma, force: None })
+        .map_err(|e| unsteady(&name, format!("no map fits the frames' still corners: {e}")))?;
+    let mut rms: Vec<f64> = selection.fits.iter().map(|f| f.rms).collect();
+    rms.sort_by(f64::total_cmp);
+    let median_rms = rms[rms.len() / 2];
+
+    // The still camera: the mean of the maps to frame 0.
+    let to_first: Vec<Matrix3<f64>> = std::iter::once(Matrix3::identity())
+        .chain(selection.fits.iter().map(|f| {
+            let m = f.homography.matrix();
+            m / m[(2, 2)]
+        }))
+        .collect();
+    let mean = to_first.iter().sum::<Matrix3<f64>>() / n as f64;
+    let mean = Homography::from_matrix(mean).map_err(|e| {
+        unsteady(
+            &name,
+            format!("the frames' mean camera is degenerate ({e})"),
+        )
+    })?;
+    let inv_mean = mean.inverse();
+    let maps: Vec<Homography> = to_first
+        .iter()
+        .map(|m| Homography::from_matrix(inv_mean.matrix() * m))
+        .collect::<Result<_>>()
+        .map_err(|e| unsteady(&name, format!("a frame's map is degenerate ({e})")))?;
+    let largest_px = maps
+        .iter()
+        .map(|h| corner_motion(h, size))
+        .fold(0.0, f64::max);
+    let largest_deg = maps
+        .iter()
+        .map(|h| rotation_deg(h).abs())
+        .fold(0.0, f64::max);
+    let area = covered(&maps, size).filter(|c| {
+        c.width as f64 >= params.min_kept * size.0 as f64
+            && c.height as f64 >= params.min_kept * size.1 as f64
+    });
+    let Some(area) = area else {
+        return Err(unsteady(
+            &name,
+            format!(
+                "the camera moves too far to hold still (frame corners up to {largest_px:.0} px \
+                 from the mean camera): the area every frame covers keeps less than {:.0}% of \
+                 the {}x{} frame",
+                params.min_kept * 100.0,
+                size.0,
+                size.1
+            ),
+        ));
+    };
+    Ok(Shake {
+        name,
+        frames: n,
+        size,
+        verdict: Verdict::Steadied,
+        model: Some(selection.model),
+        maps,
+        largest_px,
+        largest_deg,
+        area,
+        registered: (still.set.len(), median_rms),
+    })
+}
+
+/// The largest even-sized rectangle of the still camera's pixels that every frame (mapped by
+/// `maps`) covers; None when there is none.
+fn covered(maps: &[Homography], (w, h): (u32, u32)) -> Option<Crop> {
+    let inv: Vec<[f64; 9]> = maps
+        .iter()
+        .map(|m| {
+            let i = m.raw().1;
+            std::array::from_fn(|k| i[(k / 3, k % 3)])
+        })
+        .collect();
+    let (xmax, ymax) = (w as f64 - 1.0, h as f64 - 1.0);
+    let inside = |x: f64, y: f64| {
+        inv.iter().all(|m| {
+            let d = m[6] * x + m[7] * y + m[8];
+            if d.abs() < 1e-12 {
+                return false;
+            }
+            let (u, v) = (
+                (m[0] * x + m[1] * y + m[2]) / d,
+                (m[3] * x + m[4] * y + m[5]) / d,
+            );
+            (-1e-9..=xmax + 1e-9).contains(&u) && (-1e-9..=ymax + 1e-9).contains(&v)
+        })
+    };
+    // A frame maps to a convex quadrilateral; a rectangle whose corners all lie in every one
+    // lies in their intersection.
+    let fits = |r: [f64; 4]| {
+        r[0] <= r[2]
+            && r[1] <= r[3]
+            && inside(r[0], r[1])
+            && inside(r[2], r[1])
+            && inside(r[0], r[3])
+            && inside(r[2], r[3])
+    };
+    let full = [0.0, 0.0, xmax, ymax];
+    let mut rect = full;
+    if !fits(rect) {
+        let (mut lo, mut hi) = (0.0, xmax.min(ymax) / 2.0);
+        let at = |m: f64| [m, m, xmax - m, ymax - m];
+        if !fits(at(hi)) {
+            return None;
+        }
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if fits(at(mid)) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        rect = at(hi);
+        // Each side pushed back out as far as the rectangle stays covered.
+        for _ in 0..2 {
+            for side in 0..4 {
+                let (mut good, mut far) = (rect[side], full[side]);
+                for _ in 0..40 {
+                    let mid = 0.5 * (good + far);
+                    let mut r = rect;
+                    r[side] = mid;
+                    if fits(r) {
+                        good = mid;
+                    } else {
+                        far = mid;
+                    }
+                }
+                rect[side] = good;
+            }
+        }
+    }
+    let x0 = rect[0].ceil().max(0.0) as u32;
+    let y0 = rect[1].ceil().max(0.0) as u32;
+    let x1 = rect[2].floor().min(xmax) as u32;
+    let y1 = rect[3].floor().min(ymax) as u32;
+    let width = (x1 + 1).saturating_sub(x0) & !1;
+    let height = (y1 + 1).saturating_sub(y0) & !1;
+    (width >= 2 && height >= 2).then_some(Crop {
+        x: x0,
+        y: y0,
+        width,
+        height,
+    })
+}
+
+/// `shake`'s maps composed with a crop: per frame, the map from its pixels to the crop's.
+pub fn crop_maps(shake: &Shake, crop: Crop) -> Vec<Homography> {
+    let shift = Homography::translation(-(crop.x as f64), -(crop.y as f64));
+    shake
+        .maps
+        .iter()
+        .map(|m| {
+            shift
+                .after(m)
+                .expect("a translation after an invertible map")
+        })
+        .collect()
+}
+
+/// A frame source made still: each frame warped by its map (frame pixels to output pixels) into
+/// a `size` frame, bilinear, edge pixels replicated; without maps, the source as it is.
+pub struct Steady<'a> {
+    source: &'a mut dyn FrameSource,
+    maps: Option<Vec<Homography>>,
+    size: (u32, u32),
+}
+
+impl<'a> Steady<'a> {
+    /// Wraps `source`; `maps[k]` maps frame k's pixels to the output's (`size`, even). None
+    /// passes the frames through.
+    pub fn new(
+        source: &'a mut dyn FrameSource,
+        maps: Option<Vec<Homography>>,
+        size: (u32, u32),
+    ) -> Self {
+        Self { source, maps, size }
+    }
+}
+
+impl FrameSource for Steady<'_> {
+    fn name(&self) -> &str {
+        self.source.name()
+    }
+
+    fn for_each_frame(
+        &mut self,
+        f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>,
+    ) -> Result<usize> {
+        let Some(maps) = &self.maps else {
+            return self.source.for_each_frame(f);
+        };
+        let mut out = RgbImage::new(self.size.0, self.size.1);
+        let name = self.source.name().to_string();
+        self.source.for_each_frame(&mut |i, frame| {
+            let h = maps.get(i).ok_or_else(|| past_end(&name, i, maps.len()))?;
+            warp_rgb_into(
+                frame,
+                h,
+                Interpolation::Bilinear,
+                Border::Replicate,
+                &mut out,
+            );
+            f(i, &out)
+        })
+    }
+
+    fn for_each_native(
+        &mut self,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
+    ) -> Result<usize> {
+        let Some(maps) = &self.maps else {
+            return self.source.for_each_native(f);
+        };
+        let size = self.size;
+        let mut rgb = RgbImage::new(size.0, size.1);
+        let mut yuv: Option<Yuv420Image> = None;
+        let name = self.source.name().to_string();
+        self.source.for_each_native(&mut |i, frame| {
+            let h = maps.get(i).ok_or_else(|| past_end(&name, i, maps.len()))?;
+            match frame {
+                FrameRef::Rgb(src) => {
+                    warp_rgb_into(src, h, Interpolation::Bilinear, Border::Replicate, &mut rgb);
+                    f(i, FrameRef::Rgb(&rgb))
+                }
+                FrameRef::Yuv420(src) => {
+                    let out = match &mut yuv {
+                        Some(o) => o,
+                        None => {
+                            yuv.insert(Yuv420Image::new(size.0, size.1, src.matrix(), src.range())?)
+                        }
+                    };
+                    warp_yuv420(src, h, out);
+                    f(i, FrameRef::Yuv420(out))
+                }
+            }
+        })
+    }
+}
+
+/// The error of a source that gives more frames than were measured.
+fn past_end(name: &str, i: usize, n: usize) -> Error {
+    unsteady(
+        name,
+        format!("the source gave frame {i}, past the {n} frames measured"),
+    )
+}
+
+/// Warps a 4:2:0 frame by `h` (source pixels to output pixels) into `out`, plane by plane,
+/// bilinear, edge replicated. Chroma samples sit at the centre of their 2x2 luma block.
+pub fn warp_yuv420(src: &Yuv420Image, h: &Homography, out: &mut Yuv420Image) {
+    let inv = h.raw().1;
+    let m: [f64; 9] = std::array::from_fn(|k| inv[(k / 3, k % 3)]);
+    let (sw, sh) = (src.width() as usize, src.height() as usize);
+    let (ow, oh) = (out.width() as usize, out.height() as usize);
+    let (sy, sc) = src.as_raw().split_at(sw * sh);
+    let (su, sv) = sc.split_at(sw * sh / 4);
+    let (oy, oc) = out.as_raw_mut().split_at_mut(ow * oh);
+    let (ou, ov) = oc.split_at_mut(ow * oh / 4);
+    // Luma: output pixel (x, y) reads the source at H^-1 (x, y).
+    warp_plane(sy, (sw, sh), oy, (ow, oh), &|x, y| project(&m, x, y));
+    // Chroma: sample (i, j) sits at luma (2i + 0.5, 2j + 0.5).
+    let chroma = |x: f64, y: f64| {
+        let (u, v) = project(&m, 2.0 * x + 0.5, 2.0 * y + 0.5);
+        ((u - 0.5) / 2.0, (v - 0.5) / 2.0)
+    };
+    rayon::join(
+        || warp_plane(su, (sw / 2, sh / 2), ou, (ow / 2, oh / 2), &chroma),
+        || warp_plane(sv, (sw / 2, sh / 2), ov, (ow / 2, oh / 2), &chroma),
+    );
+}
+
+fn project(m: &[f64; 9], x: f64, y: f64) -> (f64, f64) {
+    let d = m[6] * x + m[7] * y + m[8];
+    (
+        (m[0] * x + m[1] * y + m[2]) / d,
+        (m[3] * x + m[4] * y + m[5]) / d,
+    )
+}
+
+/// One plane warped, bilinear with the edge replicated; `at(x, y)` is the source coordinate of
+/// output pixel (x, y).
+fn warp_plane(
+    src: &[u8],
+    (sw, sh): (usize, usize),
+    out: &mut [u8],
+    (ow, _oh): (usize, usize),
+    at: &(dyn Fn(f64, f64) -> (f64, f64) + Sync),
+) {
+    let (xmax, ymax) = ((sw - 1) as f64, (sh - 1) as f64);
+    out.par_chunks_mut(ow).enumerate().for_each(|(y, row)| {
+        for (x, px) in row.iter_mut().enumerate() {
+            let (u, v) = at(x as f64, y as f64);
+            let (u, v) = (
+                if u.is_finite() {
+                    u.clamp(0.0, xmax)
+                } else {
+                    0.0
+                },
+                if v.is_finite() {
+                    v.clamp(0.0, ymax)
+                } else {
+                    0.0
+                },
+            );
+            let (x0, y0) = (u as usize, v as usize);
+            let (x1, y1) = ((x0 + 1).min(sw - 1), (y0 + 1).min(sh - 1));
+            let (fx, fy) = ((u - x0 as f64) as f32, (v - y0 as f64) as f32);
+            let p = |xx: usize, yy: usize| src[yy * sw + xx] as f32;
+            let top = p(x0, y0) + (p(x1, y0) - p(x0, y0)) * fx;
+            let bottom = p(x0, y1) + (p(x1, y1) - p(x0, y1)) * fx;
+            *px = (top + (bottom - top) * fy + 0.5).clamp(0.0, 255.0) as u8;
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests;
