@@ -21,8 +21,9 @@
 //! height: vt refuses rather than analyse a scene that is not one. A frame 0 without texture
 //! enough to register is taken as still, and [`Shake::verdict`] says so.
 //!
-//! [`Steady`] wraps the frame source and hands out the warped, cropped frames (bilinear, edge
-//! replicated), 4:2:0 frames warped plane by plane so the analysis keeps their half size.
+//! [`Steady`] wraps the frame source and hands out the warped, cropped frames (bicubic, edge
+//! replicated: a bilinear warp at a half-pixel shift blurs like a 2-tap box filter), 4:2:0
+//! frames warped plane by plane so the analysis keeps their half size.
 
 use image::{GrayImage, RgbImage};
 use nalgebra::Matrix3;
@@ -33,7 +34,6 @@ use crate::align::Grey;
 use crate::analysis::{FrameRef, FrameSource};
 use crate::model::{select_model, ModelParams, MotionModel};
 use crate::register::{detect, grey, refine_point, register_features, Feature, RegisterParams};
-use crate::warp::{warp_rgb_into, Border, Interpolation};
 use crate::yuv::Yuv420Image;
 use crate::{Error, Homography, Point, Result};
 
@@ -244,18 +244,18 @@ fn unsteady(name: &str, why: String) -> Error {
     }
 }
 
-/// Frame 0's registration data: its features, and the anchors tracked into every frame.
+/// Frame 0's registration data: the anchors tracked into every frame, and its features (found
+/// only when a frame must be registered by them).
 struct Reference {
     grey: GrayImage,
     fine: Grey,
-    features: Vec<Feature>,
+    features: std::sync::OnceLock<Vec<Feature>>,
     anchors: Vec<(i64, i64)>,
 }
 
 impl Reference {
     fn new(grey: GrayImage, params: &RegisterParams) -> Reference {
-        let features = detect(&grey, params);
-        // The anchors: the strongest corners of a sparser detection, each pixel once.
+        // The anchors: the strongest corners of a sparse detection, each pixel once.
         let sparse = RegisterParams {
             max_features: ANCHORS,
             ..*params
@@ -269,9 +269,13 @@ impl Reference {
         Reference {
             fine: Grey::from_luma(&grey),
             grey,
-            features,
+            features: std::sync::OnceLock::new(),
             anchors,
         }
+    }
+
+    fn features(&self, params: &RegisterParams) -> &[Feature] {
+        self.features.get_or_init(|| detect(&self.grey, params))
     }
 }
 
@@ -280,58 +284,95 @@ const ANCHORS: usize = 600;
 
 /// Where frame 0's anchors lie in one frame (None where not found).
 struct Tracked {
-    frame: usize,
     at: Vec<Option<Point>>,
 }
 
-/// Tracks frame 0's anchors into a batch of frames, side by side: each frame registered to
-/// frame 0 by features (RANSAC), then each anchor's patch found in it under that map
-/// ([`crate::register::refine_point`]: sub-pixel, gain and offset, correlation at least 0.8).
-fn track_batch(
-    name: &str,
-    reference: &Reference,
-    batch: &mut Vec<(usize, GrayImage)>,
-    params: &RegisterParams,
-    out: &mut Vec<Tracked>,
-) -> Result<()> {
-    let size = reference.grey.dimensions();
-    let tracked: Vec<Result<Tracked>> = batch
-        .par_iter()
-        .map(|(k, g)| {
-            let f = detect(g, params);
-            let r = register_features(&f, &reference.features, size, None, params, (*k, 0))
-                .map_err(|e| {
-                    let why = match e {
-                        Error::Registration { why, .. } => why,
-                        e => e.to_string(),
-                    };
-                    unsteady(
-                        name,
-                        format!(
-                            "frame {k} cannot be registered to frame 0 (a cut, or the camera \
-                             moves too far): {why}"
-                        ),
-                    )
-                })?;
-            let prior = r.homography.inverse();
-            let fine = Grey::from_luma(g);
-            let at = reference
-                .anchors
-                .iter()
-                .map(|&a| refine_point(&reference.fine, &fine, &prior, a))
-                .collect();
-            Ok(Tracked { frame: *k, at })
-        })
-        .collect();
-    batch.clear();
-    for t in tracked {
-        out.push(t?);
+impl Tracked {
+    /// The homography from frame 0 to this frame fitted to every anchor found (a prior for the
+    /// next frame, not the camera: moving anchors are in it).
+    fn map(&self, reference: &Reference) -> Option<Homography> {
+        let (src, dst): (Vec<Point>, Vec<Point>) = reference
+            .anchors
+            .iter()
+            .zip(&self.at)
+            .filter_map(|(&(x, y), q)| Some((Point::new(x as f64, y as f64), (*q)?)))
+            .unzip();
+        (src.len() >= 8)
+            .then(|| Homography::from_correspondences(&src, &dst).ok())
+            .flatten()
+            .map(|f| f.homography)
     }
-    Ok(())
 }
 
-/// Frames registered side by side.
-const BATCH: usize = 8;
+/// Tracks frame 0's anchors into frame `k` (grey `g`): each anchor's patch is looked for
+/// ([`crate::register::refine_point`]: sub-pixel, gain and offset, within 3 px, correlation at
+/// least 0.8) where it was in `previous` (a frame just before, tracked), else where the
+/// previous frame's map puts it, else where it was in frame 0. When fewer than
+/// [`FOUND_IN_PLACE`] of them are found, the frame is registered to frame 0 by features
+/// (RANSAC) and the anchors looked for again under that map; a frame that cannot be is an
+/// error (a cut, or the camera has left frame 0's view).
+fn track_frame(
+    name: &str,
+    reference: &Reference,
+    k: usize,
+    g: &GrayImage,
+    previous: Option<&Tracked>,
+    params: &RegisterParams,
+) -> Result<Tracked> {
+    let fine = Grey::from_luma(g);
+    let prior = previous.and_then(|p| p.map(reference));
+    let track = |map: Option<&Homography>, previous: Option<&Tracked>| -> Vec<Option<Point>> {
+        reference
+            .anchors
+            .par_iter()
+            .enumerate()
+            .map(|(i, &a)| {
+                let base = map.copied().unwrap_or_else(Homography::identity);
+                // The anchor's own last place, when it has one: the map shifted to it.
+                let h = match (
+                    previous.and_then(|p| p.at[i]),
+                    base.apply(Point::new(a.0 as f64, a.1 as f64)),
+                ) {
+                    (Some(q), Some(p)) => Homography::translation(q.x - p.x, q.y - p.y)
+                        .after(&base)
+                        .unwrap_or(base),
+                    _ => base,
+                };
+                refine_point(&reference.fine, &fine, &h, a)
+            })
+            .collect()
+    };
+    let enough = |at: &[Option<Point>]| {
+        at.iter().flatten().count() as f64 >= FOUND_IN_PLACE * reference.anchors.len() as f64
+    };
+    let at = track(prior.as_ref(), previous);
+    if enough(&at) {
+        return Ok(Tracked { at });
+    }
+    let f = detect(g, params);
+    let size = reference.grey.dimensions();
+    let r = register_features(&f, reference.features(params), size, None, params, (k, 0)).map_err(
+        |e| {
+            let why = match e {
+                Error::Registration { why, .. } => why,
+                e => e.to_string(),
+            };
+            unsteady(
+                name,
+                format!(
+                    "frame {k} cannot be registered to frame 0 (a cut, or the camera moves \
+                     too far): {why}"
+                ),
+            )
+        },
+    )?;
+    let at = track(Some(&r.homography.inverse()), None);
+    Ok(Tracked { at })
+}
+
+/// Least share of the anchors found near their prior place for a frame to need no
+/// registration by features.
+const FOUND_IN_PLACE: f64 = 0.5;
 
 /// Largest distance a corner of a `w x h` frame moves under `h`, pixels.
 fn corner_motion(h: &Homography, (w, hh): (u32, u32)) -> f64 {
@@ -556,7 +597,6 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
     }
     let reg = &params.register;
     let mut reference: Option<Reference> = None;
-    let mut batch = Vec::new();
     let mut probes = Vec::new();
     let mut last: Option<(usize, GrayImage)> = None;
     let mut untextured = false;
@@ -567,16 +607,13 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
         let g = grey(rgb);
         let Some(r) = &reference else {
             let r = Reference::new(g, reg);
-            untextured = r.features.len() < 4 * reg.min_inliers;
+            untextured = r.anchors.len() < 2 * reg.min_inliers;
             reference = Some(r);
             return Ok(());
         };
         if i % params.probe_every == 0 {
-            batch.push((i, g));
+            probes.push(track_frame(&name, r, i, &g, None, reg)?);
             last = None;
-            if batch.len() >= BATCH {
-                track_batch(&name, r, &mut batch, reg, &mut probes)?;
-            }
         } else {
             last = Some((i, g));
         }
@@ -589,8 +626,9 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
     if untextured || n == 1 {
         return Ok(Shake::still(&name, n, size, Verdict::Untextured, 0.0));
     }
-    batch.extend(last);
-    track_batch(&name, &reference, &mut batch, reg, &mut probes)?;
+    if let Some((i, g)) = last {
+        probes.push(track_frame(&name, &reference, i, &g, None, reg)?);
+    }
     let Some(probed) = still_anchors(&reference, &probes, reg.min_inliers, reg.seed) else {
         return Ok(Shake::still(&name, n, size, Verdict::Untextured, 0.0));
     };
@@ -601,27 +639,22 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
         return Ok(Shake::still(&name, n, size, Verdict::Still, probed_motion));
     }
 
-    // The camera moves: every frame tracked.
-    let probed_frames: std::collections::HashSet<usize> = probes.iter().map(|t| t.frame).collect();
-    let mut tracks = probes;
+    // The camera moves: every frame tracked, each from the one before.
+    let mut tracks: Vec<Tracked> = Vec::with_capacity(n);
     let count = source.for_each_frame(&mut |i, rgb| {
-        if i == 0 || probed_frames.contains(&i) {
+        if i == 0 {
             return Ok(());
         }
-        batch.push((i, grey(rgb)));
-        if batch.len() >= BATCH {
-            track_batch(&name, &reference, &mut batch, reg, &mut tracks)?;
-        }
+        let t = track_frame(&name, &reference, i, &grey(rgb), tracks.last(), reg)?;
+        tracks.push(t);
         Ok(())
     })?;
-    track_batch(&name, &reference, &mut batch, reg, &mut tracks)?;
     if count != n {
         return Err(unsteady(
             &name,
             format!("the source gave {count} frames on its second reading, {n} on its first"),
         ));
     }
-    tracks.sort_by_key(|t| t.frame);
     debug_assert_eq!(tracks.len(), n - 1);
     let Some(still) = still_anchors(&reference, &tracks, reg.min_inliers, reg.seed) else {
         return Err(unsteady(
@@ -825,7 +858,7 @@ pub fn crop_maps(shake: &Shake, crop: Crop) -> Vec<Homography> {
 }
 
 /// A frame source made still: each frame warped by its map (frame pixels to output pixels) into
-/// a `size` frame, bilinear, edge pixels replicated; without maps, the source as it is.
+/// a `size` frame ([`warp_rgb_cubic`], [`warp_yuv420`]); without maps, the source as it is.
 pub struct Steady<'a> {
     source: &'a mut dyn FrameSource,
     maps: Option<Vec<Homography>>,
@@ -860,13 +893,7 @@ impl FrameSource for Steady<'_> {
         let name = self.source.name().to_string();
         self.source.for_each_frame(&mut |i, frame| {
             let h = maps.get(i).ok_or_else(|| past_end(&name, i, maps.len()))?;
-            warp_rgb_into(
-                frame,
-                h,
-                Interpolation::Bilinear,
-                Border::Replicate,
-                &mut out,
-            );
+            warp_rgb_cubic(frame, h, &mut out);
             f(i, &out)
         })
     }
@@ -886,7 +913,7 @@ impl FrameSource for Steady<'_> {
             let h = maps.get(i).ok_or_else(|| past_end(&name, i, maps.len()))?;
             match frame {
                 FrameRef::Rgb(src) => {
-                    warp_rgb_into(src, h, Interpolation::Bilinear, Border::Replicate, &mut rgb);
+                    warp_rgb_cubic(src, h, &mut rgb);
                     f(i, FrameRef::Rgb(&rgb))
                 }
                 FrameRef::Yuv420(src) => {
@@ -912,73 +939,8 @@ fn past_end(name: &str, i: usize, n: usize) -> Error {
     )
 }
 
-/// Warps a 4:2:0 frame by `h` (source pixels to output pixels) into `out`, plane by plane,
-/// bilinear, edge replicated. Chroma samples sit at the centre of their 2x2 luma block.
-pub fn warp_yuv420(src: &Yuv420Image, h: &Homography, out: &mut Yuv420Image) {
-    let inv = h.raw().1;
-    let m: [f64; 9] = std::array::from_fn(|k| inv[(k / 3, k % 3)]);
-    let (sw, sh) = (src.width() as usize, src.height() as usize);
-    let (ow, oh) = (out.width() as usize, out.height() as usize);
-    let (sy, sc) = src.as_raw().split_at(sw * sh);
-    let (su, sv) = sc.split_at(sw * sh / 4);
-    let (oy, oc) = out.as_raw_mut().split_at_mut(ow * oh);
-    let (ou, ov) = oc.split_at_mut(ow * oh / 4);
-    // Luma: output pixel (x, y) reads the source at H^-1 (x, y).
-    warp_plane(sy, (sw, sh), oy, (ow, oh), &|x, y| project(&m, x, y));
-    // Chroma: sample (i, j) sits at luma (2i + 0.5, 2j + 0.5).
-    let chroma = |x: f64, y: f64| {
-        let (u, v) = project(&m, 2.0 * x + 0.5, 2.0 * y + 0.5);
-        ((u - 0.5) / 2.0, (v - 0.5) / 2.0)
-    };
-    rayon::join(
-        || warp_plane(su, (sw / 2, sh / 2), ou, (ow / 2, oh / 2), &chroma),
-        || warp_plane(sv, (sw / 2, sh / 2), ov, (ow / 2, oh / 2), &chroma),
-    );
-}
-
-fn project(m: &[f64; 9], x: f64, y: f64) -> (f64, f64) {
-    let d = m[6] * x + m[7] * y + m[8];
-    (
-        (m[0] * x + m[1] * y + m[2]) / d,
-        (m[3] * x + m[4] * y + m[5]) / d,
-    )
-}
-
-/// One plane warped, bilinear with the edge replicated; `at(x, y)` is the source coordinate of
-/// output pixel (x, y).
-fn warp_plane(
-    src: &[u8],
-    (sw, sh): (usize, usize),
-    out: &mut [u8],
-    (ow, _oh): (usize, usize),
-    at: &(dyn Fn(f64, f64) -> (f64, f64) + Sync),
-) {
-    let (xmax, ymax) = ((sw - 1) as f64, (sh - 1) as f64);
-    out.par_chunks_mut(ow).enumerate().for_each(|(y, row)| {
-        for (x, px) in row.iter_mut().enumerate() {
-            let (u, v) = at(x as f64, y as f64);
-            let (u, v) = (
-                if u.is_finite() {
-                    u.clamp(0.0, xmax)
-                } else {
-                    0.0
-                },
-                if v.is_finite() {
-                    v.clamp(0.0, ymax)
-                } else {
-                    0.0
-                },
-            );
-            let (x0, y0) = (u as usize, v as usize);
-            let (x1, y1) = ((x0 + 1).min(sw - 1), (y0 + 1).min(sh - 1));
-            let (fx, fy) = ((u - x0 as f64) as f32, (v - y0 as f64) as f32);
-            let p = |xx: usize, yy: usize| src[yy * sw + xx] as f32;
-            let top = p(x0, y0) + (p(x1, y0) - p(x0, y0)) * fx;
-            let bottom = p(x0, y1) + (p(x1, y1) - p(x0, y1)) * fx;
-            *px = (top + (bottom - top) * fy + 0.5).clamp(0.0, 255.0) as u8;
-        }
-    });
-}
-
+mod resample;
 #[cfg(test)]
 mod tests;
+
+pub use resample::{warp_rgb_cubic, warp_yuv420};

@@ -87,13 +87,7 @@ fn planes_warp_as_the_rgb_frame_does() {
     let mut out = Yuv420Image::new(w, h, src.matrix(), src.range()).unwrap();
     warp_yuv420(&src, &shift, &mut out);
     let mut want = RgbImage::new(w, h);
-    warp_rgb_into(
-        &src.to_rgb(),
-        &shift,
-        Interpolation::Bilinear,
-        Border::Replicate,
-        &mut want,
-    );
+    warp_rgb_cubic(&src.to_rgb(), &shift, &mut want);
     let got = out.to_rgb();
     let worst = got
         .as_raw()
@@ -122,4 +116,29 @@ fn bad_parameters_are_named() {
     assert!(e.contains("stabilize.min_kept"), "{e}");
     assert!(StabilizeParams::default().check().is_ok());
     assert!("sideways".parse::<StabilizeMode>().is_err());
+}
+
+#[test]
+fn the_cubic_warp_keeps_integer_shifts_exact_and_ramps_straight() {
+    // An integer shift moves pixels as they are; a linear ramp stays linear at any fraction
+    // (Keys' kernel reproduces polynomials up to degree 2).
+    let img = RgbImage::from_fn(40, 30, |x, y| {
+        image::Rgb([(3 * x + 2 * y) as u8, (5 * x) as u8, 200])
+    });
+    let mut out = RgbImage::new(30, 20);
+    warp_rgb_cubic(&img, &Homography::translation(-4.0, -6.0), &mut out);
+    for (x, y, p) in out.enumerate_pixels() {
+        assert_eq!(p, img.get_pixel(x + 4, y + 6));
+    }
+    warp_rgb_cubic(&img, &Homography::translation(-4.25, -6.5), &mut out);
+    for (x, y, p) in out.enumerate_pixels() {
+        let (u, v) = (x as f64 + 4.25, y as f64 + 6.5);
+        let want = [3.0 * u + 2.0 * v, 5.0 * u, 200.0];
+        for c in 0..3 {
+            assert!(
+                (p[c] as f64 - want[c]).abs() <= 0.5 + 1e-9,
+                "{x},{y}: {p:?} vs {want:?}"
+            );
+        }
+    }
 }
