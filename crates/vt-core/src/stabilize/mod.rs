@@ -128,7 +128,7 @@ pub enum Verdict {
     Steadied,
     /// Not measured (`--stabilize off`).
     Off,
-    /// Frame 0 has too few features to register: taken as still.
+    /// Frame 0 has too few corners to measure the shake by ([`MIN_ANCHORS`]): taken as still.
     Untextured,
 }
 
@@ -282,6 +282,10 @@ impl Reference {
 /// Anchors (corners of frame 0) tracked into every frame.
 const ANCHORS: usize = 600;
 
+/// Fewest anchors frame 0 must have for the shake to be measured: fewer (a plain or blurred
+/// scene) and the clip is taken as still, and the summary says so.
+const MIN_ANCHORS: usize = 150;
+
 /// Where frame 0's anchors lie in one frame (None where not found).
 struct Tracked {
     at: Vec<Option<Point>>,
@@ -309,8 +313,9 @@ impl Tracked {
 /// least 0.8) where it was in `previous` (a frame just before, tracked), else where the
 /// previous frame's map puts it, else where it was in frame 0. When fewer than
 /// [`FOUND_IN_PLACE`] of them are found, the frame is registered to frame 0 by features
-/// (RANSAC) and the anchors looked for again under that map; a frame that cannot be is an
-/// error (a cut, or the camera has left frame 0's view).
+/// (RANSAC) and the anchors looked for again under that map. A frame that cannot be, with
+/// fewer than `min_inliers` anchors found near their place, is an error (a cut, or the camera
+/// has left frame 0's view).
 fn track_frame(
     name: &str,
     reference: &Reference,
@@ -351,23 +356,35 @@ fn track_frame(
     }
     let f = detect(g, params);
     let size = reference.grey.dimensions();
-    let r = register_features(&f, reference.features(params), size, None, params, (k, 0)).map_err(
-        |e| {
+    let found = at.iter().flatten().count();
+    match register_features(&f, reference.features(params), size, None, params, (k, 0)) {
+        Ok(r) => {
+            let again = track(Some(&r.homography.inverse()), None);
+            Ok(Tracked {
+                at: if again.iter().flatten().count() >= found {
+                    again
+                } else {
+                    at
+                },
+            })
+        }
+        // Few features (a plain scene) but enough anchors found near their place: a moving
+        // object covers the rest. A cut leaves next to none where they were.
+        Err(_) if found >= params.min_inliers => Ok(Tracked { at }),
+        Err(e) => {
             let why = match e {
                 Error::Registration { why, .. } => why,
                 e => e.to_string(),
             };
-            unsteady(
+            Err(unsteady(
                 name,
                 format!(
                     "frame {k} cannot be registered to frame 0 (a cut, or the camera moves \
                      too far): {why}"
                 ),
-            )
-        },
-    )?;
-    let at = track(Some(&r.homography.inverse()), None);
-    Ok(Tracked { at })
+            ))
+        }
+    }
 }
 
 /// Least share of the anchors found near their prior place for a frame to need no
@@ -607,7 +624,7 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
         let g = grey(rgb);
         let Some(r) = &reference else {
             let r = Reference::new(g, reg);
-            untextured = r.anchors.len() < 2 * reg.min_inliers;
+            untextured = r.anchors.len() < MIN_ANCHORS;
             reference = Some(r);
             return Ok(());
         };

@@ -103,7 +103,9 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
              the video decoded once) where the default's {} MiB makes frames past it stream \
              (decoded twice, memory bounded: about 320 MB at 960x720 against 820 for 720 frames \
              cached; a stream's median sample is every k-th frame, k a power of two, a cache's \
-             the middle of equal spans, hence its own background error).",
+             the middle of equal spans, hence its own background error). The default measures \
+             the camera's shake first (a decoding pass and every 8th frame's corners looked \
+             for; the clip is still, so nothing is warped); the last row skips that.",
             vt_core::analysis::DEFAULT_MEDIAN_FRAMES,
             vt_core::analysis::DEFAULT_CACHE_MB
         ),
@@ -123,7 +125,8 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
     // `vt analyze` itself (vt_app::analyze::analyze): from the file into a scene folder.
     let out = ctx.work.path().join("perf-analysis-real");
     let run = |median_frames: usize,
-               cache_mb: usize|
+               cache_mb: usize,
+               stabilize: vt_core::stabilize::StabilizeMode|
      -> Result<(f64, vt_core::analysis::SceneAnalysis)> {
         let job = vt_app::analyze::AnalyzeJob {
             views: vec![path.clone()],
@@ -132,6 +135,10 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
             params: AnalyzeParams {
                 median_frames,
                 cache_bytes: cache_mb << 20,
+                stabilize: vt_core::stabilize::StabilizeParams {
+                    mode: stabilize,
+                    ..Default::default()
+                },
                 ..Default::default()
             },
             fps: None,
@@ -142,9 +149,11 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
         Ok((secs, a?.analysis))
     };
     let cache = vt_core::analysis::DEFAULT_CACHE_MB;
-    let (fast, a) = run(vt_core::analysis::DEFAULT_MEDIAN_FRAMES, cache)?;
-    let (exact, b) = run(0, cache)?;
-    let (cached, c) = run(vt_core::analysis::DEFAULT_MEDIAN_FRAMES, 768)?;
+    use vt_core::stabilize::StabilizeMode::{Auto, Off};
+    let (fast, a) = run(vt_core::analysis::DEFAULT_MEDIAN_FRAMES, cache, Auto)?;
+    let (exact, b) = run(0, cache, Auto)?;
+    let (cached, c) = run(vt_core::analysis::DEFAULT_MEDIAN_FRAMES, 768, Auto)?;
+    let (unmeasured, d) = run(vt_core::analysis::DEFAULT_MEDIAN_FRAMES, cache, Off)?;
     let err =
         vt_core::metrics::mean_abs_diff(&a.views[0].background, &b.views[0].background, None)?;
     t.row(vec![
@@ -168,6 +177,16 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
         json!(cached / decode),
         json!(vt_core::metrics::mean_abs_diff(
             &c.views[0].background,
+            &b.views[0].background,
+            None
+        )?),
+    ]);
+    t.row(vec![
+        json!("analysis, camera shake not measured (--stabilize off)"),
+        json!(unmeasured),
+        json!(unmeasured / decode),
+        json!(vt_core::metrics::mean_abs_diff(
+            &d.views[0].background,
             &b.views[0].background,
             None
         )?),
