@@ -347,7 +347,9 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             if let Some(shake) = v.shake.as_ref().filter(|s| {
                 matches!(
                     s.verdict,
-                    vt_core::stabilize::Verdict::Steadied | vt_core::stabilize::Verdict::Untextured
+                    vt_core::stabilize::Verdict::Steadied
+                        | vt_core::stabilize::Verdict::Untextured
+                        | vt_core::stabilize::Verdict::Unanchored
                 )
             }) {
                 writeln!(f, "view {p}: {}", shake.describe())?;

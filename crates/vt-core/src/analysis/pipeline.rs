@@ -16,7 +16,9 @@ pub(super) fn size_err(what: String, expected: (u32, u32), got: (u32, u32)) -> E
 /// Each view's crop of its still camera, when some view is steadied: one size for all (the
 /// smallest area any view keeps), centred in each view's own area. None for every view when no
 /// view is steadied (frames as they are).
-fn view_crops(shakes: &[crate::stabilize::Shake]) -> Result<Vec<Option<crate::stabilize::Crop>>> {
+pub(super) fn view_crops(
+    shakes: &[crate::stabilize::Shake],
+) -> Result<Vec<Option<crate::stabilize::Crop>>> {
     if !shakes.iter().any(crate::stabilize::Shake::steadied) {
         return Ok(vec![None; shakes.len()]);
     }

@@ -113,3 +113,57 @@ fn views_of_different_sizes_are_named() {
         "views have different sizes: view 0 is 48x32, view 1 (small) is 10x10"
     );
 }
+
+/// Several views, one steadied: every view is cropped to the smallest area any keeps, centred
+/// in its own; with none steadied nothing is cropped.
+#[test]
+fn steadied_views_share_one_crop_size() {
+    use crate::stabilize::{Crop, Shake, Verdict};
+    let shake = |verdict, area: Crop| Shake {
+        name: "v".into(),
+        frames: 2,
+        size: (100, 80),
+        verdict,
+        model: None,
+        maps: vec![crate::Homography::identity(); 2],
+        largest_px: 0.0,
+        largest_deg: 0.0,
+        area,
+        registered: (0, 0.0),
+    };
+    let full = Crop {
+        x: 0,
+        y: 0,
+        width: 100,
+        height: 80,
+    };
+    let kept = Crop {
+        x: 3,
+        y: 5,
+        width: 90,
+        height: 70,
+    };
+    let crops = view_crops(&[shake(Verdict::Still, full), shake(Verdict::Steadied, kept)]).unwrap();
+    assert_eq!(
+        crops,
+        vec![
+            Some(Crop {
+                x: 5,
+                y: 5,
+                width: 90,
+                height: 70
+            }),
+            Some(kept)
+        ]
+    );
+    let none = view_crops(&[
+        shake(Verdict::Still, full),
+        shake(Verdict::Untextured, full),
+    ]);
+    assert_eq!(none.unwrap(), vec![None, None]);
+    // Views of different sizes are named, not cropped to fit.
+    let mut other = shake(Verdict::Steadied, kept);
+    other.size = (120, 80);
+    let e = view_crops(&[shake(Verdict::Still, full), other]).unwrap_err();
+    assert!(e.to_string().contains("made still"), "{e}");
+}

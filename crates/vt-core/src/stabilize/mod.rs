@@ -130,6 +130,9 @@ pub enum Verdict {
     Off,
     /// Frame 0 has too few corners to measure the shake by ([`MIN_ANCHORS`]): taken as still.
     Untextured,
+    /// The probes moved, but no set of frame 0's corners holds still through every frame (a
+    /// scene that moves everywhere): taken as still.
+    Unanchored,
 }
 
 /// A rectangle of pixels.
@@ -213,6 +216,11 @@ impl Shake {
             Verdict::Untextured => {
                 "camera taken as still: too little texture in frame 0 to measure it".into()
             }
+            Verdict::Unanchored => format!(
+                "camera taken as still: its corners move up to {:.1} px, but nothing in the \
+                 frame holds still through the clip to measure the camera by",
+                self.largest_px
+            ),
             Verdict::Still => format!(
                 "camera still (frame corners within {:.2} px)",
                 self.largest_px
@@ -480,6 +488,11 @@ fn still_anchors(
         }
         n > 0 && good as f64 >= AGREE_SHARE * n as f64
     };
+    // The still camera is a hypothesis of its own: the anchors that stay in place.
+    let in_place = found
+        .iter()
+        .filter(|&&a| supports(a, &|_, p| Some(p), AGREE_PX))
+        .count();
     let (w, h) = reference.grey.dimensions();
     let far = (w.min(h) as f64) / 3.0;
     let mut rng = crate::rng::Rng::new(seed);
@@ -574,6 +587,7 @@ fn still_anchors(
     Some(StillAnchors {
         set: best,
         per_frame,
+        in_place,
     })
 }
 
@@ -583,6 +597,8 @@ struct StillAnchors {
     set: Vec<usize>,
     /// Per frame, those of them that agree with its map there.
     per_frame: Vec<Vec<usize>>,
+    /// Anchors that stay where they were in frame 0 (the still camera's support).
+    in_place: usize,
 }
 
 /// Least share of the frames an anchor must be found in.
@@ -652,7 +668,11 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
     // How far the still corners themselves move (the frame's corners would extrapolate the
     // map, and a background seen in one strip of the frame pins it down only there).
     let probed_motion = anchor_motion(&reference, &probes, &probed);
-    if probed_motion <= params.still_px {
+    // A still camera wins when its own support is a quarter of the best set's or more: in a
+    // tripod clip of a tree in wind, a cluster of branches that sway together can outnumber
+    // the few corners of what truly stands still, and only a moving camera moves them all.
+    let in_place = probed.in_place >= reg.min_inliers && 4 * probed.in_place >= probed.set.len();
+    if probed_motion <= params.still_px || in_place {
         return Ok(Shake::still(&name, n, size, Verdict::Still, probed_motion));
     }
 
@@ -674,13 +694,12 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
     }
     debug_assert_eq!(tracks.len(), n - 1);
     let Some(still) = still_anchors(&reference, &tracks, reg.min_inliers, reg.seed) else {
-        return Err(unsteady(
+        return Ok(Shake::still(
             &name,
-            format!(
-                "fewer than {} of frame 0's corners hold still with the camera through the \
-                 clip: nothing to hold the frames to",
-                reg.min_inliers
-            ),
+            n,
+            size,
+            Verdict::Unanchored,
+            probed_motion,
         ));
     };
 
