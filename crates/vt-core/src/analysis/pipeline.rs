@@ -95,65 +95,82 @@ pub fn analyze(
         selection = Some(sel);
     }
 
-    // Handheld views made still before anything else reads their frames.
-    let t_shake = Instant::now();
-    let mut shakes = Vec::with_capacity(m);
-    for (p, src) in sources.iter_mut().enumerate() {
-        observer.start(Stage::Shake, Some(p), None);
-        let shake = crate::stabilize::measure(&mut **src, &params.stabilize);
-        observer.finish();
-        shakes.push(shake?);
-    }
-    let crops = view_crops(&shakes)?;
-    timings.shake += t_shake.elapsed();
-    let mut steady: Vec<crate::stabilize::Steady> = sources
-        .iter_mut()
-        .zip(&shakes)
-        .zip(&crops)
-        .map(|((src, shake), crop)| {
-            let maps = crop.map(|c| crate::stabilize::crop_maps(shake, c));
-            let size = crop.map_or(shake.size, |c| (c.width, c.height));
-            crate::stabilize::Steady::new(&mut **src, maps, size)
-        })
-        .collect();
-    // Marked points (on each view's first frame) follow it to the still camera.
-    let moved_points: Vec<Vec<Point>>;
-    let points = if crops.iter().any(Option::is_some) && !points.is_empty() {
-        moved_points = points
-            .iter()
-            .zip(shakes.iter().zip(&crops))
-            .map(|(pts, (shake, crop))| match crop {
-                Some(c) => {
-                    let map = &crate::stabilize::crop_maps(shake, *c)[0];
-                    pts.iter()
-                        .map(|q| map.apply(*q).unwrap_or(*q))
-                        .collect::<Vec<Point>>()
-                }
-                None => pts.clone(),
-            })
-            .collect();
-        if m > 1 && !auto {
-            let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
-                .map(|p| (moved_points[p].as_slice(), moved_points[p + 1].as_slice()))
-                .collect();
-            selection = Some(crate::model::select_model_for_points(
-                &pairs,
-                &params.model,
-            )?);
-        }
-        moved_points.as_slice()
-    } else {
-        points
-    };
-
+    // Each view's first pass also probes its camera: a still camera costs no pass of its own.
     let mut views = Vec::with_capacity(m);
     let mut size: Option<(u32, u32)> = None;
-    for (p, (src, shake)) in steady.iter_mut().zip(shakes).enumerate() {
-        let mut v = analyze_view(p, src, params, &mut size, observer, &mut timings)?;
-        v.shake = Some(shake);
+    let mut moved = false;
+    for (p, src) in sources.iter_mut().enumerate() {
+        let mut probing = crate::stabilize::Probing::new(&mut **src, &params.stabilize);
+        let view = analyze_view(p, &mut probing, params, &mut size, observer, &mut timings);
+        timings.shake += Duration::from_secs_f64(probing.secs());
+        if probing.moved() {
+            observer.finish();
+            moved = true;
+            break;
+        }
+        let mut v = view?;
+        v.shake = probing.shake();
         views.push(v);
     }
-    drop(steady);
+    // A handheld view: every view measured in full, one crop for all, analysed again through
+    // the still camera.
+    let moved_points: Vec<Vec<Point>>;
+    let mut points = points;
+    if moved {
+        views.clear();
+        size = None;
+        let t_shake = Instant::now();
+        let mut shakes = Vec::with_capacity(m);
+        for (p, src) in sources.iter_mut().enumerate() {
+            observer.start(Stage::Shake, Some(p), None);
+            let shake = crate::stabilize::measure(&mut **src, &params.stabilize);
+            observer.finish();
+            shakes.push(shake?);
+        }
+        let crops = view_crops(&shakes)?;
+        timings.shake += t_shake.elapsed();
+        let mut steady: Vec<crate::stabilize::Steady> = sources
+            .iter_mut()
+            .zip(&shakes)
+            .zip(&crops)
+            .map(|((src, shake), crop)| {
+                let maps = crop.map(|c| crate::stabilize::crop_maps(shake, c));
+                let size = crop.map_or(shake.size, |c| (c.width, c.height));
+                crate::stabilize::Steady::new(&mut **src, maps, size)
+            })
+            .collect();
+        // Marked points (on each view's first frame) follow it to the still camera.
+        if crops.iter().any(Option::is_some) && !points.is_empty() {
+            moved_points = points
+                .iter()
+                .zip(shakes.iter().zip(&crops))
+                .map(|(pts, (shake, crop))| match crop {
+                    Some(c) => {
+                        let map = &crate::stabilize::crop_maps(shake, *c)[0];
+                        pts.iter()
+                            .map(|q| map.apply(*q).unwrap_or(*q))
+                            .collect::<Vec<Point>>()
+                    }
+                    None => pts.clone(),
+                })
+                .collect();
+            if m > 1 && !auto {
+                let pairs: Vec<(&[Point], &[Point])> = (0..m - 1)
+                    .map(|p| (moved_points[p].as_slice(), moved_points[p + 1].as_slice()))
+                    .collect();
+                selection = Some(crate::model::select_model_for_points(
+                    &pairs,
+                    &params.model,
+                )?);
+            }
+            points = moved_points.as_slice();
+        }
+        for (p, (src, shake)) in steady.iter_mut().zip(shakes).enumerate() {
+            let mut v = analyze_view(p, src, params, &mut size, observer, &mut timings)?;
+            v.shake = Some(shake);
+            views.push(v);
+        }
+    }
     let (width, height) = size.expect("every view has at least one frame");
 
     // Features of every background, detected once, when registration or the parallax needs

@@ -3,23 +3,32 @@
 //! frames warped to it and cropped to the area every frame covers.
 //!
 //! # Steps ([`measure`])
-//! 1. **Probe.** Every [`StabilizeParams::probe_every`]-th frame and the last are registered to
-//!    frame 0 with vt's automatic registration ([`crate::register`]: FAST corners and steered
-//!    BRIEF, RANSAC, the inliers made sub-pixel). When no probed frame's corners move more than
-//!    [`StabilizeParams::still_px`], the camera is still and nothing is warped: a tripod clip
-//!    costs one decoding pass and a few registrations.
-//! 2. **Every frame** is registered otherwise, and one model is selected for the clip by GRIC
-//!    on all frames' inliers ([`crate::model::select_model`]: translation, similarity, affine or
-//!    homography, the simplest the matches allow), with GRIC's noise taken from the residuals.
-//! 3. **The still camera** is the mean of the frames' maps to frame 0; each frame's map to it is
+//! Frames are measured on a luma proxy of at most [`PROXY_SIDE`] pixels on its longer side.
+//! 1. **Anchors.** Up to [`ANCHORS`] corners of frame 0 (FAST, spread over a grid). Each is
+//!    looked for in a frame as a patch ([`crate::register::refine_point`]: sub-pixel, gain and
+//!    offset, within 3 px, correlation at least 0.8), where it was in the frame before. When
+//!    fewer than half are found, the frame is registered to frame 0 by features (steered BRIEF,
+//!    RANSAC) and the anchors looked for under that map.
+//! 2. **What holds still** is chosen jointly over the frames ([`still_anchors`]): per frame, a
+//!    registration fits whatever moves most, which in a tree in wind is the tree; over time,
+//!    only the background follows one map in every frame.
+//! 3. **Probe.** Every [`StabilizeParams::probe_every`]-th frame is tracked first. When the
+//!    still anchors' median motion stays within [`StabilizeParams::still_px`] in each, or a
+//!    quarter of them never leave their place, the camera is still and nothing is warped: a
+//!    tripod clip costs one decoding pass and a few patch searches.
+//! 4. **Every frame** is tracked otherwise, each from the one before, and one model is selected
+//!    for the clip by GRIC on the still anchors ([`crate::model::select_model`]: translation,
+//!    similarity, affine or homography), with GRIC's noise taken from the residuals.
+//! 5. **The still camera** is the mean of the frames' maps to frame 0; each frame's map to it is
 //!    `G_k = A^-1 H_k`, so no frame moves farther than the shake requires.
-//! 4. **The crop** is the largest rectangle every mapped frame covers (a uniform margin by
+//! 6. **The crop** is the largest rectangle every mapped frame covers (a uniform margin by
 //!    bisection, then each side pushed out as far as it stays covered), even-sized.
 //!
 //! A frame that cannot be registered (a cut, a pan that leaves frame 0's view) is an error
 //! naming it, and so is a crop that keeps less than [`StabilizeParams::min_kept`] of the width or
-//! height: vt refuses rather than analyse a scene that is not one. A frame 0 without texture
-//! enough to register is taken as still, and [`Shake::verdict`] says so.
+//! height: vt refuses rather than analyse a scene that is not one. A frame 0 with too few
+//! corners, or a clip where nothing holds still through every frame, is taken as still, and
+//! [`Shake::verdict`] says so.
 //!
 //! [`Steady`] wraps the frame source and hands out the warped, cropped frames (bicubic, edge
 //! replicated: a bilinear warp at a half-pixel shift blurs like a 2-tap box filter), 4:2:0
@@ -70,7 +79,7 @@ pub struct StabilizeParams {
     pub mode: StabilizeMode,
     /// A camera whose frame corners move at most this many pixels is still (0.5).
     pub still_px: f64,
-    /// Frames probed for motion: every this many (8), and the last.
+    /// Frames probed for motion: every this many (8).
     pub probe_every: usize,
     /// Least fraction of the frame's width and of its height the crop keeps (0.6); a camera
     /// that moves farther (a pan) is refused.
@@ -130,8 +139,8 @@ pub enum Verdict {
     Off,
     /// Frame 0 has too few corners to measure the shake by ([`MIN_ANCHORS`]): taken as still.
     Untextured,
-    /// The probes moved, but no set of frame 0's corners holds still through every frame (a
-    /// scene that moves everywhere): taken as still.
+    /// No set of frame 0's corners holds still through the frames (a scene that moves
+    /// everywhere, or too blurred to follow): taken as still.
     Unanchored,
 }
 
@@ -216,11 +225,9 @@ impl Shake {
             Verdict::Untextured => {
                 "camera taken as still: too little texture in frame 0 to measure it".into()
             }
-            Verdict::Unanchored => format!(
-                "camera taken as still: its corners move up to {:.1} px, but nothing in the \
-                 frame holds still through the clip to measure the camera by",
-                self.largest_px
-            ),
+            Verdict::Unanchored => "camera taken as still: nothing in the frame holds still \
+                                     through the clip to measure the camera by"
+                .into(),
             Verdict::Still => format!(
                 "camera still (frame corners within {:.2} px)",
                 self.largest_px
@@ -287,8 +294,49 @@ impl Reference {
     }
 }
 
+/// Frames are measured on a proxy no larger than this on its longer side (an integer box
+/// reduction): corners of blurry HD footage show there, and tracking costs the same at any size.
+const PROXY_SIDE: u32 = 640;
+
+/// The box factor that brings `size` within [`PROXY_SIDE`].
+fn proxy_factor((w, h): (u32, u32)) -> u32 {
+    w.max(h).div_ceil(PROXY_SIDE).max(1)
+}
+
+/// A frame's luma, reduced by `f` in both directions (box means; the remainder columns and
+/// rows dropped). A 4:2:0 frame's own Y plane; RGB frames' [`grey`].
+fn proxy(frame: FrameRef<'_>, f: u32) -> GrayImage {
+    let luma = match frame {
+        FrameRef::Rgb(rgb) => grey(rgb),
+        FrameRef::Yuv420(yuv) => {
+            let (w, h) = yuv.dimensions();
+            GrayImage::from_raw(w, h, yuv.as_raw()[..(w * h) as usize].to_vec())
+                .expect("a 4:2:0 frame holds its Y plane first")
+        }
+    };
+    if f == 1 {
+        return luma;
+    }
+    let (w, h) = (luma.width() / f, luma.height() / f);
+    let (src, sw) = (luma.as_raw(), luma.width() as usize);
+    let f = f as usize;
+    let area = (f * f) as u32;
+    GrayImage::from_fn(w.max(1), h.max(1), |x, y| {
+        let (x0, y0) = (x as usize * f, y as usize * f);
+        let mut sum = 0u32;
+        for row in src[y0 * sw..].chunks(sw).take(f) {
+            sum += row[x0..x0 + f].iter().map(|&v| v as u32).sum::<u32>();
+        }
+        image::Luma([((sum + area / 2) / area) as u8])
+    })
+}
+
 /// Anchors (corners of frame 0) tracked into every frame.
 const ANCHORS: usize = 600;
+
+/// The probe looks for every this many anchors (half: the still test needs fewer than the
+/// maps).
+const PROBE_EVERY_ANCHOR: usize = 2;
 
 /// Fewest anchors frame 0 must have for the shake to be measured: fewer (a plain or blurred
 /// scene) and the clip is taken as still, and the summary says so.
@@ -330,6 +378,7 @@ fn track_frame(
     k: usize,
     g: &GrayImage,
     previous: Option<&Tracked>,
+    every: usize,
     params: &RegisterParams,
 ) -> Result<Tracked> {
     let fine = Grey::from_luma(g);
@@ -340,6 +389,9 @@ fn track_frame(
             .par_iter()
             .enumerate()
             .map(|(i, &a)| {
+                if i % every != 0 {
+                    return None;
+                }
                 let base = map.copied().unwrap_or_else(Homography::identity);
                 // The anchor's own last place, when it has one: the map shifted to it.
                 let h = match (
@@ -355,8 +407,9 @@ fn track_frame(
             })
             .collect()
     };
+    let looked_for = reference.anchors.len().div_ceil(every);
     let enough = |at: &[Option<Point>]| {
-        at.iter().flatten().count() as f64 >= FOUND_IN_PLACE * reference.anchors.len() as f64
+        at.iter().flatten().count() as f64 >= FOUND_IN_PLACE * looked_for as f64
     };
     let at = track(prior.as_ref(), previous);
     if enough(&at) {
@@ -613,76 +666,246 @@ const GROW_PX: [f64; 3] = [0.6, 0.6, AGREE_PX];
 /// Pairs of anchors tried as the camera.
 const HYPOTHESES: usize = 400;
 
+/// The first pass of [`measure`]: frame 0's anchors and every
+/// [`StabilizeParams::probe_every`]-th frame tracked, fed one frame at a time (so the
+/// analysis's own first pass can carry it, [`Probing`]).
+pub struct Probe {
+    params: StabilizeParams,
+    reference: Option<Reference>,
+    tracks: Vec<Tracked>,
+    untextured: bool,
+    full: (u32, u32),
+    factor: u32,
+    /// Seconds spent measuring.
+    pub secs: f64,
+}
+
+/// What the probe found.
+enum Probed {
+    /// The clip as it is.
+    Still(Shake),
+    /// The camera moves: measure every frame.
+    Moves {
+        reference: Reference,
+        motion: f64,
+        factor: u32,
+    },
+}
+
+impl Probe {
+    /// A probe with `params` (its mode must be auto).
+    pub fn new(params: &StabilizeParams) -> Probe {
+        Probe {
+            params: *params,
+            reference: None,
+            tracks: Vec::new(),
+            untextured: false,
+            full: (0, 0),
+            factor: 1,
+            secs: 0.0,
+        }
+    }
+
+    /// Takes frame `i` of the clip `name` (frames in order from 0).
+    pub fn frame(&mut self, name: &str, i: usize, frame: FrameRef<'_>) -> Result<()> {
+        if self.untextured || (i > 0 && !i.is_multiple_of(self.params.probe_every)) {
+            return Ok(());
+        }
+        let t = std::time::Instant::now();
+        let reg = &self.params.register;
+        if i == 0 {
+            self.full = frame.dimensions();
+            self.factor = proxy_factor(self.full);
+        }
+        let g = proxy(frame, self.factor);
+        match &self.reference {
+            None => {
+                let r = Reference::new(g, reg);
+                self.untextured = r.anchors.len() < MIN_ANCHORS;
+                self.reference = Some(r);
+            }
+            Some(r) => {
+                self.tracks
+                    .push(track_frame(name, r, i, &g, None, PROBE_EVERY_ANCHOR, reg)?)
+            }
+        }
+        self.secs += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// The verdict on the `n` frames seen.
+    fn finish(&mut self, name: &str, n: usize) -> Probed {
+        let reg = &self.params.register;
+        let size = self.full;
+        let Some(reference) = self.reference.take() else {
+            return Probed::Still(Shake::still(name, 0, (0, 0), Verdict::Still, 0.0));
+        };
+        if self.untextured || n == 1 {
+            return Probed::Still(Shake::still(name, n, size, Verdict::Untextured, 0.0));
+        }
+        let probes = std::mem::take(&mut self.tracks);
+        let Some(probed) = still_anchors(&reference, &probes, reg.min_inliers, reg.seed) else {
+            return Probed::Still(Shake::still(name, n, size, Verdict::Unanchored, 0.0));
+        };
+        // How far the still corners themselves move (the frame's corners would extrapolate
+        // the map, and a background seen in one strip of the frame pins it down only there).
+        let motion = self.factor as f64 * anchor_motion(&reference, &probes, &probed);
+        // A still camera wins when its own support is a quarter of the best set's or more: in
+        // a tripod clip of a tree in wind, a cluster of branches that sway together can
+        // outnumber the few corners of what truly stands still, and only a moving camera
+        // moves them all.
+        let in_place =
+            probed.in_place >= reg.min_inliers && 4 * probed.in_place >= probed.set.len();
+        if motion <= self.params.still_px || in_place {
+            return Probed::Still(Shake::still(name, n, size, Verdict::Still, motion));
+        }
+        Probed::Moves {
+            reference,
+            motion,
+            factor: self.factor,
+        }
+    }
+}
+
+/// A frame source whose first pass also probes the camera ([`Probe`]): the analysis's first
+/// pass carries the measurement, so a still camera costs no decoding of its own. When the
+/// probe finds the camera moving, that pass ends in an error and [`Probing::moved`] is true:
+/// the caller measures the clip in full ([`measure`]) and starts again through [`Steady`].
+pub struct Probing<'a> {
+    source: &'a mut dyn FrameSource,
+    probe: Option<Probe>,
+    shake: Option<Shake>,
+    /// The first pass is over (later passes go straight to the source).
+    probed: bool,
+    moved: bool,
+}
+
+impl<'a> Probing<'a> {
+    /// Wraps `source`; with the mode off, frames pass as they are and the shake says so.
+    pub fn new(source: &'a mut dyn FrameSource, params: &StabilizeParams) -> Self {
+        let off = params.mode == StabilizeMode::Off;
+        let shake = off.then(|| Shake::still(source.name(), 0, (0, 0), Verdict::Off, 0.0));
+        Self {
+            probe: (!off).then(|| Probe::new(params)),
+            source,
+            shake,
+            probed: off,
+            moved: false,
+        }
+    }
+
+    /// Whether the first pass found the camera moving (and so ended in an error).
+    pub fn moved(&self) -> bool {
+        self.moved
+    }
+
+    /// The shake the first pass measured (None before it, or when the camera moved).
+    pub fn shake(&mut self) -> Option<Shake> {
+        self.shake.take()
+    }
+
+    /// Seconds the probe took.
+    pub fn secs(&self) -> f64 {
+        self.probe.as_ref().map_or(0.0, |p| p.secs)
+    }
+
+    fn first(&mut self, n: usize) -> Result<usize> {
+        let name = self.source.name().to_string();
+        let probe = self.probe.as_mut().expect("probing");
+        let t = std::time::Instant::now();
+        let verdict = probe.finish(&name, n);
+        probe.secs += t.elapsed().as_secs_f64();
+        self.probed = true;
+        match verdict {
+            Probed::Still(shake) => {
+                self.shake = Some(shake);
+                Ok(n)
+            }
+            Probed::Moves { motion, .. } => {
+                self.moved = true;
+                Err(unsteady(
+                    &name,
+                    format!("the camera moves ({motion:.1} px): measured again to hold it still"),
+                ))
+            }
+        }
+    }
+}
+
+impl FrameSource for Probing<'_> {
+    fn name(&self) -> &str {
+        self.source.name()
+    }
+
+    fn for_each_frame(
+        &mut self,
+        f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>,
+    ) -> Result<usize> {
+        if self.probed {
+            return self.source.for_each_frame(f);
+        }
+        let name = self.source.name().to_string();
+        let probe = self.probe.as_mut().expect("probing");
+        let n = self.source.for_each_frame(&mut |i, rgb| {
+            probe.frame(&name, i, FrameRef::Rgb(rgb))?;
+            f(i, rgb)
+        })?;
+        self.first(n)
+    }
+
+    fn for_each_native(
+        &mut self,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
+    ) -> Result<usize> {
+        if self.probed {
+            return self.source.for_each_native(f);
+        }
+        let name = self.source.name().to_string();
+        let probe = self.probe.as_mut().expect("probing");
+        let n = self.source.for_each_native(&mut |i, frame| {
+            probe.frame(&name, i, frame)?;
+            f(i, frame)
+        })?;
+        self.first(n)
+    }
+}
+
 /// Measures the camera motion of `source` and the still camera that removes it.
 pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result<Shake> {
     params.check()?;
     let name = source.name().to_string();
     if params.mode == StabilizeMode::Off {
-        // The count and size still come from the source, without registering.
-        let mut size = (0, 0);
-        let n = source.for_each_frame(&mut |i, f| {
-            if i == 0 {
-                size = f.dimensions();
-            }
-            Ok(())
-        })?;
-        return Ok(Shake::still(&name, n, size, Verdict::Off, 0.0));
+        // Nothing read: the frames are the source's.
+        return Ok(Shake::still(&name, 0, (0, 0), Verdict::Off, 0.0));
     }
     let reg = &params.register;
-    let mut reference: Option<Reference> = None;
-    let mut probes = Vec::new();
-    let mut last: Option<(usize, GrayImage)> = None;
-    let mut untextured = false;
-    let n = source.for_each_frame(&mut |i, rgb| {
-        if untextured {
-            return Ok(());
-        }
-        let g = grey(rgb);
-        let Some(r) = &reference else {
-            let r = Reference::new(g, reg);
-            untextured = r.anchors.len() < MIN_ANCHORS;
-            reference = Some(r);
-            return Ok(());
-        };
-        if i % params.probe_every == 0 {
-            probes.push(track_frame(&name, r, i, &g, None, reg)?);
-            last = None;
-        } else {
-            last = Some((i, g));
-        }
-        Ok(())
-    })?;
-    let Some(reference) = reference else {
-        return Ok(Shake::still(&name, 0, (0, 0), Verdict::Still, 0.0));
+    let mut probe = Probe::new(params);
+    let n = source.for_each_native(&mut |i, frame| probe.frame(&name, i, frame))?;
+    let (reference, probed_motion, f) = match probe.finish(&name, n) {
+        Probed::Still(shake) => return Ok(shake),
+        Probed::Moves {
+            reference,
+            motion,
+            factor,
+        } => (reference, motion, factor),
     };
-    let size = reference.grey.dimensions();
-    if untextured || n == 1 {
-        return Ok(Shake::still(&name, n, size, Verdict::Untextured, 0.0));
-    }
-    if let Some((i, g)) = last {
-        probes.push(track_frame(&name, &reference, i, &g, None, reg)?);
-    }
-    let Some(probed) = still_anchors(&reference, &probes, reg.min_inliers, reg.seed) else {
-        return Ok(Shake::still(&name, n, size, Verdict::Untextured, 0.0));
-    };
-    // How far the still corners themselves move (the frame's corners would extrapolate the
-    // map, and a background seen in one strip of the frame pins it down only there).
-    let probed_motion = anchor_motion(&reference, &probes, &probed);
-    // A still camera wins when its own support is a quarter of the best set's or more: in a
-    // tripod clip of a tree in wind, a cluster of branches that sway together can outnumber
-    // the few corners of what truly stands still, and only a moving camera moves them all.
-    let in_place = probed.in_place >= reg.min_inliers && 4 * probed.in_place >= probed.set.len();
-    if probed_motion <= params.still_px || in_place {
-        return Ok(Shake::still(&name, n, size, Verdict::Still, probed_motion));
-    }
+    let (size, scale) = (probe.full, f as f64);
 
     // The camera moves: every frame tracked, each from the one before.
     let mut tracks: Vec<Tracked> = Vec::with_capacity(n);
-    let count = source.for_each_frame(&mut |i, rgb| {
+    let count = source.for_each_native(&mut |i, frame| {
         if i == 0 {
             return Ok(());
         }
-        let t = track_frame(&name, &reference, i, &grey(rgb), tracks.last(), reg)?;
+        let t = track_frame(
+            &name,
+            &reference,
+            i,
+            &proxy(frame, f),
+            tracks.last(),
+            1,
+            reg,
+        )?;
         tracks.push(t);
         Ok(())
     })?;
@@ -737,10 +960,23 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
     rms.sort_by(f64::total_cmp);
     let median_rms = rms[rms.len() / 2];
 
-    // The still camera: the mean of the maps to frame 0.
+    // The still camera: the mean of the maps to frame 0, at full size (proxy pixel p is the
+    // mean of full pixels around f p + (f - 1) / 2).
+    let up = Matrix3::new(
+        scale,
+        0.0,
+        (scale - 1.0) / 2.0,
+        0.0,
+        scale,
+        (scale - 1.0) / 2.0,
+        0.0,
+        0.0,
+        1.0,
+    );
+    let down = up.try_inverse().expect("a scaling");
     let to_first: Vec<Matrix3<f64>> = std::iter::once(Matrix3::identity())
-        .chain(selection.fits.iter().map(|f| {
-            let m = f.homography.matrix();
+        .chain(selection.fits.iter().map(|fit| {
+            let m = up * fit.homography.matrix() * down;
             m / m[(2, 2)]
         }))
         .collect();
@@ -792,7 +1028,7 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
         largest_px,
         largest_deg,
         area,
-        registered: (still.set.len(), median_rms),
+        registered: (still.set.len(), scale * median_rms),
     })
 }
 
