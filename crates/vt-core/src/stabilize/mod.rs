@@ -13,8 +13,8 @@
 //!    registration fits whatever moves most, which in a tree in wind is the tree; over time,
 //!    only the background follows one map in every frame.
 //! 3. **Probe.** Every [`StabilizeParams::probe_every`]-th frame is tracked first. When the
-//!    still anchors' median motion stays within [`StabilizeParams::still_px`] in each, or a
-//!    quarter of them never leave their place, the camera is still and nothing is warped: a
+//!    still anchors' median motion stays within [`StabilizeParams::still_px`] in each, or
+//!    [`IN_PLACE`] corners never leave their place, the camera is still and nothing is warped: a
 //!    tripod clip costs one decoding pass and a few patch searches.
 //! 4. **Every frame** is tracked otherwise, each from the one before, and one model is selected
 //!    for the clip by GRIC on the still anchors ([`crate::model::select_model`]: translation,
@@ -666,6 +666,12 @@ const GROW_PX: [f64; 3] = [0.6, 0.6, AGREE_PX];
 /// Pairs of anchors tried as the camera.
 const HYPOTHESES: usize = 400;
 
+/// Corners that never leave their place in the probes (within [`AGREE_PX`] in 90% of them) for
+/// the camera to count as still: a moving camera leaves none (the shaken tree.avi: 0), a tripod
+/// clip of a tree swaying in wind keeps its few truly still ones (tree.avi: 68 at 296x216, 13
+/// at 768x576, where 52 swaying corners form the largest set).
+const IN_PLACE: usize = 4;
+
 /// The first pass of [`measure`]: frame 0's anchors and every
 /// [`StabilizeParams::probe_every`]-th frame tracked, fed one frame at a time (so the
 /// analysis's own first pass can carry it, [`Probing`]).
@@ -752,11 +758,8 @@ impl Probe {
         let motion = self.factor as f64 * anchor_motion(&reference, &probes, &probed);
         // A still camera wins when some corners never leave their place: in a tripod clip of
         // a tree in wind, a cluster of branches that sway together can outnumber the few
-        // corners of what truly stands still, but a moving camera leaves no corner in place
-        // (measured: none on the shaken tree.avi, 13 and 68 on the tripod one at 768x576 and
-        // 296x216). Half the registration's least inliers, or a quarter of the best set.
-        let in_place = probed.in_place >= (reg.min_inliers / 2).max(4)
-            || 4 * probed.in_place >= probed.set.len().max(1);
+        // corners of what truly stands still, but a moving camera leaves no corner in place.
+        let in_place = probed.in_place >= IN_PLACE;
         if motion <= self.params.still_px || in_place {
             return Probed::Still(Shake::still(name, n, size, Verdict::Still, motion));
         }
