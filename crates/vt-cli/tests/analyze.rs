@@ -627,15 +627,6 @@ fn portrait_clips_analyse_as_the_turned_clip() {
     let tmp = tempfile::tempdir().unwrap();
     let p = |name: &str| tmp.path().join(name);
     let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
-    let ffmpeg = |args: &[&str]| {
-        let ok = std::process::Command::new("ffmpeg")
-            .args(["-v", "error", "-y", "-nostdin"])
-            .args(args)
-            .status()
-            .unwrap()
-            .success();
-        assert!(ok, "ffmpeg {args:?}");
-    };
     // 30 frames, lossless, so the two clips differ by the rotation only.
     let lossless = ["-c:v", "libx264", "-qp", "0", "-pix_fmt", "yuv420p"];
     let clip = p("clip.mp4");
@@ -708,15 +699,6 @@ fn handheld_clips_are_held_still() {
     let tmp = tempfile::tempdir().unwrap();
     let p = |name: &str| tmp.path().join(name);
     let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
-    let ffmpeg = |args: &[&str]| {
-        let ok = Command::new("ffmpeg")
-            .args(["-v", "error", "-y", "-nostdin"])
-            .args(args)
-            .status()
-            .unwrap()
-            .success();
-        assert!(ok, "ffmpeg {args:?}");
-    };
     let lossless = ["-c:v", "libx264", "-qp", "0", "-pix_fmt", "yuv420p"];
     let make = |filter: &str, out: &Path| {
         ffmpeg(

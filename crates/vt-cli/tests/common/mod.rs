@@ -168,3 +168,14 @@ pub fn count_pngs(dir: &Path) -> usize {
 
 /// Headless Chromium over the DevTools protocol (the browser tests).
 pub mod cdp;
+
+/// Runs ffmpeg quietly (overwriting, no stdin) with `args`; panics naming them when it fails.
+pub fn ffmpeg(args: &[&str]) {
+    let ok = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-y", "-nostdin"])
+        .args(args)
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "ffmpeg {args:?}");
+}
