@@ -434,3 +434,22 @@ fn round_trip_and_corruption() {
         );
     }
 }
+
+/// A view written again from its frame 0 (the analysis restarting it) replaces what was
+/// written, not appends to it.
+#[test]
+fn a_view_started_again_is_written_anew() {
+    use vt_core::analysis::Observer;
+    let dir = tempfile::tempdir().unwrap();
+    let mut stores = StoreWriter::with_quality(dir.path(), StoreQuality::Lossless);
+    let frames = moving_frames(48, 32, 5);
+    for (i, (m, raw)) in frames.iter().enumerate().take(3) {
+        stores.object_frame(0, i, m, raw).unwrap();
+    }
+    for (i, (m, raw)) in frames.iter().enumerate() {
+        stores.object_frame(0, i, m, raw).unwrap();
+    }
+    stores.finish().unwrap();
+    let store = ObjectStore::load(&dir.path().join(crate::scene::objects_name(0))).unwrap();
+    assert_eq!(store.len(), 5);
+}

@@ -339,11 +339,17 @@ impl vt_core::analysis::Observer for StoreWriter {
     fn object_frame(
         &mut self,
         view: usize,
-        _frame: usize,
+        frame: usize,
         mask: &Mask,
         raw: &RgbImage,
     ) -> vt_core::Result<()> {
         let to_core = |e: Error| vt_core::Error::external(format!("view {view}"), e);
+        // Frame 0 of the view being written: the analysis has started the view again (a
+        // handheld view found later restarts every view through the still camera). The
+        // unfinished store is dropped and its file made anew.
+        if frame == 0 && self.writer.as_ref().is_some_and(|(p, _)| *p == view) {
+            self.writer = None;
+        }
         if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
             self.finish()?;
             let path = self.dir.join(crate::scene::objects_name(view));
