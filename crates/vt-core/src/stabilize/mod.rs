@@ -34,7 +34,7 @@
 //! replicated: a bilinear warp at a half-pixel shift blurs like a 2-tap box filter), 4:2:0
 //! frames warped plane by plane so the analysis keeps their half size.
 
-use image::{GrayImage, RgbImage};
+use image::GrayImage;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -43,7 +43,6 @@ use crate::align::Grey;
 use crate::analysis::{FrameRef, FrameSource};
 use crate::model::{select_model, ModelParams, MotionModel};
 use crate::register::{detect, grey, refine_point, register_features, Feature, RegisterParams};
-use crate::yuv::Yuv420Image;
 use crate::{Error, Homography, Point, Result};
 
 /// Whether clips are made still.
@@ -771,109 +770,6 @@ impl Probe {
     }
 }
 
-/// A frame source whose first pass also probes the camera ([`Probe`]): the analysis's first
-/// pass carries the measurement, so a still camera costs no decoding of its own. When the
-/// probe finds the camera moving, that pass ends in an error and [`Probing::moved`] is true:
-/// the caller measures the clip in full ([`measure`]) and starts again through [`Steady`].
-pub struct Probing<'a> {
-    source: &'a mut dyn FrameSource,
-    probe: Option<Probe>,
-    shake: Option<Shake>,
-    /// The first pass is over (later passes go straight to the source).
-    probed: bool,
-    moved: bool,
-}
-
-impl<'a> Probing<'a> {
-    /// Wraps `source`; with the mode off, frames pass as they are and the shake says so.
-    pub fn new(source: &'a mut dyn FrameSource, params: &StabilizeParams) -> Self {
-        let off = params.mode == StabilizeMode::Off;
-        let shake = off.then(|| Shake::still(source.name(), 0, (0, 0), Verdict::Off, 0.0));
-        Self {
-            probe: (!off).then(|| Probe::new(params)),
-            source,
-            shake,
-            probed: off,
-            moved: false,
-        }
-    }
-
-    /// Whether the first pass found the camera moving (and so ended in an error).
-    pub fn moved(&self) -> bool {
-        self.moved
-    }
-
-    /// The shake the first pass measured (None before it, or when the camera moved).
-    pub fn shake(&mut self) -> Option<Shake> {
-        self.shake.take()
-    }
-
-    /// Seconds the probe took.
-    pub fn secs(&self) -> f64 {
-        self.probe.as_ref().map_or(0.0, |p| p.secs)
-    }
-
-    fn first(&mut self, n: usize) -> Result<usize> {
-        let name = self.source.name().to_string();
-        let probe = self.probe.as_mut().expect("probing");
-        let t = std::time::Instant::now();
-        let verdict = probe.finish(&name, n);
-        probe.secs += t.elapsed().as_secs_f64();
-        self.probed = true;
-        match verdict {
-            Probed::Still(shake) => {
-                self.shake = Some(shake);
-                Ok(n)
-            }
-            Probed::Moves { motion, .. } => {
-                self.moved = true;
-                Err(unsteady(
-                    &name,
-                    format!("the camera moves ({motion:.1} px): measured again to hold it still"),
-                ))
-            }
-        }
-    }
-}
-
-impl FrameSource for Probing<'_> {
-    fn name(&self) -> &str {
-        self.source.name()
-    }
-
-    fn for_each_frame(
-        &mut self,
-        f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>,
-    ) -> Result<usize> {
-        if self.probed {
-            return self.source.for_each_frame(f);
-        }
-        let name = self.source.name().to_string();
-        let probe = self.probe.as_mut().expect("probing");
-        let n = self.source.for_each_frame(&mut |i, rgb| {
-            probe.frame(&name, i, FrameRef::Rgb(rgb))?;
-            f(i, rgb)
-        })?;
-        self.first(n)
-    }
-
-    fn for_each_native(
-        &mut self,
-        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
-    ) -> Result<usize> {
-        if self.probed {
-            return self.source.for_each_native(f);
-        }
-        let name = self.source.name().to_string();
-        let probe = self.probe.as_mut().expect("probing");
-        let n = self.source.for_each_native(&mut |i, frame| {
-            probe.frame(&name, i, frame)?;
-            f(i, frame)
-        })?;
-        self.first(n)
-    }
-}
-
 /// Measures the camera motion of `source` and the still camera that removes it.
 pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result<Shake> {
     params.check()?;
@@ -1036,187 +932,13 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
     })
 }
 
-/// The largest even-sized rectangle of the still camera's pixels that every frame (mapped by
-/// `maps`) covers; None when there is none.
-fn covered(maps: &[Homography], (w, h): (u32, u32)) -> Option<Crop> {
-    let inv: Vec<[f64; 9]> = maps
-        .iter()
-        .map(|m| {
-            let i = m.raw().1;
-            std::array::from_fn(|k| i[(k / 3, k % 3)])
-        })
-        .collect();
-    let (xmax, ymax) = (w as f64 - 1.0, h as f64 - 1.0);
-    let inside = |x: f64, y: f64| {
-        inv.iter().all(|m| {
-            let d = m[6] * x + m[7] * y + m[8];
-            if d.abs() < 1e-12 {
-                return false;
-            }
-            let (u, v) = (
-                (m[0] * x + m[1] * y + m[2]) / d,
-                (m[3] * x + m[4] * y + m[5]) / d,
-            );
-            (-1e-9..=xmax + 1e-9).contains(&u) && (-1e-9..=ymax + 1e-9).contains(&v)
-        })
-    };
-    // A frame maps to a convex quadrilateral; a rectangle whose corners all lie in every one
-    // lies in their intersection.
-    let fits = |r: [f64; 4]| {
-        r[0] <= r[2]
-            && r[1] <= r[3]
-            && inside(r[0], r[1])
-            && inside(r[2], r[1])
-            && inside(r[0], r[3])
-            && inside(r[2], r[3])
-    };
-    let full = [0.0, 0.0, xmax, ymax];
-    let mut rect = full;
-    if !fits(rect) {
-        let (mut lo, mut hi) = (0.0, xmax.min(ymax) / 2.0);
-        let at = |m: f64| [m, m, xmax - m, ymax - m];
-        if !fits(at(hi)) {
-            return None;
-        }
-        for _ in 0..40 {
-            let mid = 0.5 * (lo + hi);
-            if fits(at(mid)) {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
-        }
-        rect = at(hi);
-        // Each side pushed back out as far as the rectangle stays covered.
-        for _ in 0..2 {
-            for side in 0..4 {
-                let (mut good, mut far) = (rect[side], full[side]);
-                for _ in 0..40 {
-                    let mid = 0.5 * (good + far);
-                    let mut r = rect;
-                    r[side] = mid;
-                    if fits(r) {
-                        good = mid;
-                    } else {
-                        far = mid;
-                    }
-                }
-                rect[side] = good;
-            }
-        }
-    }
-    let x0 = rect[0].ceil().max(0.0) as u32;
-    let y0 = rect[1].ceil().max(0.0) as u32;
-    let x1 = rect[2].floor().min(xmax) as u32;
-    let y1 = rect[3].floor().min(ymax) as u32;
-    let width = (x1 + 1).saturating_sub(x0) & !1;
-    let height = (y1 + 1).saturating_sub(y0) & !1;
-    (width >= 2 && height >= 2).then_some(Crop {
-        x: x0,
-        y: y0,
-        width,
-        height,
-    })
-}
-
-/// `shake`'s maps composed with a crop: per frame, the map from its pixels to the crop's.
-pub fn crop_maps(shake: &Shake, crop: Crop) -> Vec<Homography> {
-    let shift = Homography::translation(-(crop.x as f64), -(crop.y as f64));
-    shake
-        .maps
-        .iter()
-        .map(|m| {
-            shift
-                .after(m)
-                .expect("a translation after an invertible map")
-        })
-        .collect()
-}
-
-/// A frame source made still: each frame warped by its map (frame pixels to output pixels) into
-/// a `size` frame ([`warp_rgb_cubic`], [`warp_yuv420`]); without maps, the source as it is.
-pub struct Steady<'a> {
-    source: &'a mut dyn FrameSource,
-    maps: Option<Vec<Homography>>,
-    size: (u32, u32),
-}
-
-impl<'a> Steady<'a> {
-    /// Wraps `source`; `maps[k]` maps frame k's pixels to the output's (`size`, even). None
-    /// passes the frames through.
-    pub fn new(
-        source: &'a mut dyn FrameSource,
-        maps: Option<Vec<Homography>>,
-        size: (u32, u32),
-    ) -> Self {
-        Self { source, maps, size }
-    }
-}
-
-impl FrameSource for Steady<'_> {
-    fn name(&self) -> &str {
-        self.source.name()
-    }
-
-    fn for_each_frame(
-        &mut self,
-        f: &mut dyn FnMut(usize, &RgbImage) -> Result<()>,
-    ) -> Result<usize> {
-        let Some(maps) = &self.maps else {
-            return self.source.for_each_frame(f);
-        };
-        let mut out = RgbImage::new(self.size.0, self.size.1);
-        let name = self.source.name().to_string();
-        self.source.for_each_frame(&mut |i, frame| {
-            let h = maps.get(i).ok_or_else(|| past_end(&name, i, maps.len()))?;
-            warp_rgb_cubic(frame, h, &mut out);
-            f(i, &out)
-        })
-    }
-
-    fn for_each_native(
-        &mut self,
-        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
-    ) -> Result<usize> {
-        let Some(maps) = &self.maps else {
-            return self.source.for_each_native(f);
-        };
-        let size = self.size;
-        let mut rgb = RgbImage::new(size.0, size.1);
-        let mut yuv: Option<Yuv420Image> = None;
-        let name = self.source.name().to_string();
-        self.source.for_each_native(&mut |i, frame| {
-            let h = maps.get(i).ok_or_else(|| past_end(&name, i, maps.len()))?;
-            match frame {
-                FrameRef::Rgb(src) => {
-                    warp_rgb_cubic(src, h, &mut rgb);
-                    f(i, FrameRef::Rgb(&rgb))
-                }
-                FrameRef::Yuv420(src) => {
-                    let out = match &mut yuv {
-                        Some(o) => o,
-                        None => {
-                            yuv.insert(Yuv420Image::new(size.0, size.1, src.matrix(), src.range())?)
-                        }
-                    };
-                    warp_yuv420(src, h, out);
-                    f(i, FrameRef::Yuv420(out))
-                }
-            }
-        })
-    }
-}
-
-/// The error of a source that gives more frames than were measured.
-fn past_end(name: &str, i: usize, n: usize) -> Error {
-    unsteady(
-        name,
-        format!("the source gave frame {i}, past the {n} frames measured"),
-    )
-}
-
+mod crop;
 mod resample;
+mod sources;
 #[cfg(test)]
 mod tests;
 
+use crop::covered;
+pub use crop::crop_maps;
 pub use resample::{warp_rgb_cubic, warp_yuv420};
+pub use sources::{Probing, Steady};

@@ -1,4 +1,7 @@
+use super::crop::covered;
 use super::*;
+use crate::yuv::Yuv420Image;
+use image::RgbImage;
 
 #[test]
 fn the_largest_covered_rectangle_of_shifted_frames_is_their_overlap() {
