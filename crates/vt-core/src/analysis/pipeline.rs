@@ -98,14 +98,14 @@ pub fn analyze(
     // Each view's first pass also probes its camera: a still camera costs no pass of its own.
     let mut views = Vec::with_capacity(m);
     let mut size: Option<(u32, u32)> = None;
-    let mut moved = false;
+    let mut moved = None;
     for (p, src) in sources.iter_mut().enumerate() {
         let mut probing = crate::stabilize::Probing::new(&mut **src, &params.stabilize);
         let view = analyze_view(p, &mut probing, params, &mut size, observer, &mut timings);
         timings.shake += Duration::from_secs_f64(probing.secs());
         if probing.moved() {
             observer.finish();
-            moved = true;
+            moved = Some(p);
             break;
         }
         let mut v = view?;
@@ -116,14 +116,19 @@ pub fn analyze(
     // the still camera.
     let moved_points: Vec<Vec<Point>>;
     let mut points = points;
-    if moved {
-        views.clear();
+    if let Some(first_moving) = moved {
+        // The views before it were probed still; it moves; the ones after are measured whole.
+        let mut shakes: Vec<crate::stabilize::Shake> =
+            views.drain(..).map(|v| v.shake.expect("probed")).collect();
         size = None;
         let t_shake = Instant::now();
-        let mut shakes = Vec::with_capacity(m);
-        for (p, src) in sources.iter_mut().enumerate() {
+        for (p, src) in sources.iter_mut().enumerate().skip(first_moving) {
             observer.start(Stage::Shake, Some(p), None);
-            let shake = crate::stabilize::measure(&mut **src, &params.stabilize);
+            let shake = if p == first_moving {
+                crate::stabilize::measure_moving(&mut **src, &params.stabilize)
+            } else {
+                crate::stabilize::measure(&mut **src, &params.stabilize)
+            };
             observer.finish();
             shakes.push(shake?);
         }

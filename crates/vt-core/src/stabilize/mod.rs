@@ -305,25 +305,23 @@ fn proxy_factor((w, h): (u32, u32)) -> u32 {
 /// A frame's luma, reduced by `f` in both directions (box means; the remainder columns and
 /// rows dropped). A 4:2:0 frame's own Y plane; RGB frames' [`grey`].
 fn proxy(frame: FrameRef<'_>, f: u32) -> GrayImage {
-    let luma = match frame {
-        FrameRef::Rgb(rgb) => grey(rgb),
+    let rgb_luma;
+    let (plane, w, h) = match frame {
+        FrameRef::Rgb(rgb) => {
+            rgb_luma = grey(rgb);
+            (rgb_luma.as_raw().as_slice(), rgb.width(), rgb.height())
+        }
         FrameRef::Yuv420(yuv) => {
             let (w, h) = yuv.dimensions();
-            GrayImage::from_raw(w, h, yuv.as_raw()[..(w * h) as usize].to_vec())
-                .expect("a 4:2:0 frame holds its Y plane first")
+            (&yuv.as_raw()[..(w * h) as usize], w, h)
         }
     };
-    if f == 1 {
-        return luma;
-    }
-    let (w, h) = (luma.width() / f, luma.height() / f);
-    let (src, sw) = (luma.as_raw(), luma.width() as usize);
-    let f = f as usize;
+    let (sw, f) = (w as usize, f.max(1) as usize);
     let area = (f * f) as u32;
-    GrayImage::from_fn(w.max(1), h.max(1), |x, y| {
+    GrayImage::from_fn((w / f as u32).max(1), (h / f as u32).max(1), |x, y| {
         let (x0, y0) = (x as usize * f, y as usize * f);
         let mut sum = 0u32;
-        for row in src[y0 * sw..].chunks(sw).take(f) {
+        for row in plane[y0 * sw..].chunks(sw).take(f) {
             sum += row[x0..x0 + f].iter().map(|&v| v as u32).sum::<u32>();
         }
         image::Luma([((sum + area / 2) / area) as u8])
@@ -778,43 +776,74 @@ pub fn measure(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result
         // Nothing read: the frames are the source's.
         return Ok(Shake::still(&name, 0, (0, 0), Verdict::Off, 0.0));
     }
-    let reg = &params.register;
     let mut probe = Probe::new(params);
     let n = source.for_each_native(&mut |i, frame| probe.frame(&name, i, frame))?;
-    let (reference, probed_motion, f) = match probe.finish(&name, n) {
-        Probed::Still(shake) => return Ok(shake),
+    match probe.finish(&name, n) {
+        Probed::Still(shake) => Ok(shake),
         Probed::Moves {
             reference,
             motion,
             factor,
-        } => (reference, motion, factor),
-    };
-    let (size, scale) = (probe.full, f as f64);
+        } => steady(
+            source,
+            params,
+            Some((reference, factor, probe.full, n)),
+            motion,
+        ),
+    }
+}
 
-    // The camera moves: every frame tracked, each from the one before.
-    let mut tracks: Vec<Tracked> = Vec::with_capacity(n);
-    let count = source.for_each_native(&mut |i, frame| {
+/// [`measure`] for a clip already probed as moving (the analysis's first pass, [`Probing`]):
+/// one pass tracks every frame, with no probe of its own.
+pub fn measure_moving(source: &mut dyn FrameSource, params: &StabilizeParams) -> Result<Shake> {
+    params.check()?;
+    steady(source, params, None, 0.0)
+}
+
+/// The camera moves: every frame tracked, each from the one before, and the still camera made.
+/// `probed` is the probe's reference, proxy factor, frame size and count (None: frame 0 of this
+/// pass is the reference); `probed_motion` what it measured.
+fn steady(
+    source: &mut dyn FrameSource,
+    params: &StabilizeParams,
+    probed: Option<(Reference, u32, (u32, u32), usize)>,
+    probed_motion: f64,
+) -> Result<Shake> {
+    let name = source.name().to_string();
+    let reg = &params.register;
+    let known = probed.as_ref().map(|p| p.3);
+    let (mut reference, mut f, mut size) = match probed {
+        Some((r, f, size, _)) => (Some(r), f, size),
+        None => (None, 1, (0, 0)),
+    };
+    let mut tracks: Vec<Tracked> = Vec::new();
+    let n = source.for_each_native(&mut |i, frame| {
+        let Some(r) = &reference else {
+            size = frame.dimensions();
+            f = proxy_factor(size);
+            reference = Some(Reference::new(proxy(frame, f), reg));
+            return Ok(());
+        };
         if i == 0 {
             return Ok(());
         }
-        let t = track_frame(
-            &name,
-            &reference,
-            i,
-            &proxy(frame, f),
-            tracks.last(),
-            1,
-            reg,
-        )?;
+        let t = track_frame(&name, r, i, &proxy(frame, f), tracks.last(), 1, reg)?;
         tracks.push(t);
         Ok(())
     })?;
-    if count != n {
+    if let Some(k) = known.filter(|&k| k != n) {
         return Err(unsteady(
             &name,
-            format!("the source gave {count} frames on its second reading, {n} on its first"),
+            format!("the source gave {n} frames on its second reading, {k} on its first"),
         ));
     }
+    let Some(reference) = reference else {
+        return Ok(Shake::still(&name, 0, (0, 0), Verdict::Still, 0.0));
+    };
+    if reference.anchors.len() < MIN_ANCHORS || n < 2 {
+        return Ok(Shake::still(&name, n, size, Verdict::Untextured, 0.0));
+    }
+    let scale = f as f64;
     debug_assert_eq!(tracks.len(), n - 1);
     let Some(still) = still_anchors(&reference, &tracks, reg.min_inliers, reg.seed) else {
         return Ok(Shake::still(
