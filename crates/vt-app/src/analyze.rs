@@ -356,8 +356,8 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             }
             if let Some(bytes) = v.regions_over_cache {
                 writeln!(f,
-                    "view {p}: no per-region loop: its {} frames and the baked loop need {} MiB held as RGB, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
-                    v.n_frames, bytes.div_ceil(1 << 20), bytes.div_ceil(1 << 20)
+                    "view {p}: no per-region loop: the source frames around its loop take about {} MiB packed, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
+                    bytes.div_ceil(1 << 20), bytes.div_ceil(1 << 20)
                 )?;
             }
             if let Some(q) = &v.region_not_needed {

@@ -24,6 +24,7 @@ pub mod median;
 pub mod metrics;
 pub mod model;
 pub mod noise;
+pub mod packed;
 pub mod parallax;
 pub mod regions;
 pub mod register;

@@ -183,6 +183,22 @@ impl Yuv420Image {
 }
 
 impl Yuv420Image {
+    /// Pixel `(x, y)` in RGB, byte for byte what [`Yuv420Image::to_rgb_into`] gives there (for
+    /// readers that need a few pixels of many frames, not whole frames).
+    #[inline]
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (x, y) = (x as usize, y as usize);
+        let chroma = w * h + (y / 2) * (w / 2) + x / 2;
+        yuv_to_rgb(
+            self.matrix,
+            self.range,
+            self.data[y * w + x],
+            self.data[chroma],
+            self.data[chroma + w * h / 4],
+        )
+    }
+
     /// Converts row `y` into `out` (`3 * width` bytes).
     pub fn row_to_rgb(&self, y: u32, out: &mut [u8]) {
         let c = Coefficients::of(self.matrix, self.range);
@@ -256,6 +272,19 @@ impl Coefficients {
             },
         }
     }
+}
+
+/// One pixel's luma and chroma in RGB, as the row conversion makes it.
+#[inline]
+pub(crate) fn yuv_to_rgb(matrix: YuvMatrix, range: YuvRange, y: u8, u: u8, v: u8) -> [u8; 3] {
+    let c = Coefficients::of(matrix, range);
+    let (uu, vv) = (u as i32 - 128, v as i32 - 128);
+    let yy = (y as i32 - c.y_offset).max(0) * c.cy + (1 << (SHIFT - 1));
+    [
+        clamp_u8((yy + c.cvr * vv) >> SHIFT),
+        clamp_u8((yy + c.cvg * vv + c.cug * uu) >> SHIFT),
+        clamp_u8((yy + c.cub * uu) >> SHIFT),
+    ]
 }
 
 #[inline(always)]
@@ -505,6 +534,20 @@ mod tests {
                     .max()
                     .unwrap();
                 assert!(worst <= 1, "{matrix:?} {range:?}: off by {worst}");
+            }
+        }
+    }
+
+    #[test]
+    fn pixels_convert_as_the_whole_frame_does() {
+        // 38 wide: two 16-pixel blocks and a tail of 6, so both paths of the row kernel count.
+        for (s, matrix) in [YuvMatrix::Bt601, YuvMatrix::Bt709].into_iter().enumerate() {
+            for (t, range) in [YuvRange::Limited, YuvRange::Full].into_iter().enumerate() {
+                let img = random(38, 26, matrix, range, 31 + 2 * s as u64 + t as u64);
+                let whole = img.to_rgb();
+                for (x, y, px) in whole.enumerate_pixels() {
+                    assert_eq!(img.pixel(x, y), px.0, "{matrix:?} {range:?} at ({x}, {y})");
+                }
             }
         }
     }

@@ -272,17 +272,40 @@ fn a_wrap_within_an_ordinary_step_is_not_corrected() {
     }
 }
 
-/// The analysis makes per-region loops when asked and the view's frames fit the frame cache;
-/// when they do not, the view keeps the thesis's loop and says how many bytes it would need
-/// (printed by `vt analyze`), rather than dropping the request silently.
+/// The analysis makes per-region loops from the frame cache when the view's frames fit it; when
+/// they do not, from its source window decoded again and packed losslessly within the cache's
+/// budget (the same loop, the same baked frames); when even that does not fit, the view keeps
+/// the thesis's loop and says how many bytes it would need (printed by `vt analyze`), rather
+/// than dropping the request silently.
 #[test]
 fn the_analysis_says_when_per_region_loops_do_not_fit_the_cache() {
-    use vt_core::analysis::{analyze, AnalyzeParams, FrameSource, MemorySource, Quiet};
-    let (w, h, n) = (64u32, 32u32, 40usize);
+    use vt_core::analysis::{analyze, AnalyzeParams, FrameSource, MemorySource, Observer};
+    // The two-period scene at twice its size (each texel 2x2 pixels: smooth enough to pack).
+    let (w, h, n) = (128u32, 64u32, 40usize);
+    let scene: Vec<RgbImage> = two_periods(n, w / 2, h / 2, 32, 5, 7)
+        .iter()
+        .map(|f| image::imageops::resize(f, w, h, image::imageops::FilterType::Nearest))
+        .collect();
+    /// The frames the analysis hands the object store, the last time it wrote each index.
+    #[derive(Default)]
+    struct Store(Vec<RgbImage>);
+    impl Observer for Store {
+        fn object_frame(
+            &mut self,
+            _view: usize,
+            frame: usize,
+            _mask: &vt_core::Mask,
+            raw: &RgbImage,
+        ) -> vt_core::Result<()> {
+            self.0.truncate(frame);
+            self.0.push(raw.clone());
+            Ok(())
+        }
+    }
     let run = |cache_bytes: usize| {
         let mut src = MemorySource {
             name: "two periods".into(),
-            frames: two_periods(n, w, h, 32, 5, 7),
+            frames: scene.clone(),
         };
         let params = AnalyzeParams {
             regions: Some(RegionParams {
@@ -293,6 +316,8 @@ fn the_analysis_says_when_per_region_loops_do_not_fit_the_cache() {
                 ..Default::default()
             }),
             cache_bytes,
+            // Every frame in the median whether they are cached or stream.
+            median_frames: 0,
             loops: vt_core::loops::LoopParams {
                 window: 3,
                 min_length: 10,
@@ -300,28 +325,45 @@ fn the_analysis_says_when_per_region_loops_do_not_fit_the_cache() {
             ..Default::default()
         };
         let mut sources: Vec<&mut dyn FrameSource> = vec![&mut src];
-        analyze(&mut sources, &[], &params, &mut Quiet).unwrap()
+        let mut store = Store::default();
+        let a = analyze(&mut sources, &[], &params, &mut store).unwrap();
+        (a, store.0)
     };
-    let fits = run(AnalyzeParams::default().cache_bytes);
+    let (fits, cached_frames) = run(AnalyzeParams::default().cache_bytes);
     let v = &fits.views[0];
-    assert!(v.region_loop.is_some());
+    let cached = v.region_loop.as_ref().expect("made from the cache");
     assert_eq!(v.regions_over_cache, None);
+    assert_eq!(cached_frames.len(), v.n_frames);
+    assert_eq!(v.n_frames, cached.chosen.length + 1);
+    // Four fifths of the frames fit the cache: they stream, and the loop's window (all 40 frames
+    // here) is decoded again and packed within the budget. Packing is lossless: the same loop,
+    // the same baked frames.
     let frame = 3 * (w * h) as usize;
-    // Room for the frames and a baked loop of 20 (the shortest loop is 10): the loop length is
-    // capped to what fits.
-    let capped = run((n + 1 + 20) * frame);
-    let v = &capped.views[0];
-    let res = v.region_loop.as_ref().expect("a loop of at most 20 fits");
-    assert!(res.chosen.length <= 20, "{}", res.chosen.length);
-    assert_eq!(v.n_frames, res.chosen.length + 1);
-    // No room for a loop of 10: the thesis's loop, and the budget that would have done.
-    let over = run((n + 1 + 9) * frame);
+    let (streamed, streamed_frames) = run(n * frame * 4 / 5);
+    let v = &streamed.views[0];
+    let packed = v.region_loop.as_ref().unwrap_or_else(|| {
+        panic!(
+            "made from the packed window, not {:?} bytes",
+            v.regions_over_cache
+        )
+    });
+    let timeless = |r: &vt_core::regions::RegionLoop| vt_core::regions::RegionLoop {
+        solve_secs: 0.0,
+        ..r.clone()
+    };
+    assert_eq!(timeless(&packed.chosen), timeless(&cached.chosen));
+    assert_eq!(v.n_frames, cached.chosen.length + 1);
+    assert_eq!(
+        streamed_frames, cached_frames,
+        "the baked frames, byte for byte"
+    );
+    // Two frames' room: no window fits; the thesis's loop, and the budget that would have done.
+    let (over, over_frames) = run(2 * frame);
     let v = &over.views[0];
     assert!(v.region_loop.is_none());
-    assert_eq!(
-        v.regions_over_cache,
-        Some((n + 35 + 1) as u64 * frame as u64)
-    );
+    let need = v.regions_over_cache.expect("says what it would need");
+    assert!(need > 2 * frame as u64, "{need}");
+    assert_eq!(over_frames.len(), n, "the source frames stay in the store");
 }
 
 /// `n` frames of `w x h` in which a sinusoid moves smoothly, each of the vertical bands

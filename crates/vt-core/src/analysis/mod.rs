@@ -257,8 +257,9 @@ pub struct AnalyzeParams {
     pub background: BackgroundMode,
     /// Per-region loops baked into one seamless loop per view ([`crate::regions`]), by default
     /// only where they measure better than the thesis's loop; None: the thesis's one loop
-    /// (m, n) per view. Needs a view's frames and the baked loop to fit `cache_bytes` as RGB
-    /// (otherwise that view keeps its one loop).
+    /// (m, n) per view. Its source window (the frames around the thesis's loop) comes from the
+    /// frame cache, or is decoded again and packed within `cache_bytes` (otherwise that view
+    /// keeps its one loop).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub regions: Option<crate::regions::RegionParams>,
     /// Handheld views made still before anything else reads their frames
@@ -454,7 +455,9 @@ pub trait Observer {
     /// The stage finished.
     fn finish(&mut self) {}
     /// Frame `frame` of `view` has moving-object mask `mask` (pixels of `raw` under it are the
-    /// object, eq. (4)-(5)); frames arrive in order. An error aborts the analysis.
+    /// object, eq. (4)-(5)); frames arrive in order. Frame 0 of a view arriving again starts
+    /// the view over: a handheld view restarted through the still camera, or a per-region
+    /// loop's baked frames replacing the frames already sent. An error aborts the analysis.
     fn object_frame(
         &mut self,
         _view: usize,
@@ -539,9 +542,9 @@ pub struct ViewResult {
     /// as they would be, already wraps as it steps ([`crate::regions::Quality::shows`]).
     pub region_not_needed: Option<crate::regions::Quality>,
     /// Per-region loops were asked for but not made for this view: the cache budget
-    /// ([`AnalyzeParams::cache_bytes`]) they would need, for its frames and the longest baked
-    /// loop held as RGB; it keeps the thesis's loop. None when they were made or not asked
-    /// for.
+    /// ([`AnalyzeParams::cache_bytes`]) their source window would need (the frames around the
+    /// thesis's loop, packed: [`crate::packed`]); it keeps the thesis's loop. None when they
+    /// were made or not asked for.
     pub regions_over_cache: Option<u64>,
     /// The camera's measured shake and the still camera the frames were warped to (None
     /// until the pipeline sets it).

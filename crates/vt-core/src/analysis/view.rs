@@ -1,6 +1,11 @@
 //! One view: pass 1 (median background, noise model, frame cache), pass 2 (masks, loop).
 
+use std::borrow::Cow;
+
+use image::GrayImage;
+
 use super::*;
+use crate::regions::Bake;
 
 /// Pass 1's consumers of frames that do not stay in the cache.
 pub(super) struct Streamed {
@@ -104,6 +109,20 @@ pub(super) fn analyze_view(
         match cache.as_mut() {
             Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.to_owned()),
             _ => {
+                if cache.is_some() {
+                    // Frames start to stream: the samples are held within the cache's budget,
+                    // or the default's when that is larger (at 1080p 4:2:0 about 57 frames for
+                    // the median and 28 for the noise model, where frames up to 960x720 get
+                    // the 128 and 48 asked for, 4:2:0).
+                    let budget = params.cache_bytes.max(DEFAULT_CACHE_MB << 20);
+                    let fit = (budget / frame.byte_len().max(1)).max(9);
+                    if let Some(s) = streamed.median.as_mut() {
+                        *s = FrameSample::new(params.median_frames.min(2 * fit / 3));
+                    }
+                    if let Some(s) = streamed.noise.as_mut() {
+                        *s = FrameSample::new(params.noise.sample_frames.min(fit / 3));
+                    }
+                }
                 for (j, f) in cache.take().unwrap_or_default().into_iter().enumerate() {
                     streamed.take(j, f.as_ref()).map_err(too_many)?;
                 }
@@ -218,22 +237,6 @@ pub(super) fn analyze_view(
             None => foreground_mask(blurred, &bg_blur, &params.mask),
         }
     };
-    // Per-region loops need the view's frames as RGB, kept (instead of written) in pass 2, and
-    // the baked loop's `L + 1` frames beside them: made when both fit the cache budget, the
-    // loop length capped by the room the held frames leave (at least the shortest loop).
-    let frame_rgb = 3 * bg_blur.width() as u64 * bg_blur.height() as u64;
-    let room = (params.cache_bytes as u64 / frame_rgb).saturating_sub(n1 as u64 + 1);
-    let region_params = params.regions.map(|rp| crate::regions::RegionParams {
-        max_length: rp.max_length.min(room as usize),
-        ..rp
-    });
-    let bake = cache.is_some()
-        && region_params.is_some_and(|rp| rp.max_length >= params.loops.min_length.max(2));
-    let regions_over_cache = match params.regions {
-        Some(rp) if !bake => Some((n1 as u64 + rp.max_length as u64 + 1) * frame_rgb),
-        _ => None,
-    };
-    let mut held: Vec<RgbImage> = Vec::new();
     let mut kept = MotionKept::new();
     let with_thumbs = params.appearance > 0.0;
     let factor = thumb_factor(bg_blur.width(), bg_blur.height());
@@ -244,11 +247,11 @@ pub(super) fn analyze_view(
     let t = Instant::now();
     let mut masks = Vec::with_capacity(n1);
     let mut inside = Duration::ZERO;
-    if let Some(frames) = cache {
+    if let Some(frames) = cache.as_deref() {
         // Frames in chunks: each chunk's frames converted, blurred and masked in parallel (one
         // frame per thread, buffers reused) while the previous chunk goes to the observer in
-        // order (object store writes, the motion tally) on this thread. The cache shrinks as it
-        // goes: a chunk's frames are dropped once converted.
+        // order (object store writes, the motion tally) on this thread. The cache stays for
+        // the per-region loop's window.
         let blur = GaussianBlur::new(&params.blur)?;
         let (w, h) = bg_blur.dimensions();
         let chunk = (4 * rayon::current_num_threads()).max(8);
@@ -265,18 +268,17 @@ pub(super) fn analyze_view(
         // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
         // with `prev`, the previous chunk's last frame and mask.
         type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
-        let compute = |part: Vec<Frame>,
+        let compute = |part: &[Frame],
                        rgb: &mut Vec<RgbImage>,
                        blurs: &mut Vec<(BlurScratch, RgbImage)>,
                        prev: Option<(&RgbImage, &Mask)>|
          -> Result<Computed> {
             let masks: Vec<(Mask, Option<Thumb>)> = part
-                .into_par_iter()
+                .par_iter()
                 .zip(rgb.par_iter_mut())
                 .zip(blurs.par_iter_mut())
                 .map(|((f, out), (scratch, blurred))| {
                     f.as_ref().to_rgb_into(out);
-                    drop(f);
                     blur.apply_into(out, blurred, scratch)?;
                     let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
                     Ok((mask_of(blurred)?, thumb))
@@ -297,9 +299,9 @@ pub(super) fn analyze_view(
                 .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
             Ok((masks, change))
         };
-        let mut frames = frames.into_iter();
+        let mut parts = frames.chunks(chunk);
         let (mut pending, change) = compute(
-            frames.by_ref().take(chunk).collect(),
+            parts.next().unwrap_or_default(),
             &mut ready,
             &mut blurs,
             None,
@@ -307,7 +309,7 @@ pub(super) fn analyze_view(
         kept.add(change);
         let mut i = 0;
         while !pending.is_empty() {
-            let part: Vec<Frame> = frames.by_ref().take(chunk).collect();
+            let part = parts.next().unwrap_or_default();
             let last_mask = pending.last().map(|(m, _)| m.clone());
             let prev = pending
                 .len()
@@ -318,11 +320,7 @@ pub(super) fn analyze_view(
                 let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
                 let mut flush = || -> Result<()> {
                     for ((m, thumb), f) in pending.drain(..).zip(&ready) {
-                        if bake {
-                            held.push(f.clone());
-                        } else {
-                            observer.object_frame(p, i, &shown(&m), f)?;
-                        }
+                        observer.object_frame(p, i, &shown(&m), f)?;
                         masks.push(m);
                         thumbs.extend(thumb);
                         observer.tick();
@@ -407,106 +405,122 @@ pub(super) fn analyze_view(
     let mut n_frames = n1;
     let mut region_loop = None;
     let mut regions_worse = None;
-    let mut made = None;
     let mut thesis_smooth = None;
-    if let (true, Some(rp)) = (bake, region_params.as_ref()) {
+    let mut regions_over_cache = None;
+    if let Some(rp) = params.regions.as_ref() {
         let t_bake = Instant::now();
         // The source window (at most `max_frames`, or the thesis's loop and its neighbours when
-        // longer, holding that loop's start).
+        // longer, holding that loop's start): the frame cache's own frames, or decoded once
+        // more and packed losslessly within the cache's budget.
         let span = rp.max_frames.max(best_loop.len() + 2).min(n1);
         let first = best_loop.start.min(n1 - span);
-        let (src, src_masks) = (&held[first..first + span], &masks[first..first + span]);
-        // The thesis's loop, measured as the per-region loop will be.
         let own = crate::regions::Label {
             start: best_loop.start + 1 - first,
             period: best_loop.len(),
         };
-        let one = crate::regions::single_loop(own, bg_blur.dimensions(), rp.tile);
-        let single =
-            crate::regions::quality(&crate::regions::single_frames(src, &one), src, &one, alpha);
-        // Asked only where better: a thesis's loop that already wraps as it steps (an exact
-        // repeat among them; not every loop whose eq. (1) cost is 0: a looped clip's own jump
-        // can fall inside it) is kept without trying.
-        if rp.only_if_better && !crate::regions::Quality::shows(&single) {
-            thesis_smooth = Some(single);
-        } else {
-            let rl = crate::regions::solve(
-                src,
+        let window_masks = &masks[first..first + span];
+        let packed = match &cache {
+            Some(_) => None,
+            None => {
+                let packed = read_window(src, first..first + span, n1, params.cache_bytes, &label)?;
+                if packed.len() < span {
+                    // Over the budget: what the whole window would take at the rate so far.
+                    regions_over_cache = Some(
+                        (packed.byte_len() as u64).div_ceil(packed.len().max(1) as u64)
+                            * span as u64,
+                    );
+                    None
+                } else {
+                    Some(packed)
+                }
+            }
+        };
+        let window = match (&cache, &packed) {
+            (Some(frames), _) => Some(Window::Cached(&frames[first..first + span])),
+            (None, Some(packed)) => Some(Window::Packed(packed)),
+            (None, None) => None,
+        };
+        let made = match &window {
+            Some(w) => Some(bake_regions(
+                w,
+                window_masks,
+                own,
                 alpha,
-                Some(best_loop.len()),
-                params.loops.min_length,
                 rp,
-            )?;
-            let (baked, baked_masks) = crate::regions::compose(src, src_masks, &rl, rp.feather);
-            let quality = crate::regions::quality(&baked, src, &rl, alpha);
-            if rp.only_if_better && !quality.better_than(&single) {
-                regions_worse = Some(RegionResult {
-                    chosen: rl,
-                    quality,
-                    single,
-                    secs: t_bake.elapsed().as_secs_f64(),
-                });
-            } else {
-                made = Some((rl, baked, baked_masks, quality, single, t_bake, first));
+                params.loops.min_length,
+            )?),
+            None => None,
+        };
+        if let Some(made) = made {
+            let secs = t_bake.elapsed().as_secs_f64();
+            match made {
+                Baked::ThesisSmooth(single) => thesis_smooth = Some(single),
+                Baked::Worse(chosen, quality, single) => {
+                    regions_worse = Some(RegionResult {
+                        chosen,
+                        quality,
+                        single,
+                        secs,
+                    })
+                }
+                Baked::Kept(rl, quality, single) => {
+                    // The player's wrap onto the smoothest step of the cycle; the baked frames
+                    // replace the view's frames in the store (its file made anew).
+                    let frames = window.as_ref().expect("made from a window");
+                    let bake =
+                        Bake::new(frames, window_masks, &rl, rp.feather).rotated(quality.smoothest);
+                    let mut baked_masks = Vec::with_capacity(rl.length + 1);
+                    let mut baked_thumbs = Vec::new();
+                    for t in 0..=rl.length {
+                        let (f, m) = bake.frame(t);
+                        observer.object_frame(p, t, &shown(&m), &f)?;
+                        if with_thumbs {
+                            baked_thumbs.push(change_thumb(
+                                &gaussian_blur(&f, &params.blur)?,
+                                &bg_blur,
+                                factor,
+                            ));
+                        }
+                        baked_masks.push(m);
+                    }
+                    let mut rl = bake.region_loop();
+                    drop(bake);
+                    for l in &mut rl.labels {
+                        l.start += first;
+                    }
+                    thumbs = baked_thumbs;
+                    masks = baked_masks;
+                    xor_steps = masks
+                        .par_windows(2)
+                        .map(|w| crate::mask::xor_count(&w[0], &w[1]))
+                        .collect();
+                    app_steps = thumbs
+                        .par_windows(2)
+                        .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
+                        .collect();
+                    kappa = appearance::kappa(
+                        params.appearance as f64,
+                        mean(&xor_steps),
+                        mean(&app_steps),
+                    );
+                    // Frame L is frame 0 again: the wrap L -> 1 is the step 0 -> 1.
+                    best_loop = Loop {
+                        start: 0,
+                        end: rl.length,
+                        cost: 0,
+                    };
+                    n_frames = masks.len();
+                    region_loop = Some(RegionResult {
+                        chosen: rl,
+                        quality,
+                        single,
+                        secs: t_bake.elapsed().as_secs_f64(),
+                    });
+                }
             }
         }
     }
-    if made.is_none() && bake {
-        // The thesis's loop stays: the held frames go to the store as pass 2 would have sent
-        // them.
-        for (i, (f, m)) in held.iter().zip(&masks).enumerate() {
-            observer.object_frame(p, i, &shown(m), f)?;
-        }
-        drop(held);
-    } else if let Some((mut rl, mut baked, mut baked_masks, quality, single, t_bake, first)) = made
-    {
-        // The player's wrap onto the smoothest step of the cycle.
-        let by = quality.smoothest;
-        crate::regions::rotate(&mut baked_masks, &mut rl.clone(), by);
-        crate::regions::rotate(&mut baked, &mut rl, by);
-        for l in &mut rl.labels {
-            l.start += first;
-        }
-        drop(held);
-        for (i, (f, m)) in baked.iter().zip(&baked_masks).enumerate() {
-            observer.object_frame(p, i, &shown(m), f)?;
-        }
-        if with_thumbs {
-            thumbs = baked
-                .par_iter()
-                .map(|f| {
-                    Ok(change_thumb(
-                        &gaussian_blur(f, &params.blur)?,
-                        &bg_blur,
-                        factor,
-                    ))
-                })
-                .collect::<Result<_>>()?;
-        }
-        masks = baked_masks;
-        xor_steps = masks
-            .par_windows(2)
-            .map(|w| crate::mask::xor_count(&w[0], &w[1]))
-            .collect();
-        app_steps = thumbs
-            .par_windows(2)
-            .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
-            .collect();
-        kappa = appearance::kappa(params.appearance as f64, mean(&xor_steps), mean(&app_steps));
-        // Frame L is frame 0 again: the wrap L -> 1 is the step 0 -> 1.
-        best_loop = Loop {
-            start: 0,
-            end: rl.length,
-            cost: 0,
-        };
-        n_frames = masks.len();
-        region_loop = Some(RegionResult {
-            chosen: rl,
-            quality,
-            single,
-            secs: t_bake.elapsed().as_secs_f64(),
-        });
-    }
+    drop(cache);
     observer.finish();
     timings.loops += t.elapsed();
     let total_px = masks.len() as f64 * masks[0].len() as f64;
@@ -546,4 +560,125 @@ pub(super) fn analyze_view(
         regions_over_cache,
         shake: None,
     })
+}
+
+/// The per-region loop's source window: the frame cache's frames, or frames decoded again and
+/// packed.
+enum Window<'a> {
+    Cached(&'a [Frame]),
+    Packed(&'a crate::packed::PackedFrames),
+}
+
+impl crate::regions::Frames for Window<'_> {
+    fn count(&self) -> usize {
+        match self {
+            Window::Cached(f) => f.count(),
+            Window::Packed(f) => f.count(),
+        }
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        match self {
+            Window::Cached(f) => f.dimensions(),
+            Window::Packed(f) => crate::regions::Frames::dimensions(*f),
+        }
+    }
+    #[inline]
+    fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
+        match self {
+            Window::Cached(w) => w.px(f, x, y),
+            Window::Packed(w) => w.pixel(f, x, y),
+        }
+    }
+    fn rgb_into(&self, f: usize, out: &mut RgbImage) {
+        match self {
+            Window::Cached(w) => w.rgb_into(f, out),
+            Window::Packed(w) => w.rgb_into(f, out),
+        }
+    }
+}
+
+/// What trying a per-region loop came to.
+enum Baked {
+    /// The thesis's loop already wraps as it steps: nothing tried.
+    ThesisSmooth(crate::regions::Quality),
+    /// Tried, measured no better than the thesis's loop: the labels, their quality, the
+    /// thesis's.
+    Worse(
+        crate::regions::RegionLoop,
+        crate::regions::Quality,
+        crate::regions::Quality,
+    ),
+    /// Kept: the labels (counted in the window), their quality, the thesis's.
+    Kept(
+        crate::regions::RegionLoop,
+        crate::regions::Quality,
+        crate::regions::Quality,
+    ),
+}
+
+/// Chooses and measures the per-region loop of `window` (source frames holding the thesis's
+/// loop `own`, counted from the window's first frame; `masks` theirs) against the thesis's loop
+/// measured alike. The baked frames are made to be measured and dropped: none is held.
+fn bake_regions<F: crate::regions::Frames + ?Sized>(
+    window: &F,
+    masks: &[Mask],
+    own: crate::regions::Label,
+    alpha: Option<&GrayImage>,
+    rp: &crate::regions::RegionParams,
+    min_length: usize,
+) -> Result<Baked> {
+    use crate::regions::{quality_of, single_frame, single_loop, Quality};
+    let one = single_loop(own, window.dimensions(), rp.tile);
+    let single = quality_of(
+        |t| {
+            let mut rgb = RgbImage::new(0, 0);
+            window.rgb_into(single_frame(&one, t), &mut rgb);
+            Cow::Owned(rgb)
+        },
+        window,
+        &one,
+        alpha,
+    );
+    // Asked only where better: a thesis's loop that already wraps as it steps (an exact repeat
+    // among them; not every loop whose eq. (1) cost is 0: a looped clip's own jump can fall
+    // inside it) is kept without trying.
+    if rp.only_if_better && !Quality::shows(&single) {
+        return Ok(Baked::ThesisSmooth(single));
+    }
+    let rl = crate::regions::solve(window, alpha, Some(own.period), min_length, rp)?;
+    let bake = Bake::new(window, masks, &rl, rp.feather);
+    let quality = quality_of(|t| Cow::Owned(bake.frame(t).0), window, &rl, alpha);
+    drop(bake);
+    Ok(if rp.only_if_better && !quality.better_than(&single) {
+        Baked::Worse(rl, quality, single)
+    } else {
+        Baked::Kept(rl, quality, single)
+    })
+}
+
+/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly until they
+/// take `budget` bytes (the frames past it are left out).
+fn read_window(
+    src: &mut dyn FrameSource,
+    range: std::ops::Range<usize>,
+    n: usize,
+    budget: usize,
+    label: &dyn Fn(&str) -> String,
+) -> Result<crate::packed::PackedFrames> {
+    let mut window = crate::packed::PackedFrames::new();
+    let mut full = false;
+    let got = src.for_each_native(&mut |i, frame| {
+        if range.contains(&i) && !full {
+            window.push(frame)?;
+            full = window.byte_len() > budget;
+        }
+        Ok(())
+    })?;
+    if got != n {
+        return Err(Error::Source {
+            view: label(""),
+            message: format!("gave {n} frames on the first read and {got} on the third"),
+        });
+    }
+    Ok(window)
 }

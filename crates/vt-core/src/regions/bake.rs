@@ -26,46 +26,100 @@ fn axis_blend(len: u32, tile: u32, count: usize, feather: u32) -> Vec<AxisBlend>
 
 /// The baked loop: `L + 1` frames (frame `L` is frame 0 again) and their masks, each pixel's
 /// colour the feathered mix of its tiles' source frames, its mask bit its own tile's; with
-/// `rl.blend`, plus the wrap correction of [`correction`].
-pub fn compose(
-    frames: &[RgbImage],
+/// `rl.blend`, plus the wrap correction of [`correction`]. All at once: [`Bake`] makes them one
+/// at a time.
+pub fn compose<F: Frames + ?Sized>(
+    frames: &F,
     masks: &[Mask],
     rl: &RegionLoop,
     feather: u32,
 ) -> (Vec<RgbImage>, Vec<Mask>) {
-    let (w, h) = frames[0].dimensions();
-    let (cols, rows) = rl.grid;
-    let bx = axis_blend(w, rl.tile, cols, feather);
-    let by = axis_blend(h, rl.tile, rows, feather);
-    let spread = match rl.blend {
-        Some(_) => spreads(frames, rl),
-        None => vec![1; rl.labels.len()],
-    };
-    let out: Vec<(RgbImage, Mask)> = (0..=rl.length)
+    let bake = Bake::new(frames, masks, rl, feather);
+    (0..=rl.length)
         .into_par_iter()
-        .map(|t| {
-            let t = (t + rl.phase) % rl.length;
-            let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
-            let shown = ramps(rl, &spread, t);
-            let raw: Vec<&[u8]> = frames.iter().map(|f| f.as_raw().as_slice()).collect();
-            // Unsmoothed, the correction is added pixel by pixel below; smoothed, as a field.
-            let inline = rl.blend == Some(0.0);
-            let corr = rl
-                .blend
-                .filter(|&s| s > 0.0)
-                .map(|sigma| correction(frames, rl, &spread, (&bx, &by), t, sigma));
-            let mut img = RgbImage::new(w, h);
-            let out = img.as_mut();
-            for y in 0..h as usize {
+        .map(|t| bake.frame(t))
+        .unzip()
+}
+
+/// A baked loop's frames made one at a time ([`Bake::frame`]), so that a long loop of large
+/// frames streams instead of being held: what every frame shares (each axis's tile blend, each
+/// tile's correction spread) is computed once.
+pub struct Bake<'a, F: ?Sized> {
+    frames: &'a F,
+    masks: &'a [Mask],
+    rl: &'a RegionLoop,
+    bx: Vec<AxisBlend>,
+    by: Vec<AxisBlend>,
+    spread: Vec<usize>,
+    /// Output frame 0 shows the labels' time `phase` (`rl.phase`, or as [`Bake::rotated`]).
+    phase: usize,
+}
+
+impl<'a, F: Frames + ?Sized> Bake<'a, F> {
+    /// The bake of `rl` from `frames` (the source window `rl`'s labels count in) and their
+    /// `masks`, tiles feathered over `feather` pixels.
+    pub fn new(frames: &'a F, masks: &'a [Mask], rl: &'a RegionLoop, feather: u32) -> Self {
+        let (w, h) = frames.dimensions();
+        let (cols, rows) = rl.grid;
+        let spread = match rl.blend {
+            Some(_) => spreads(frames, rl),
+            None => vec![1; rl.labels.len()],
+        };
+        Self {
+            frames,
+            masks,
+            rl,
+            bx: axis_blend(w, rl.tile, cols, feather),
+            by: axis_blend(h, rl.tile, rows, feather),
+            spread,
+            phase: rl.phase,
+        }
+    }
+
+    /// The same bake with its frame 0 the old frame `by`, as [`rotate`] turns baked frames:
+    /// the player's wrap `L -> 1` then shows the old step `by -> by + 1`.
+    pub fn rotated(mut self, by: usize) -> Self {
+        self.phase = (self.phase + by) % self.rl.length;
+        self
+    }
+
+    /// The loop the frames show (its phase as rotated).
+    pub fn region_loop(&self) -> RegionLoop {
+        RegionLoop {
+            phase: self.phase,
+            ..self.rl.clone()
+        }
+    }
+
+    /// Output frame `t` (`0..=L`; `L` is frame 0 again) and its mask.
+    pub fn frame(&self, t: usize) -> (RgbImage, Mask) {
+        let (rl, frames) = (self.rl, self.frames);
+        let (w, h) = frames.dimensions();
+        let cols = rl.grid.0;
+        let t = (t + self.phase) % rl.length;
+        let src = |tx: usize, ty: usize| rl.labels[ty * cols + tx].frame(t);
+        let shown = ramps(rl, &self.spread, t);
+        // Unsmoothed, the correction is added pixel by pixel below; smoothed, as a field.
+        let inline = rl.blend == Some(0.0);
+        let corr = rl
+            .blend
+            .filter(|&s| s > 0.0)
+            .map(|sigma| correction(frames, rl, &self.spread, (&self.bx, &self.by), t, sigma));
+        let mut img = RgbImage::new(w, h);
+        img.par_chunks_mut(3 * w as usize)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let by = self.by[y];
                 for x in 0..w as usize {
-                    let i = 3 * (y * w as usize + x);
+                    let i = 3 * x;
                     let mut acc = [0f32; 3];
-                    for (tile, wt) in tile_weights(bx[x], by[y], cols) {
+                    for (tile, wt) in tile_weights(self.bx[x], by, cols) {
                         if wt > 0.0 {
                             let (f, s, e, r) = shown[tile];
-                            let p = &raw[f][i..i + 3];
-                            if inline {
-                                let (a, b) = (&raw[s][i..i + 3], &raw[e][i..i + 3]);
+                            let p = frames.px(f, x as u32, y as u32);
+                            if inline && r != 0.0 {
+                                let a = frames.px(s, x as u32, y as u32);
+                                let b = frames.px(e, x as u32, y as u32);
                                 for c in 0..3 {
                                     acc[c] += wt * (p[c] as f32 + r * (b[c] as f32 - a[c] as f32));
                                 }
@@ -77,23 +131,22 @@ pub fn compose(
                         }
                     }
                     if let Some(corr) = &corr {
+                        let k = 3 * (y * w as usize + x);
                         for c in 0..3 {
-                            acc[c] += corr[i + c];
+                            acc[c] += corr[k + c];
                         }
                     }
                     for c in 0..3 {
-                        out[i + c] = acc[c].round().clamp(0.0, 255.0) as u8;
+                        row[i + c] = acc[c].round().clamp(0.0, 255.0) as u8;
                     }
                 }
-            }
-            let mask = Mask::from_fn(w, h, |x, y| {
-                let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
-                masks[f].get(x, y)
             });
-            (img, mask)
-        })
-        .collect();
-    out.into_iter().unzip()
+        let mask = Mask::from_fn(w, h, |x, y| {
+            let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
+            self.masks[f].get(x, y)
+        });
+        (img, mask)
+    }
 }
 
 /// Per tile at labels' time `t`: the source frame shown, its wrap's two frames `s` and `s + p`,
@@ -127,24 +180,59 @@ fn ramps(rl: &RegionLoop, spread: &[usize], t: usize) -> Vec<(usize, usize, usiz
 /// `rl.spread` of the tile's median ordinary step (a tile whose wrap mismatch is already that
 /// small gets none), at most its whole cycle (`rl.spread` 0: the whole cycle). The less it is
 /// spread, the closer the frames stay to the source's.
-pub fn spreads(frames: &[RgbImage], rl: &RegionLoop) -> Vec<usize> {
+pub fn spreads<F: Frames + ?Sized>(frames: &F, rl: &RegionLoop) -> Vec<usize> {
     if rl.spread == 0.0 {
         return rl.labels.iter().map(|l| l.period).collect();
     }
-    let (w, h) = frames[0].dimensions();
+    let (w, h) = frames.dimensions();
     let tile_px = tile_pixels(rl, w, h);
     let ones = vec![1f32; (w * h) as usize];
-    let tile_mad = |a: &RgbImage, b: &RgbImage, px: &[usize]| {
-        let (s, n) = mad(a, b, px, &ones);
-        s / n.max(1e-9)
+    // Frame by frame (each read whole once per pair, not tile by tile): per pair of frames,
+    // each tile's step where a tile needs it. The pairs: each source step `f -> f + 1` inside
+    // some tile's cycle, and each tile's wrap `s -> s + p`.
+    let mut pairs: Vec<(usize, usize)> = rl
+        .labels
+        .iter()
+        .flat_map(|l| (l.start..l.start + l.period - 1).map(|f| (f, f + 1)))
+        .chain(rl.labels.iter().map(|l| (l.start, l.start + l.period)))
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    let wanted = |l: &Label, (a, b): (usize, usize)| {
+        (b == a + 1 && a >= l.start && b < l.start + l.period)
+            || (a, b) == (l.start, l.start + l.period)
     };
+    let mads: Vec<Vec<f64>> = pairs
+        .par_iter()
+        .map_init(
+            || (RgbImage::new(w, h), RgbImage::new(w, h)),
+            |(fa, fb), &(a, b)| {
+                frames.rgb_into(a, fa);
+                frames.rgb_into(b, fb);
+                rl.labels
+                    .iter()
+                    .zip(&tile_px)
+                    .map(|(l, px)| {
+                        if wanted(l, (a, b)) {
+                            let (s, n) = mad(fa, fb, px, &ones);
+                            s / n.max(1e-9)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            },
+        )
+        .collect();
+    let tile_mad =
+        |k: usize, pair: (usize, usize)| mads[pairs.binary_search(&pair).expect("listed above")][k];
     rl.labels
         .par_iter()
-        .zip(&tile_px)
-        .map(|(l, px)| {
-            let d = tile_mad(&frames[l.start + l.period], &frames[l.start], px);
+        .enumerate()
+        .map(|(k, l)| {
+            let d = tile_mad(k, (l.start, l.start + l.period));
             let steps: Vec<f64> = (l.start..l.start + l.period - 1)
-                .map(|f| tile_mad(&frames[f + 1], &frames[f], px))
+                .map(|f| tile_mad(k, (f, f + 1)))
                 .collect();
             let step = median(steps).max(crate::seam::MIN_UNIT);
             ((d / (rl.spread as f64 * step)).ceil() as usize).clamp(1, l.period)
@@ -195,15 +283,15 @@ fn tile_weights(
 /// of `sigma` pixels (0: none), which keeps only its smooth part (after Liao, Finch and Hoppe
 /// 2015, whose multigrid solve makes a spatially smooth correction): what it removes of `D`,
 /// the fine detail, stays at the wrap, so the frames keep the source's detail.
-pub fn correction(
-    frames: &[RgbImage],
+pub fn correction<F: Frames + ?Sized>(
+    frames: &F,
     rl: &RegionLoop,
     spread: &[usize],
     (bx, by): (&[AxisBlend], &[AxisBlend]),
     t: usize,
     sigma: f32,
 ) -> Vec<f32> {
-    let (w, h) = frames[0].dimensions();
+    let (w, h) = frames.dimensions();
     let cols = rl.grid.0;
     let ramp = ramps(rl, spread, t);
     let mut out = vec![0f32; 3 * (w * h) as usize];
@@ -213,7 +301,7 @@ pub fn correction(
             for (tile, wt) in tile_weights(bx[x as usize], by[y as usize], cols) {
                 if wt > 0.0 {
                     let (_, s, e, r) = ramp[tile];
-                    let (a, b) = (frames[s].get_pixel(x, y), frames[e].get_pixel(x, y));
+                    let (a, b) = (frames.px(s, x, y), frames.px(e, x, y));
                     for c in 0..3 {
                         out[i + c] += wt * r * (b[c] as f32 - a[c] as f32);
                     }

@@ -33,19 +33,20 @@ mod quality;
 mod solve;
 
 use bake::*;
-pub use bake::{compose, correction, rotate, single_loop, spreads, AxisBlend};
+pub use bake::{compose, correction, rotate, single_loop, spreads, AxisBlend, Bake};
 use quality::{mad, median};
-pub use quality::{quality, single_frames, Quality};
+pub use quality::{quality, quality_of, single_frame, single_frames, Quality};
 pub use solve::{solve, Problem, Strips, Temporal};
 
 /// The parameters of per-region loops.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RegionParams {
-    /// Tile side, full-resolution pixels.
+    /// Tile side, full-resolution pixels, at the base reduction `scale`: frames reduced further
+    /// get tiles as much larger (the chosen side is [`RegionLoop::tile`]).
     pub tile: u32,
     /// Reduction of the frames the labels are chosen on (block mean of `scale` x `scale`), at
-    /// least: doubled for large frames while it divides the tile side, to at most 32,768
-    /// reduced pixels.
+    /// least: doubled for large frames, the tile side with it, to at most 32,768 reduced
+    /// pixels (or a 256-pixel tile).
     pub scale: u32,
     /// Longest baked loop, frames.
     pub max_length: usize,
@@ -179,6 +180,91 @@ impl Label {
     }
 }
 
+/// The source frames a per-region loop is chosen and baked from: RGB images, or the frames as
+/// the analysis holds them ([`crate::analysis::Frame`]: 4:2:0 video frames, converted pixel by
+/// pixel as the bake reads them, so that a window of HD frames takes half the memory of RGB).
+pub trait Frames: Sync {
+    /// How many frames.
+    fn count(&self) -> usize;
+    /// `(width, height)` of every frame.
+    fn dimensions(&self) -> (u32, u32);
+    /// Pixel `(x, y)` of frame `f`, RGB.
+    fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3];
+    /// Frame `f` in RGB, into `out` (resized if needed).
+    fn rgb_into(&self, f: usize, out: &mut RgbImage);
+}
+
+impl Frames for [RgbImage] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        self[0].dimensions()
+    }
+    #[inline]
+    fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
+        self[f].get_pixel(x, y).0
+    }
+    fn rgb_into(&self, f: usize, out: &mut RgbImage) {
+        crate::analysis::FrameRef::Rgb(&self[f]).to_rgb_into(out)
+    }
+}
+
+impl Frames for [crate::analysis::Frame] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        self[0].as_ref().dimensions()
+    }
+    #[inline]
+    fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
+        match &self[f] {
+            crate::analysis::Frame::Rgb(img) => img.get_pixel(x, y).0,
+            crate::analysis::Frame::Yuv420(img) => img.pixel(x, y),
+        }
+    }
+    fn rgb_into(&self, f: usize, out: &mut RgbImage) {
+        self[f].as_ref().to_rgb_into(out)
+    }
+}
+
+impl Frames for crate::packed::PackedFrames {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        crate::packed::PackedFrames::dimensions(self)
+    }
+    #[inline]
+    fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
+        self.pixel(f, x, y)
+    }
+    fn rgb_into(&self, f: usize, out: &mut RgbImage) {
+        crate::packed::PackedFrames::rgb_into(self, f, out)
+    }
+}
+
+impl<T> Frames for Vec<T>
+where
+    [T]: Frames,
+    T: Sync,
+{
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        self.as_slice().dimensions()
+    }
+    #[inline]
+    fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
+        self.as_slice().px(f, x, y)
+    }
+    fn rgb_into(&self, f: usize, out: &mut RgbImage) {
+        self.as_slice().rgb_into(f, out)
+    }
+}
+
 /// Frames reduced for the label search: RGB as `f32`, per-pixel weights (the dynamic region).
 pub struct Reduced {
     /// Width and height.
@@ -197,8 +283,12 @@ const MAX_REDUCED: usize = 32_768;
 const OUTSIDE: f32 = 0.02;
 
 /// Block-mean reduction of `frames` by `scale`, weighted by `alpha` (0..255; None: all 1).
-pub fn reduce(frames: &[RgbImage], alpha: Option<&image::GrayImage>, scale: u32) -> Reduced {
-    let (w, h) = frames[0].dimensions();
+pub fn reduce<F: Frames + ?Sized>(
+    frames: &F,
+    alpha: Option<&image::GrayImage>,
+    scale: u32,
+) -> Reduced {
+    let (w, h) = frames.dimensions();
     let (rw, rh) = (w.div_ceil(scale) as usize, h.div_ceil(scale) as usize);
     let reduce_one = |f: &RgbImage| -> Vec<f32> {
         let mut out = vec![0f32; 3 * rw * rh];
@@ -217,7 +307,17 @@ pub fn reduce(frames: &[RgbImage], alpha: Option<&image::GrayImage>, scale: u32)
         }
         out
     };
-    let reduced: Vec<Vec<f32>> = frames.par_iter().map(reduce_one).collect();
+    // One frame in RGB at a time per thread.
+    let reduced: Vec<Vec<f32>> = (0..frames.count())
+        .into_par_iter()
+        .map_init(
+            || RgbImage::new(w, h),
+            |buf, i| {
+                frames.rgb_into(i, buf);
+                reduce_one(buf)
+            },
+        )
+        .collect();
     let mut weight = vec![0f32; rw * rh];
     let mut count = vec![0f32; rw * rh];
     for y in 0..h {

@@ -1,5 +1,7 @@
 //! Measuring a baked loop: tile wraps, sharpness near wraps, error to the source frames.
 
+use std::borrow::Cow;
+
 use super::*;
 
 /// What a baked loop looks like, measured on its frames inside the dynamic region.
@@ -55,13 +57,39 @@ impl Quality {
 /// `frames`.
 pub fn single_frames<'a>(frames: &'a [RgbImage], rl: &RegionLoop) -> Vec<&'a RgbImage> {
     (0..=rl.length)
-        .map(|t| &frames[rl.labels[0].frame((t + rl.phase) % rl.length)])
+        .map(|t| &frames[single_frame(rl, t)])
         .collect()
+}
+
+/// The source frame a single-label loop from [`single_loop`] shows at output time `t`.
+pub fn single_frame(rl: &RegionLoop, t: usize) -> usize {
+    rl.labels[0].frame((t + rl.phase) % rl.length)
+}
+
+/// Pixel index `i` of frame `f` of `frames`, `w` pixels wide.
+#[inline]
+pub(super) fn at<F: Frames + ?Sized>(frames: &F, f: usize, i: usize, w: u32) -> [u8; 3] {
+    frames.px(f, (i % w as usize) as u32, (i / w as usize) as u32)
 }
 
 /// Weighted mean absolute difference over `px` (full-resolution pixel indices).
 pub(super) fn mad(a: &RgbImage, b: &RgbImage, px: &[usize], wt: &[f32]) -> (f64, f64) {
     let (ra, rb) = (a.as_raw(), b.as_raw());
+    mad_by(
+        |i| [ra[3 * i], ra[3 * i + 1], ra[3 * i + 2]],
+        |i| [rb[3 * i], rb[3 * i + 1], rb[3 * i + 2]],
+        px,
+        wt,
+    )
+}
+
+/// [`mad`] of two pixel readers.
+pub(super) fn mad_by(
+    a: impl Fn(usize) -> [u8; 3],
+    b: impl Fn(usize) -> [u8; 3],
+    px: &[usize],
+    wt: &[f32],
+) -> (f64, f64) {
     let mut s = 0f64;
     let mut n = 0f64;
     for &i in px {
@@ -69,9 +97,8 @@ pub(super) fn mad(a: &RgbImage, b: &RgbImage, px: &[usize], wt: &[f32]) -> (f64,
         if w == 0.0 {
             continue;
         }
-        let d = (0..3)
-            .map(|c| ra[3 * i + c].abs_diff(rb[3 * i + c]) as u32)
-            .sum::<u32>();
+        let (p, q) = (a(i), b(i));
+        let d = (0..3).map(|c| p[c].abs_diff(q[c]) as u32).sum::<u32>();
         s += w * d as f64 / 3.0;
         n += w;
     }
@@ -87,105 +114,212 @@ pub(super) fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Measures `baked` (from [`compose`]) against `source` inside the dynamic region `alpha`.
-pub fn quality<B: Borrow<RgbImage> + Sync>(
+pub fn quality<B, F>(
     baked: &[B],
-    source: &[RgbImage],
+    source: &F,
     rl: &RegionLoop,
     alpha: Option<&image::GrayImage>,
-) -> Quality {
-    let (w, h) = source[0].dimensions();
+) -> Quality
+where
+    B: Borrow<RgbImage> + Sync,
+    F: Frames + ?Sized,
+{
+    quality_of(|t| Cow::Borrowed(baked[t].borrow()), source, rl, alpha)
+}
+
+/// One tile's running measurements over the baked frames.
+#[derive(Default)]
+struct TileTally {
+    ordinary: Vec<f64>,
+    wraps: Vec<f64>,
+    /// Sum over frames of the distance to the nearest candidate source frame.
+    error: f64,
+    /// Sum and count of the gradient energy of the frames near its wraps.
+    near: (f64, usize),
+}
+
+/// [`quality`] of a loop whose baked frames `make(t)` gives (`t` in `0..=L`), each asked for
+/// once or twice (frame 1 again for the player's wrap) and in order: the frames stream, two or
+/// three held at a time, so a long loop of large frames is measured in the memory of a few.
+pub fn quality_of<'m, M, F>(
+    make: M,
+    source: &F,
+    rl: &RegionLoop,
+    alpha: Option<&image::GrayImage>,
+) -> Quality
+where
+    M: Fn(usize) -> Cow<'m, RgbImage>,
+    F: Frames + ?Sized,
+{
+    let (w, h) = source.dimensions();
     let wt: Vec<f32> = match alpha {
         Some(a) => a.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
         None => vec![1.0; (w * h) as usize],
     };
     let all: Vec<usize> = (0..(w * h) as usize).collect();
     let l = rl.length;
-    // Steps 0 -> 1 .. L-1 -> L, then the player's wrap L -> 1.
-    let mut steps: Vec<f64> = (0..l)
-        .into_par_iter()
-        .map(|t| {
-            let (s, n) = mad(baked[t].borrow(), baked[t + 1].borrow(), &all, &wt);
-            s / n.max(1e-9)
+    let (cols, _) = rl.grid;
+    let tile_px = tile_pixels(rl, w, h);
+    let rows = rl.labels.len() / cols;
+    let at_t = |t: usize| (t + rl.phase) % l;
+    // Per tile: its share of the dynamic region, whether it counts (at least 10% dynamic), and
+    // the frames near its wraps (from one before to two after each).
+    let share: Vec<f64> = tile_px
+        .iter()
+        .map(|px| px.iter().map(|&i| wt[i] as f64).sum::<f64>())
+        .collect();
+    let counts: Vec<bool> = tile_px
+        .iter()
+        .zip(&share)
+        .map(|(px, &s)| s >= 0.1 * px.len() as f64)
+        .collect();
+    let wraps_at = |lab: &Label, t: usize| lab.frame(at_t(t + 1)) != lab.frame(at_t(t)) + 1;
+    let near: Vec<Vec<bool>> = rl
+        .labels
+        .iter()
+        .map(|lab| {
+            let mut near = vec![false; l];
+            for t in (0..l).filter(|&t| wraps_at(lab, t)) {
+                for k in [t + l - 1, t, t + 1, t + 2] {
+                    near[k % l] = true;
+                }
+            }
+            near
         })
         .collect();
-    let (s, n) = mad(baked[l].borrow(), baked[1.min(l)].borrow(), &all, &wt);
-    steps.push(s / n.max(1e-9));
+    // Per baked frame, per tile: the nearest of the source frames the tile and its eight
+    // neighbours show at that time (an upper bound of the distance to the nearest source
+    // frame of all).
+    let candidates = |ti: usize, t: usize| -> Vec<usize> {
+        let (tx, ty) = (ti % cols, ti / cols);
+        let mut cand: Vec<usize> = (ty.saturating_sub(1)..(ty + 2).min(rows))
+            .flat_map(|y| {
+                (tx.saturating_sub(1)..(tx + 2).min(cols))
+                    .map(move |x| rl.labels[y * cols + x].frame(at_t(t)))
+            })
+            .collect();
+        cand.sort_unstable();
+        cand.dedup();
+        cand
+    };
+    let mut tally: Vec<TileTally> = (0..rl.labels.len()).map(|_| TileTally::default()).collect();
+    // Steps 0 -> 1 .. L-1 -> L, then the player's wrap L -> 1.
+    let mut steps = Vec::with_capacity(l + 1);
+    let mut ge_baked = 0.0;
+    let mut prev = make(0);
+    let mut second = None;
+    for t in 0..l {
+        let next = make(t + 1);
+        let (a, b) = (prev.as_ref(), next.as_ref());
+        let (s, n) = mad(a, b, &all, &wt);
+        steps.push(s / n.max(1e-9));
+        ge_baked += crate::metrics::gradient_energy_at(a, None, Some(&wt));
+        tally
+            .par_iter_mut()
+            .enumerate()
+            .filter(|(ti, _)| counts[*ti])
+            .for_each(|(ti, tt)| {
+                let (px, lab) = (&tile_px[ti], &rl.labels[ti]);
+                let (s, n) = mad(a, b, px, &wt);
+                let step = s / n.max(1e-9);
+                if wraps_at(lab, t) {
+                    tt.wraps.push(step);
+                } else {
+                    tt.ordinary.push(step);
+                }
+                tt.error += candidates(ti, t)
+                    .into_iter()
+                    .map(|f| {
+                        let (e, n) = mad_by(
+                            |i| {
+                                [
+                                    a.as_raw()[3 * i],
+                                    a.as_raw()[3 * i + 1],
+                                    a.as_raw()[3 * i + 2],
+                                ]
+                            },
+                            |i| at(source, f, i, w),
+                            px,
+                            &wt,
+                        );
+                        e / n.max(1e-9)
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                if near[ti][t] {
+                    tt.near.0 += crate::metrics::gradient_energy_at(a, Some(px), Some(&wt));
+                    tt.near.1 += 1;
+                }
+            });
+        if t == 0 {
+            second = Some(next.clone().into_owned());
+        }
+        prev = next;
+    }
+    if let Some(first) = second.as_ref().filter(|_| l >= 1) {
+        let (s, n) = mad(prev.as_ref(), first, &all, &wt);
+        steps.push(s / n.max(1e-9));
+    } else {
+        steps.push(0.0);
+    }
+    drop((prev, second));
     let med = median(steps.clone()).max(1e-9);
     let smoothest = (0..l)
         .min_by(|&a, &b| steps[a].total_cmp(&steps[b]))
         .unwrap_or(0);
     let worst_step = steps.iter().cloned().fold(0.0, f64::max) / med;
-    // Per tile.
-    let (cols, _) = rl.grid;
-    let tile_px = tile_pixels(rl, w, h);
-    let rows = rl.labels.len() / cols;
-    let at = |t: usize| (t + rl.phase) % l;
-    // Per tile: its wrap ratio, its source error, its gradient energy near its wraps and in
-    // the source, and its share of the dynamic region.
-    let per_tile: Vec<(f64, f64, f64, f64, f64)> = tile_px
-        .par_iter()
-        .zip(&rl.labels)
-        .enumerate()
-        .map(|(ti, (px, lab))| {
-            let share: f64 = px.iter().map(|&i| wt[i] as f64).sum::<f64>();
-            if share < 0.1 * px.len() as f64 {
-                return (0.0, 0.0, 0.0, 0.0, share);
-            }
-            let mut ordinary = Vec::new();
-            let mut wraps = Vec::new();
-            let mut near = vec![false; l];
-            for t in 0..l {
-                let (s, n) = mad(baked[t].borrow(), baked[t + 1].borrow(), px, &wt);
-                let step = s / n.max(1e-9);
-                if lab.frame(at(t + 1)) == lab.frame(at(t)) + 1 {
-                    ordinary.push(step);
-                } else {
-                    wraps.push(step);
-                    for k in [t + l - 1, t, t + 1, t + 2] {
-                        near[k % l] = true;
-                    }
-                }
-            }
-            let med = median(ordinary).max(crate::seam::MIN_UNIT);
-            let wrap = wraps.iter().sum::<f64>() / wraps.len().max(1) as f64 / med;
-            // Per baked frame, the nearest of the source frames the tile and its eight
-            // neighbours show at that time (an upper bound of the distance to the nearest
-            // source frame of all).
-            let (tx, ty) = (ti % cols, ti / cols);
-            let err: f64 = (0..l)
-                .map(|t| {
-                    let mut cand: Vec<usize> = (ty.saturating_sub(1)..(ty + 2).min(rows))
-                        .flat_map(|y| {
-                            (tx.saturating_sub(1)..(tx + 2).min(cols))
-                                .map(move |x| rl.labels[y * cols + x].frame(at(t)))
-                        })
-                        .collect();
-                    cand.sort_unstable();
-                    cand.dedup();
-                    cand.iter()
-                        .map(|&f| {
-                            let (e, n) = mad(baked[t].borrow(), &source[f], px, &wt);
-                            e / n.max(1e-9)
-                        })
-                        .fold(f64::INFINITY, f64::min)
-                })
-                .sum::<f64>()
-                / l as f64;
-            let ge_near = {
-                let v: Vec<f64> = (0..l)
-                    .filter(|&t| near[t])
-                    .map(|t| {
-                        crate::metrics::gradient_energy_at(baked[t].borrow(), Some(px), Some(&wt))
+    // The source frames' gradient energy, per tile and over the frame, one frame in RGB at a
+    // time per thread.
+    let n_src = source.count();
+    let (ge_src_tiles, ge_src) = (0..n_src)
+        .into_par_iter()
+        .map_init(
+            || RgbImage::new(w, h),
+            |buf, f| {
+                source.rgb_into(f, buf);
+                let tiles: Vec<f64> = tile_px
+                    .iter()
+                    .zip(&counts)
+                    .map(|(px, &c)| {
+                        if c {
+                            crate::metrics::gradient_energy_at(buf, Some(px), Some(&wt))
+                        } else {
+                            0.0
+                        }
                     })
                     .collect();
-                v.iter().sum::<f64>() / v.len().max(1) as f64
-            };
-            let ge_src = source
-                .iter()
-                .map(|f| crate::metrics::gradient_energy_at(f, Some(px), Some(&wt)))
-                .sum::<f64>()
-                / source.len() as f64;
-            (wrap, err, ge_near, ge_src, share)
+                (
+                    tiles,
+                    crate::metrics::gradient_energy_at(buf, None, Some(&wt)),
+                )
+            },
+        )
+        .reduce(
+            || (vec![0.0; tile_px.len()], 0.0),
+            |(mut a, x), (b, y)| {
+                for (a, b) in a.iter_mut().zip(&b) {
+                    *a += b;
+                }
+                (a, x + y)
+            },
+        );
+    // Per tile: its wrap ratio, its source error, its gradient energy near its wraps and in
+    // the source, and its share of the dynamic region.
+    let per_tile: Vec<(f64, f64, f64, f64, f64)> = tally
+        .into_iter()
+        .enumerate()
+        .map(|(ti, tt)| {
+            if !counts[ti] {
+                return (0.0, 0.0, 0.0, 0.0, share[ti]);
+            }
+            let med = median(tt.ordinary).max(crate::seam::MIN_UNIT);
+            let wrap = tt.wraps.iter().sum::<f64>() / tt.wraps.len().max(1) as f64 / med;
+            (
+                wrap,
+                tt.error / l as f64,
+                tt.near.0 / tt.near.1.max(1) as f64,
+                ge_src_tiles[ti] / n_src as f64,
+                share[ti],
+            )
         })
         .collect();
     let total: f64 = per_tile.iter().filter(|t| t.0 > 0.0).map(|t| t.4).sum();
@@ -213,20 +347,12 @@ pub fn quality<B: Borrow<RgbImage> + Sync>(
             .sum::<f64>()
             / total.max(1e-9)
     };
-    let ge = |v: &[&RgbImage]| {
-        v.par_iter()
-            .map(|f| crate::metrics::gradient_energy_at(f, None, Some(&wt)))
-            .sum::<f64>()
-            / v.len() as f64
-    };
-    let baked: Vec<&RgbImage> = baked[..l].iter().map(|f| f.borrow()).collect();
-    let source: Vec<&RgbImage> = source.iter().collect();
     Quality {
         smoothest,
         worst_step,
         tile_wrap: quantile(0.5),
         tile_wrap_p90: quantile(0.9),
-        sharpness: ge(&baked) / ge(&source).max(1e-9),
+        sharpness: (ge_baked / l.max(1) as f64) / (ge_src / n_src as f64).max(1e-9),
         source_error: wmean(|t| t.1),
         sharpness_near: wmean(|t| t.2) / wmean(|t| t.3).max(1e-9),
     }

@@ -364,8 +364,8 @@ impl Strips {
 /// Chooses the per-region loop of `frames` (the view's source frames, `first` the number of
 /// frames[0]) weighted by the dynamic region `alpha`; `own` is the thesis loop's period (a
 /// candidate length), `min_period` the shortest period allowed.
-pub fn solve(
-    frames: &[RgbImage],
+pub fn solve<F: Frames + ?Sized>(
+    frames: &F,
     alpha: Option<&image::GrayImage>,
     own: Option<usize>,
     min_period: usize,
@@ -373,25 +373,26 @@ pub fn solve(
 ) -> Result<RegionLoop> {
     params.check()?;
     let started = std::time::Instant::now();
-    if frames.len() < 4 {
+    if frames.count() < 4 {
         return Err(Error::TooFewFrames {
             what: "per-region loops".into(),
-            got: frames.len(),
+            got: frames.count(),
             need: 4,
             why: "a loop needs a few frames".into(),
         });
     }
-    // Larger frames are reduced further (the scale doubled while it divides the tile side) so
-    // that the reduced frames hold at most `MAX_REDUCED` pixels.
-    let (w, h) = frames[0].dimensions();
-    let mut scale = params.scale;
-    while (w.div_ceil(scale) * h.div_ceil(scale)) as usize > MAX_REDUCED
-        && params.tile.is_multiple_of(2 * scale)
-    {
+    // Larger frames are reduced further so that the reduced frames hold at most `MAX_REDUCED`
+    // pixels, and their tiles grow with the reduction: a tile keeps its reduced pixels, the
+    // grid stays as coarse as at the base size (a 1080p view gets 64-pixel tiles where 320x240
+    // gets 16, about 500 tiles either way, not 8,000 whose pairwise costs would not fit).
+    let (w, h) = frames.dimensions();
+    let (mut scale, mut tile) = (params.scale, params.tile);
+    while (w.div_ceil(scale) * h.div_ceil(scale)) as usize > MAX_REDUCED && tile <= 128 {
         scale *= 2;
+        tile *= 2;
     }
     let r = reduce(frames, alpha, scale);
-    let tile_r = (params.tile / scale) as usize;
+    let tile_r = (tile / scale) as usize;
     let strips = Strips::new(&r, tile_r);
     // Each loop length is its own problem. Every labelling's energy is at least the sum of its
     // tiles' lowest temporal costs (the spatial costs are not negative), so the lengths are
@@ -460,7 +461,7 @@ pub fn solve(
     let Some((energy, single_energy, pb, lab)) = best else {
         return Err(Error::TooFewFrames {
             what: "per-region loops".into(),
-            got: frames.len(),
+            got: frames.count(),
             need: min_period.max(2) + 2,
             why: "no period of any loop length fits".into(),
         });
@@ -475,7 +476,7 @@ pub fn solve(
     debug_assert!(pb.length.is_multiple_of(length));
     Ok(RegionLoop {
         length,
-        tile: params.tile,
+        tile,
         grid: pb.grid,
         labels,
         energy,

@@ -345,8 +345,9 @@ impl vt_core::analysis::Observer for StoreWriter {
     ) -> vt_core::Result<()> {
         let to_core = |e: Error| vt_core::Error::external(format!("view {view}"), e);
         // Frame 0 of the view being written: the analysis has started the view again (a
-        // handheld view found later restarts every view through the still camera). The
-        // unfinished store is dropped and its file made anew.
+        // handheld view found later restarts every view through the still camera, or a
+        // per-region loop's baked frames replace the view's). The unfinished store is dropped
+        // and its file made anew.
         if frame == 0 && self.writer.as_ref().is_some_and(|(p, _)| *p == view) {
             self.writer = None;
         }
