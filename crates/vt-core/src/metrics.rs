@@ -111,6 +111,13 @@ fn luma_at(raw: &[u8], i: usize) -> f32 {
 /// of luma both ways, with weights `wt` per pixel (`None`: 1); pixels on the last row or column
 /// and pixels of weight 0 do not count.
 pub fn gradient_energy_at(f: &RgbImage, px: Option<&[usize]>, wt: Option<&[f32]>) -> f64 {
+    let (sum, n) = gradient_sums_at(f, px, wt);
+    sum / n.max(1e-9)
+}
+
+/// The weighted sum of [`gradient_energy_at`]'s terms and the sum of their weights, so that the
+/// energies of several pixel sets add up (a frame's from its tiles').
+pub fn gradient_sums_at(f: &RgbImage, px: Option<&[usize]>, wt: Option<&[f32]>) -> (f64, f64) {
     let (w, h) = (f.width() as usize, f.height() as usize);
     let raw = f.as_raw();
     let term = |i: usize| -> (f64, f64) {
@@ -130,7 +137,7 @@ pub fn gradient_energy_at(f: &RgbImage, px: Option<&[usize]>, wt: Option<&[f32]>
             .map(|y| (y * w..(y + 1) * w).map(term).fold((0.0, 0.0), add))
             .reduce(|| (0.0, 0.0), add),
     };
-    sum / n.max(1e-9)
+    (sum, n)
 }
 
 /// [`gradient_energy_at`] over the whole frame, unweighted.

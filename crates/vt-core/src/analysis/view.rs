@@ -627,24 +627,24 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     rp: &crate::regions::RegionParams,
     min_length: usize,
 ) -> Result<Baked> {
-    use crate::regions::{quality_of, single_frame, single_loop, Quality};
-    let one = single_loop(own, window.dimensions(), rp.tile);
-    let single = quality_of(
-        |t| {
-            let mut rgb = RgbImage::new(0, 0);
-            window.rgb_into(single_frame(&one, t), &mut rgb);
-            Cow::Owned(rgb)
-        },
-        window,
-        &one,
-        alpha,
-    );
+    use crate::regions::{quality_of, single_frame, single_loop, wraps_of, Quality};
+    let dims = window.dimensions();
+    let one = single_loop(own, dims, crate::regions::reduction(dims, rp).1);
+    let frame = |t| {
+        let mut rgb = RgbImage::new(0, 0);
+        window.rgb_into(single_frame(&one, t), &mut rgb);
+        Cow::Owned(rgb)
+    };
     // Asked only where better: a thesis's loop that already wraps as it steps (an exact repeat
     // among them; not every loop whose eq. (1) cost is 0: a looped clip's own jump can fall
-    // inside it) is kept without trying.
-    if rp.only_if_better && !Quality::shows(&single) {
-        return Ok(Baked::ThesisSmooth(single));
+    // inside it) is kept without trying, on its wraps alone.
+    if rp.only_if_better {
+        let wraps = wraps_of(frame, window, &one, alpha);
+        if !Quality::shows(&wraps) {
+            return Ok(Baked::ThesisSmooth(wraps));
+        }
     }
+    let single = quality_of(frame, window, &one, alpha);
     let rl = crate::regions::solve(window, alpha, Some(own.period), min_length, rp)?;
     let bake = Bake::new(window, masks, &rl, rp.feather);
     let quality = quality_of(|t| Cow::Owned(bake.frame(t).0), window, &rl, alpha);

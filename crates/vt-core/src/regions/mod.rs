@@ -35,8 +35,8 @@ mod solve;
 use bake::*;
 pub use bake::{compose, correction, rotate, single_loop, spreads, AxisBlend, Bake};
 use quality::{mad, median};
-pub use quality::{quality, quality_of, single_frame, single_frames, Quality};
-pub use solve::{solve, Problem, Strips, Temporal};
+pub use quality::{quality, quality_of, single_frame, single_frames, wraps_of, Quality};
+pub use solve::{reduction, solve, Problem, Strips, Temporal};
 
 /// The parameters of per-region loops.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

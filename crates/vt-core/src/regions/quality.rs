@@ -151,6 +151,36 @@ where
     M: Fn(usize) -> Cow<'m, RgbImage>,
     F: Frames + ?Sized,
 {
+    measure(make, source, rl, alpha, true)
+}
+
+/// [`quality_of`]'s step figures alone ([`Quality::smoothest`], [`Quality::worst_step`],
+/// [`Quality::tile_wrap`] and its 90th percentile; the others 0), which decide whether a loop
+/// [`Quality::shows`] at a fraction of the cost: no source frame is read.
+pub fn wraps_of<'m, M, F>(
+    make: M,
+    source: &F,
+    rl: &RegionLoop,
+    alpha: Option<&image::GrayImage>,
+) -> Quality
+where
+    M: Fn(usize) -> Cow<'m, RgbImage>,
+    F: Frames + ?Sized,
+{
+    measure(make, source, rl, alpha, false)
+}
+
+fn measure<'m, M, F>(
+    make: M,
+    source: &F,
+    rl: &RegionLoop,
+    alpha: Option<&image::GrayImage>,
+    full: bool,
+) -> Quality
+where
+    M: Fn(usize) -> Cow<'m, RgbImage>,
+    F: Frames + ?Sized,
+{
     let (w, h) = source.dimensions();
     let wt: Vec<f32> = match alpha {
         Some(a) => a.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
@@ -213,7 +243,17 @@ where
         let (a, b) = (prev.as_ref(), next.as_ref());
         let (s, n) = mad(a, b, &all, &wt);
         steps.push(s / n.max(1e-9));
-        ge_baked += crate::metrics::gradient_energy_at(a, None, Some(&wt));
+        // The frame's gradient energy, summed from its tiles' (every tile, counted or not).
+        let energy = full.then(|| {
+            tile_px
+                .par_iter()
+                .map(|px| crate::metrics::gradient_sums_at(a, Some(px), Some(&wt)))
+                .collect::<Vec<_>>()
+        });
+        if let Some(e) = &energy {
+            let (s, n) = e.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+            ge_baked += s / n.max(1e-9);
+        }
         tally
             .par_iter_mut()
             .enumerate()
@@ -227,6 +267,9 @@ where
                 } else {
                     tt.ordinary.push(step);
                 }
+                let Some(energy) = &energy else {
+                    return;
+                };
                 tt.error += candidates(ti, t)
                     .into_iter()
                     .map(|f| {
@@ -246,7 +289,8 @@ where
                     })
                     .fold(f64::INFINITY, f64::min);
                 if near[ti][t] {
-                    tt.near.0 += crate::metrics::gradient_energy_at(a, Some(px), Some(&wt));
+                    let (s, n) = energy[ti];
+                    tt.near.0 += s / n.max(1e-9);
                     tt.near.1 += 1;
                 }
             });
@@ -269,28 +313,24 @@ where
     let worst_step = steps.iter().cloned().fold(0.0, f64::max) / med;
     // The source frames' gradient energy, per tile and over the frame, one frame in RGB at a
     // time per thread.
-    let n_src = source.count();
+    let n_src = if full { source.count() } else { 0 };
     let (ge_src_tiles, ge_src) = (0..n_src)
         .into_par_iter()
         .map_init(
             || RgbImage::new(w, h),
             |buf, f| {
                 source.rgb_into(f, buf);
-                let tiles: Vec<f64> = tile_px
+                let sums: Vec<(f64, f64)> = tile_px
+                    .iter()
+                    .map(|px| crate::metrics::gradient_sums_at(buf, Some(px), Some(&wt)))
+                    .collect();
+                let (s, n) = sums.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+                let tiles: Vec<f64> = sums
                     .iter()
                     .zip(&counts)
-                    .map(|(px, &c)| {
-                        if c {
-                            crate::metrics::gradient_energy_at(buf, Some(px), Some(&wt))
-                        } else {
-                            0.0
-                        }
-                    })
+                    .map(|(&(s, n), &c)| if c { s / n.max(1e-9) } else { 0.0 })
                     .collect();
-                (
-                    tiles,
-                    crate::metrics::gradient_energy_at(buf, None, Some(&wt)),
-                )
+                (tiles, s / n.max(1e-9))
             },
         )
         .reduce(
@@ -317,7 +357,7 @@ where
                 wrap,
                 tt.error / l as f64,
                 tt.near.0 / tt.near.1.max(1) as f64,
-                ge_src_tiles[ti] / n_src as f64,
+                ge_src_tiles[ti] / n_src.max(1) as f64,
                 share[ti],
             )
         })
@@ -352,7 +392,7 @@ where
         worst_step,
         tile_wrap: quantile(0.5),
         tile_wrap_p90: quantile(0.9),
-        sharpness: (ge_baked / l.max(1) as f64) / (ge_src / n_src as f64).max(1e-9),
+        sharpness: (ge_baked / l.max(1) as f64) / (ge_src / n_src.max(1) as f64).max(1e-9),
         source_error: wmean(|t| t.1),
         sharpness_near: wmean(|t| t.2) / wmean(|t| t.3).max(1e-9),
     }

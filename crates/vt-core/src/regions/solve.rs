@@ -361,6 +361,20 @@ impl Strips {
     }
 }
 
+/// The reduction and the tile side (full-resolution pixels) the labels of `frame`-sized frames
+/// are chosen at. Larger frames are reduced further so that the reduced frames hold at most
+/// 32,768 pixels, and their tiles grow with the reduction: a tile keeps its reduced pixels, the
+/// grid stays as coarse as at the base size (a 1080p view gets 64-pixel tiles where 320x240
+/// gets 16, about 500 tiles either way, not 8,000 whose pairwise costs would not fit).
+pub fn reduction((w, h): (u32, u32), params: &RegionParams) -> (u32, u32) {
+    let (mut scale, mut tile) = (params.scale, params.tile);
+    while (w.div_ceil(scale) * h.div_ceil(scale)) as usize > MAX_REDUCED && tile <= 128 {
+        scale *= 2;
+        tile *= 2;
+    }
+    (scale, tile)
+}
+
 /// Chooses the per-region loop of `frames` (the view's source frames, `first` the number of
 /// frames[0]) weighted by the dynamic region `alpha`; `own` is the thesis loop's period (a
 /// candidate length), `min_period` the shortest period allowed.
@@ -381,16 +395,7 @@ pub fn solve<F: Frames + ?Sized>(
             why: "a loop needs a few frames".into(),
         });
     }
-    // Larger frames are reduced further so that the reduced frames hold at most `MAX_REDUCED`
-    // pixels, and their tiles grow with the reduction: a tile keeps its reduced pixels, the
-    // grid stays as coarse as at the base size (a 1080p view gets 64-pixel tiles where 320x240
-    // gets 16, about 500 tiles either way, not 8,000 whose pairwise costs would not fit).
-    let (w, h) = frames.dimensions();
-    let (mut scale, mut tile) = (params.scale, params.tile);
-    while (w.div_ceil(scale) * h.div_ceil(scale)) as usize > MAX_REDUCED && tile <= 128 {
-        scale *= 2;
-        tile *= 2;
-    }
+    let (scale, tile) = reduction(frames.dimensions(), params);
     let r = reduce(frames, alpha, scale);
     let tile_r = (tile / scale) as usize;
     let strips = Strips::new(&r, tile_r);
