@@ -38,9 +38,12 @@ pub struct PackedFrames {
     width: u32,
     height: u32,
     layout: Option<Layout>,
-    /// Per frame, per band, the deflated bytes.
-    frames: Vec<Vec<Vec<u8>>>,
-    bytes: usize,
+    /// Every band's deflated bytes, frame after frame, in one buffer: one allocation, which the
+    /// allocator maps apart and gives back whole (many small ones would stay in its heap, and
+    /// the process's resident memory with them, after the window is dropped).
+    data: Vec<u8>,
+    /// Per frame, per band, its bytes' range in `data`.
+    bands: Vec<std::ops::Range<usize>>,
 }
 
 static NEXT_ID: AtomicU64 = AtomicU64::new(0);
@@ -66,19 +69,19 @@ impl PackedFrames {
             width: 0,
             height: 0,
             layout: None,
-            frames: Vec::new(),
-            bytes: 0,
+            data: Vec::new(),
+            bands: Vec::new(),
         }
     }
 
     /// How many frames.
     pub fn len(&self) -> usize {
-        self.frames.len()
+        self.bands.len() / (self.bands().max(1) as usize)
     }
 
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
-        self.frames.is_empty()
+        self.bands.is_empty()
     }
 
     /// `(width, height)` of every frame (0 x 0 before the first).
@@ -88,7 +91,7 @@ impl PackedFrames {
 
     /// Bytes the packed frames take.
     pub fn byte_len(&self) -> usize {
-        self.bytes
+        self.data.len()
     }
 
     fn bands(&self) -> u32 {
@@ -133,9 +136,21 @@ impl PackedFrames {
                 fdeflate::compress_to_vec(&raw)
             })
             .collect();
-        self.bytes += bands.iter().map(Vec::len).sum::<usize>();
-        self.frames.push(bands);
+        for band in bands {
+            let at = self.data.len();
+            self.data.extend_from_slice(&band);
+            self.bands.push(at..self.data.len());
+        }
         Ok(())
+    }
+
+    /// Keeps the first `len` frames.
+    pub fn truncate(&mut self, len: usize) {
+        if len < self.len() {
+            let keep = len * self.bands() as usize;
+            self.data.truncate(self.bands[keep].start);
+            self.bands.truncate(keep);
+        }
     }
 
     /// Band `b` of frame `f` unpacked (the planes' rows, as [`planes`] lists them), in this
@@ -161,8 +176,9 @@ impl PackedFrames {
 
     /// Band `b` of frame `f`: the planes' rows, as [`planes`] lists them.
     fn unpack(&self, f: usize, b: u32) -> Vec<u8> {
-        let residual = fdeflate::decompress_to_vec(&self.frames[f][b as usize])
-            .expect("packed by PackedFrames::push");
+        let range = self.bands[f * self.bands() as usize + b as usize].clone();
+        let residual =
+            fdeflate::decompress_to_vec(&self.data[range]).expect("packed by PackedFrames::push");
         let step = match self.layout {
             Some(Layout::Yuv420(..)) => 1,
             _ => 3,
@@ -357,6 +373,13 @@ mod tests {
             }
         }
         assert!(packed.byte_len() > 0);
+        // Truncated, the frames kept read back as before.
+        let whole = packed.byte_len();
+        packed.truncate(2);
+        assert_eq!(packed.len(), 2);
+        assert!(packed.byte_len() < whole);
+        packed.rgb_into(1, &mut out);
+        assert_eq!(out, rgb[1]);
         // A frame of another size or form is refused.
         let other = random_yuv(40, 42, 9);
         assert!(packed.push(FrameRef::Yuv420(&other)).is_err());

@@ -1,7 +1,5 @@
 //! One view: pass 1 (median background, noise model, frame cache), pass 2 (masks, loop).
 
-use std::borrow::Cow;
-
 use image::GrayImage;
 
 use super::*;
@@ -411,30 +409,37 @@ pub(super) fn analyze_view(
         let t_bake = Instant::now();
         // The source window (at most `max_frames`, or the thesis's loop and its neighbours when
         // longer, holding that loop's start): the frame cache's own frames, or decoded once
-        // more and packed losslessly within the cache's budget.
-        let span = rp.max_frames.max(best_loop.len() + 2).min(n1);
+        // more and packed losslessly within what the cache's budget leaves beside the masks
+        // held (the window then ends where the budget does, past the loop's last frame).
+        let mut span = rp.max_frames.max(best_loop.len() + 2).min(n1);
         let first = best_loop.start.min(n1 - span);
         let own = crate::regions::Label {
             start: best_loop.start + 1 - first,
             period: best_loop.len(),
         };
-        let window_masks = &masks[first..first + span];
+        let need = own.start + own.period + 1;
         let packed = match &cache {
             Some(_) => None,
             None => {
-                let packed = read_window(src, first..first + span, n1, params.cache_bytes, &label)?;
-                if packed.len() < span {
-                    // Over the budget: what the whole window would take at the rate so far.
-                    regions_over_cache = Some(
-                        (packed.byte_len() as u64).div_ceil(packed.len().max(1) as u64)
-                            * span as u64,
-                    );
+                let held: usize = masks.iter().map(|m| m.len().div_ceil(64) * 8).sum();
+                let budget = params.cache_bytes.saturating_sub(held);
+                // A packed window holds the loop and a few frames past it: the labels' pairwise
+                // costs grow with the square of the window's length.
+                let want = span.min(need + PACKED_SLACK);
+                let packed = read_window(src, first..first + want, n1, budget, &label)?;
+                if packed.len() < need {
+                    // Over the budget: what the loop's frames would take at the rate so far,
+                    // and the masks beside them.
+                    let rate = (packed.byte_len() as u64).div_ceil(packed.len().max(1) as u64);
+                    regions_over_cache = Some(rate * need as u64 + held as u64);
                     None
                 } else {
+                    span = packed.len();
                     Some(packed)
                 }
             }
         };
+        let window_masks = &masks[first..first + span];
         let window = match (&cache, &packed) {
             (Some(frames), _) => Some(Window::Cached(&frames[first..first + span])),
             (None, Some(packed)) => Some(Window::Packed(packed)),
@@ -471,15 +476,18 @@ pub(super) fn analyze_view(
                         Bake::new(frames, window_masks, &rl, rp.feather).rotated(quality.smoothest);
                     let mut baked_masks = Vec::with_capacity(rl.length + 1);
                     let mut baked_thumbs = Vec::new();
+                    let blur = GaussianBlur::new(&params.blur)?;
+                    let (mut f, mut blurred) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
+                    let mut scratch = BlurScratch::default();
                     for t in 0..=rl.length {
-                        let (f, m) = bake.frame(t);
+                        let m = bake.frame_into(t, &mut f);
                         observer.object_frame(p, t, &shown(&m), &f)?;
                         if with_thumbs {
-                            baked_thumbs.push(change_thumb(
-                                &gaussian_blur(&f, &params.blur)?,
-                                &bg_blur,
-                                factor,
-                            ));
+                            if blurred.dimensions() != f.dimensions() {
+                                blurred = RgbImage::new(f.width(), f.height());
+                            }
+                            blur.apply_into(&f, &mut blurred, &mut scratch)?;
+                            baked_thumbs.push(change_thumb(&blurred, &bg_blur, factor));
                         }
                         baked_masks.push(m);
                     }
@@ -562,6 +570,10 @@ pub(super) fn analyze_view(
     })
 }
 
+/// Frames a packed per-region window holds past the thesis's loop (a cached window holds up to
+/// [`crate::regions::RegionParams::max_frames`]).
+const PACKED_SLACK: usize = 8;
+
 /// The per-region loop's source window: the frame cache's frames, or frames decoded again and
 /// packed.
 enum Window<'a> {
@@ -630,11 +642,7 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     use crate::regions::{quality_of, single_frame, single_loop, wraps_of, Quality};
     let dims = window.dimensions();
     let one = single_loop(own, dims, crate::regions::reduction(dims, rp).1);
-    let frame = |t| {
-        let mut rgb = RgbImage::new(0, 0);
-        window.rgb_into(single_frame(&one, t), &mut rgb);
-        Cow::Owned(rgb)
-    };
+    let frame = |t, out: &mut RgbImage| window.rgb_into(single_frame(&one, t), out);
     // Asked only where better: a thesis's loop that already wraps as it steps (an exact repeat
     // among them; not every loop whose eq. (1) cost is 0: a looped clip's own jump can fall
     // inside it) is kept without trying, on its wraps alone.
@@ -647,7 +655,14 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     let single = quality_of(frame, window, &one, alpha);
     let rl = crate::regions::solve(window, alpha, Some(own.period), min_length, rp)?;
     let bake = Bake::new(window, masks, &rl, rp.feather);
-    let quality = quality_of(|t| Cow::Owned(bake.frame(t).0), window, &rl, alpha);
+    let quality = quality_of(
+        |t, out: &mut RgbImage| {
+            bake.frame_into(t, out);
+        },
+        window,
+        &rl,
+        alpha,
+    );
     drop(bake);
     Ok(if rp.only_if_better && !quality.better_than(&single) {
         Baked::Worse(rl, quality, single)
@@ -656,8 +671,8 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     })
 }
 
-/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly until they
-/// take `budget` bytes (the frames past it are left out).
+/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they take
+/// at most `budget` bytes (the frames past it are left out).
 fn read_window(
     src: &mut dyn FrameSource,
     range: std::ops::Range<usize>,
@@ -670,7 +685,10 @@ fn read_window(
     let got = src.for_each_native(&mut |i, frame| {
         if range.contains(&i) && !full {
             window.push(frame)?;
-            full = window.byte_len() > budget;
+            if window.byte_len() > budget {
+                window.truncate(window.len() - 1);
+                full = true;
+            }
         }
         Ok(())
     })?;

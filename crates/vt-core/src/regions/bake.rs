@@ -93,6 +93,13 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
 
     /// Output frame `t` (`0..=L`; `L` is frame 0 again) and its mask.
     pub fn frame(&self, t: usize) -> (RgbImage, Mask) {
+        let mut img = RgbImage::new(0, 0);
+        let mask = self.frame_into(t, &mut img);
+        (img, mask)
+    }
+
+    /// [`Bake::frame`] into `img` (resized if needed), returning the mask.
+    pub fn frame_into(&self, t: usize, img: &mut RgbImage) -> Mask {
         let (rl, frames) = (self.rl, self.frames);
         let (w, h) = frames.dimensions();
         let cols = rl.grid.0;
@@ -105,7 +112,9 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
             .blend
             .filter(|&s| s > 0.0)
             .map(|sigma| correction(frames, rl, &self.spread, (&self.bx, &self.by), t, sigma));
-        let mut img = RgbImage::new(w, h);
+        if img.dimensions() != (w, h) {
+            *img = RgbImage::new(w, h);
+        }
         img.par_chunks_mut(3 * w as usize)
             .enumerate()
             .for_each(|(y, row)| {
@@ -145,7 +154,7 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
             let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
             self.masks[f].get(x, y)
         });
-        (img, mask)
+        mask
     }
 }
 

@@ -1,7 +1,5 @@
 //! Measuring a baked loop: tile wraps, sharpness near wraps, error to the source frames.
 
-use std::borrow::Cow;
-
 use super::*;
 
 /// What a baked loop looks like, measured on its frames inside the dynamic region.
@@ -124,7 +122,12 @@ where
     B: Borrow<RgbImage> + Sync,
     F: Frames + ?Sized,
 {
-    quality_of(|t| Cow::Borrowed(baked[t].borrow()), source, rl, alpha)
+    quality_of(
+        |t, out: &mut RgbImage| out.clone_from(baked[t].borrow()),
+        source,
+        rl,
+        alpha,
+    )
 }
 
 /// One tile's running measurements over the baked frames.
@@ -138,17 +141,17 @@ struct TileTally {
     near: (f64, usize),
 }
 
-/// [`quality`] of a loop whose baked frames `make(t)` gives (`t` in `0..=L`), each asked for
-/// once or twice (frame 1 again for the player's wrap) and in order: the frames stream, two or
-/// three held at a time, so a long loop of large frames is measured in the memory of a few.
-pub fn quality_of<'m, M, F>(
+/// [`quality`] of a loop whose baked frames `make(t, out)` writes into `out` (`t` in `0..=L`,
+/// in order, each once): the frames stream, three held at a time in buffers reused, so a long
+/// loop of large frames is measured in the memory of a few.
+pub fn quality_of<M, F>(
     make: M,
     source: &F,
     rl: &RegionLoop,
     alpha: Option<&image::GrayImage>,
 ) -> Quality
 where
-    M: Fn(usize) -> Cow<'m, RgbImage>,
+    M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
     measure(make, source, rl, alpha, true)
@@ -157,28 +160,28 @@ where
 /// [`quality_of`]'s step figures alone ([`Quality::smoothest`], [`Quality::worst_step`],
 /// [`Quality::tile_wrap`] and its 90th percentile; the others 0), which decide whether a loop
 /// [`Quality::shows`] at a fraction of the cost: no source frame is read.
-pub fn wraps_of<'m, M, F>(
+pub fn wraps_of<M, F>(
     make: M,
     source: &F,
     rl: &RegionLoop,
     alpha: Option<&image::GrayImage>,
 ) -> Quality
 where
-    M: Fn(usize) -> Cow<'m, RgbImage>,
+    M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
     measure(make, source, rl, alpha, false)
 }
 
-fn measure<'m, M, F>(
-    make: M,
+fn measure<M, F>(
+    mut make: M,
     source: &F,
     rl: &RegionLoop,
     alpha: Option<&image::GrayImage>,
     full: bool,
 ) -> Quality
 where
-    M: Fn(usize) -> Cow<'m, RgbImage>,
+    M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
     let (w, h) = source.dimensions();
@@ -236,11 +239,12 @@ where
     // Steps 0 -> 1 .. L-1 -> L, then the player's wrap L -> 1.
     let mut steps = Vec::with_capacity(l + 1);
     let mut ge_baked = 0.0;
-    let mut prev = make(0);
+    let (mut prev, mut next) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
+    make(0, &mut prev);
     let mut second = None;
     for t in 0..l {
-        let next = make(t + 1);
-        let (a, b) = (prev.as_ref(), next.as_ref());
+        make(t + 1, &mut next);
+        let (a, b) = (&prev, &next);
         let (s, n) = mad(a, b, &all, &wt);
         steps.push(s / n.max(1e-9));
         // The frame's gradient energy, summed from its tiles' (every tile, counted or not).
@@ -295,17 +299,17 @@ where
                 }
             });
         if t == 0 {
-            second = Some(next.clone().into_owned());
+            second = Some(next.clone());
         }
-        prev = next;
+        std::mem::swap(&mut prev, &mut next);
     }
     if let Some(first) = second.as_ref().filter(|_| l >= 1) {
-        let (s, n) = mad(prev.as_ref(), first, &all, &wt);
+        let (s, n) = mad(&prev, first, &all, &wt);
         steps.push(s / n.max(1e-9));
     } else {
         steps.push(0.0);
     }
-    drop((prev, second));
+    drop((prev, next, second));
     let med = median(steps.clone()).max(1e-9);
     let smoothest = (0..l)
         .min_by(|&a, &b| steps[a].total_cmp(&steps[b]))
