@@ -14,7 +14,8 @@ tasks:
   lint          cargo fmt --check and cargo clippy (warnings are errors)
   cross-check   run vt-core and vt-cv (OpenCV) on the same inputs and assert they agree
   bench         thesis-scale System A benchmark (decode vs analysis time, peak memory),
-                then the criterion benches; pass --quick for a smaller scene
+                `vt analyze`'s peak memory on 1080p clips of 300 and 600 frames, then the
+                criterion benches; pass --quick for only a smaller thesis-scale scene
   report        [--quick] [--out DIR]: measure every knob's speed/accuracy trade, stability,
                 model choice, real-data accuracy and performance against OpenCV; writes
                 DIR/index.html (plots beside it), report.json and README.md
@@ -82,6 +83,21 @@ fn main() -> Result<()> {
                 .args(rest);
             run(c)?;
             if !rest.iter().any(|a| a == "--quick") {
+                // `vt analyze`'s memory on 1080p clips, as a user runs it.
+                let mut v = cargo();
+                v.args(["build", "--release", "--quiet", "-p", "vt-cli"]);
+                run(v)?;
+                let mut hd = cargo();
+                hd.args([
+                    "run",
+                    "--release",
+                    "--quiet",
+                    "-p",
+                    "vt-bench",
+                    "--bin",
+                    "hd-memory",
+                ]);
+                run(hd)?;
                 let mut b = cargo();
                 b.args(["bench", "-p", "vt-core"]);
                 run(b)?;

@@ -426,11 +426,12 @@ pub(super) fn analyze_view(
                 // A packed window holds the loop and a few frames past it: the labels' pairwise
                 // costs grow with the square of the window's length.
                 let want = span.min(need + PACKED_SLACK);
-                let packed = read_window(src, first..first + want, n1, budget, &label)?;
+                let (packed, last) = read_window(src, first..first + want, n1, budget, &label)?;
                 if packed.len() < need {
-                    // Over the budget: what the loop's frames would take at the rate so far,
-                    // and the masks beside them.
-                    let rate = (packed.byte_len() as u64).div_ceil(packed.len().max(1) as u64);
+                    // Over the budget: what the loop's frames would take at the rate so far
+                    // (the frame left out counted), and the masks beside them.
+                    let rate =
+                        (packed.byte_len() as u64 + last as u64).div_ceil(packed.len() as u64 + 1);
                     regions_over_cache = Some(rate * need as u64 + held as u64);
                     None
                 } else {
@@ -672,20 +673,23 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
 }
 
 /// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they take
-/// at most `budget` bytes (the frames past it are left out).
+/// at most `budget` bytes (the frames past it are left out), and the packed size of the first
+/// frame left out (0 when none was).
 fn read_window(
     src: &mut dyn FrameSource,
     range: std::ops::Range<usize>,
     n: usize,
     budget: usize,
     label: &dyn Fn(&str) -> String,
-) -> Result<crate::packed::PackedFrames> {
+) -> Result<(crate::packed::PackedFrames, usize)> {
     let mut window = crate::packed::PackedFrames::new();
-    let mut full = false;
+    let (mut full, mut left_out) = (false, 0);
     let got = src.for_each_native(&mut |i, frame| {
         if range.contains(&i) && !full {
+            let before = window.byte_len();
             window.push(frame)?;
             if window.byte_len() > budget {
+                left_out = window.byte_len() - before;
                 window.truncate(window.len() - 1);
                 full = true;
             }
@@ -698,5 +702,5 @@ fn read_window(
             message: format!("gave {n} frames on the first read and {got} on the third"),
         });
     }
-    Ok(window)
+    Ok((window, left_out))
 }

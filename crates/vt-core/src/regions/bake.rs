@@ -150,11 +150,10 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
                     }
                 }
             });
-        let mask = Mask::from_fn(w, h, |x, y| {
+        Mask::from_fn(w, h, |x, y| {
             let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
             self.masks[f].get(x, y)
-        });
-        mask
+        })
     }
 }
 

@@ -1,0 +1,126 @@
+//! `hd-memory` (run by `cargo xtask bench`): `vt analyze` at default settings on 1080p clips of
+//! 300 and 600 frames, its peak resident memory and time, and which loop each view got.
+//!
+//! The clips are tree.avi's hand-free frames (0-53) upscaled to 1920x1080 and looped, once as
+//! they are (an exact repeat: the thesis's loop already wraps as it steps) and once brightening
+//! steadily (a drift that never repeats: the thesis's loop shows at its wrap, so the per-region
+//! loop is tried and kept), encoded to H.264 by ffmpeg and cached under
+//! `target/vt-bench-data/`. The `vt` binary must be built beside this one
+//! (`cargo build --release -p vt-cli`). The goal: at most 400 MiB at both lengths.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+
+/// Peak resident memory (VmHWM) of process `pid` in KiB, while it runs.
+fn hwm_kib(pid: u32) -> Option<u64> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    s.lines()
+        .find(|l| l.starts_with("VmHWM:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
+}
+
+fn clip(dir: &Path, tree: &Path, frames: usize, drift: bool) -> Result<PathBuf> {
+    let name = format!(
+        "tree-1080p-{frames}{}.mp4",
+        if drift { "-drift" } else { "" }
+    );
+    let path = dir.join(&name);
+    if path.exists() {
+        return Ok(path);
+    }
+    let mut vf = "select=lt(n\\,54),setpts=N/25/TB,loop=loop=-1:size=54:start=0,\
+                  scale=1920:1080:flags=bicubic"
+        .to_string();
+    if drift {
+        vf.push_str(",eq=brightness='0.0008*n-0.12':eval=frame");
+    }
+    let tmp = path.with_extension("part.mp4");
+    let ok = Command::new("ffmpeg")
+        .args(["-v", "error", "-y", "-i"])
+        .arg(tree)
+        .args(["-vf", &vf, "-frames:v", &frames.to_string(), "-r", "25"])
+        .args(["-c:v", "libx264", "-crf", "18", "-preset", "veryfast"])
+        .args(["-pix_fmt", "yuv420p"])
+        .arg(&tmp)
+        .status()
+        .context("ffmpeg (apt-get install ffmpeg)")?
+        .success();
+    if !ok {
+        bail!("ffmpeg failed making {name}");
+    }
+    std::fs::rename(&tmp, &path)?;
+    Ok(path)
+}
+
+fn main() -> Result<()> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let vt = std::env::current_exe()?.with_file_name("vt");
+    if !vt.exists() {
+        bail!(
+            "{} is missing: cargo build --release -p vt-cli first",
+            vt.display()
+        );
+    }
+    let dir = root.join("target/vt-bench-data");
+    std::fs::create_dir_all(&dir)?;
+    let tree = root.join("testdata/tree.avi");
+    println!("vt analyze at defaults on 1080p clips (tree.avi frames 0-53 upscaled and looped)");
+    println!(
+        "| clip | frames | peak RSS (MiB) | seconds | loop |\n| --- | --- | --- | --- | --- |"
+    );
+    for drift in [false, true] {
+        for frames in [300, 600] {
+            let input = clip(&dir, &tree, frames, drift)?;
+            let out = dir.join("hd-memory-scene");
+            if out.exists() {
+                std::fs::remove_dir_all(&out)?;
+            }
+            let t = Instant::now();
+            let mut child = Command::new(&vt)
+                .arg("analyze")
+                .arg(&input)
+                .arg("--out")
+                .arg(&out)
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null())
+                .spawn()?;
+            let pid = child.id();
+            let mut peak = 0;
+            let status = loop {
+                peak = peak.max(hwm_kib(pid).unwrap_or(0));
+                if let Some(s) = child.try_wait()? {
+                    break s;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            };
+            let secs = t.elapsed().as_secs_f64();
+            let mut summary = String::new();
+            std::io::Read::read_to_string(child.stdout.as_mut().expect("piped"), &mut summary)?;
+            if !status.success() {
+                bail!("vt analyze {} failed", input.display());
+            }
+            let verdict = summary
+                .lines()
+                .find(|l| l.contains("per-region loop"))
+                .map(|l| {
+                    let l = l.trim_start_matches("view 0: ");
+                    l.split([';', ',']).next().unwrap_or(l).to_string()
+                })
+                .unwrap_or_else(|| "thesis's loop".into());
+            println!(
+                "| {} | {frames} | {:.0} | {secs:.1} | {verdict} |",
+                if drift { "brightening" } else { "exact repeat" },
+                peak as f64 / 1024.0
+            );
+            std::fs::remove_dir_all(&out).ok();
+        }
+    }
+    println!("goal: peak RSS <= 400 MiB at both lengths");
+    Ok(())
+}
