@@ -201,7 +201,7 @@ impl PackedFrames {
 
     /// Per plane of band `b`: its row length and its number of rows.
     fn band_rows(&self, b: u32) -> Vec<(usize, usize)> {
-        let (w, h) = (self.width as usize, self.height as usize);
+        let w = self.width as usize;
         let (y0, y1) = (
             (b * BAND) as usize,
             ((b + 1) * BAND).min(self.height) as usize,
@@ -209,7 +209,6 @@ impl PackedFrames {
         match self.layout {
             Some(Layout::Rgb) | None => vec![(3 * w, y1 - y0)],
             Some(Layout::Yuv420(..)) => {
-                let _ = h;
                 let c = (y1 - y0) / 2;
                 vec![(w, y1 - y0), (w / 2, c), (w / 2, c)]
             }
