@@ -244,19 +244,18 @@ impl PackedFrames {
             *out = RgbImage::new(w, h);
         }
         let row_bytes = 3 * w as usize;
+        // A 4:2:0 band's RGB, reused from band to band (the last may be shorter).
+        let mut rgb = RgbImage::new(0, 0);
         for b in 0..self.bands() {
             let (y0, y1) = (b * BAND, ((b + 1) * BAND).min(h));
             let rows = self.unpack(f, b);
             let dst = &mut out.as_mut()[y0 as usize * row_bytes..y1 as usize * row_bytes];
             match self.layout {
                 Some(Layout::Yuv420(matrix, range)) => {
-                    let n = (y1 - y0) as usize;
-                    let mut band = Vec::with_capacity(Yuv420Image::byte_len(w, n as u32));
-                    band.extend_from_slice(&rows);
-                    let img = Yuv420Image::from_raw(w, n as u32, matrix, range, band)
-                        .expect("a band of an even-sized frame");
-                    let mut rgb = RgbImage::new(w, n as u32);
-                    img.to_rgb_into(&mut rgb);
+                    // The band's planes, as unpacked, are a 4:2:0 frame of its rows.
+                    Yuv420Image::from_raw(w, y1 - y0, matrix, range, rows)
+                        .expect("a band of an even-sized frame")
+                        .to_rgb_into(&mut rgb);
                     dst.copy_from_slice(rgb.as_raw());
                 }
                 _ => dst.copy_from_slice(&rows),

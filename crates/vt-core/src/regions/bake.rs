@@ -76,8 +76,8 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
         }
     }
 
-    /// The same bake with its frame 0 the old frame `by`, as [`rotate`] turns baked frames:
-    /// the player's wrap `L -> 1` then shows the old step `by -> by + 1`.
+    /// The same bake with its frame 0 the old frame `by`: the player's wrap `L -> 1` then
+    /// shows the old step `by -> by + 1`.
     pub fn rotated(mut self, by: usize) -> Self {
         self.phase = (self.phase + by) % self.rl.length;
         self
@@ -353,16 +353,6 @@ fn blur_planes(v: &mut [f32], w: usize, h: usize, sigma: f32) {
     };
     pass(v, &mut tmp, true);
     pass(&tmp, v, false);
-}
-
-/// Rotates a baked loop (`L + 1` frames, the last the first again) so that its frame 0 is the
-/// old frame `by`: the player's wrap `L -> 1` then shows the old step `by -> by + 1`.
-pub fn rotate<T: Clone>(baked: &mut Vec<T>, rl: &mut RegionLoop, by: usize) {
-    let l = rl.length;
-    baked.truncate(l);
-    baked.rotate_left(by % l);
-    baked.push(baked[0].clone());
-    rl.phase = (rl.phase + by) % l;
 }
 
 /// A single loop as a [`RegionLoop`] (every tile the same label, output frame 0 its start), to

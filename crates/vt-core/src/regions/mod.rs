@@ -33,7 +33,7 @@ mod quality;
 mod solve;
 
 use bake::*;
-pub use bake::{compose, correction, rotate, single_loop, spreads, AxisBlend, Bake};
+pub use bake::{compose, correction, single_loop, spreads, AxisBlend, Bake};
 use quality::{mad, median};
 pub use quality::{quality, quality_of, single_frame, single_frames, wraps_of, Quality};
 pub use solve::{reduction, solve, Problem, Strips, Temporal};
@@ -370,7 +370,7 @@ pub struct RegionLoop {
     pub periods: Vec<usize>,
     /// Seconds spent choosing labels.
     pub solve_secs: f64,
-    /// Output frame 0 shows the labels' time `phase` (see [`rotate`]).
+    /// Output frame 0 shows the labels' time `phase` (see [`Bake::rotated`]).
     pub phase: usize,
     /// The wrap correction's sigma ([`RegionParams::blend`]).
     pub blend: Option<f32>,

@@ -5,7 +5,7 @@ use super::*;
 /// What a baked loop looks like, measured on its frames inside the dynamic region.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Quality {
-    /// The output time whose step to the next is the smallest (where [`rotate`] puts the
+    /// The output time whose step to the next is the smallest (where [`Bake::rotated`] puts the
     /// player's wrap).
     pub smoothest: usize,
     /// The largest step of the baked loop (its wrap `L -> 1` included) over its median step,
