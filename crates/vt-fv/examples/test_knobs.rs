@@ -53,7 +53,7 @@ fn main() {
         }
         let (_, model, model_secs) = models.iter().find(|(p, _, _)| *p == m).unwrap();
         let (model, model_secs) = (model, *model_secs);
-        let (views, _) = train
+        let (views, imgs) = train
             .score_test_set(model, &test, &view, &mut |_| {})
             .unwrap();
         let s = TestSummary::new(
@@ -63,6 +63,11 @@ fn main() {
             model_secs,
             views,
         );
+        if let Some(d) = std::env::var_os("SAVE") {
+            let d = Path::new(&d).join(name);
+            std::fs::create_dir_all(&d).unwrap();
+            vt_fv::dataset::write_test_outputs(&d, &s, &imgs, 4).unwrap();
+        }
         println!(
             "{name:>12}: whole {:.2} dB / {:.3}, inside {:.2} dB, IoU {:.3}, model {:.1} s, {:.2} s a view",
             s.whole.psnr, s.whole.ssim, s.inside.psnr, s.coverage_iou, model_secs, s.view_secs_median

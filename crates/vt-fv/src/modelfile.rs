@@ -4,7 +4,7 @@
 //! with the data it came from. Encoding and decoding only; [`crate::dataset`] reads and writes
 //! the file.
 //!
-//! Layout (little-endian), version 1:
+//! Layout (little-endian), version 2 (version 1, read too, ends after `removed`):
 //!
 //! ```text
 //! "VTFVMODL"  u32 version  u32 header length  header (compact JSON, ModelHeader)
@@ -13,6 +13,9 @@
 //!       varint surface count, then per surface voxel: varint index delta (the first is the
 //!       index), 3 bytes colour, varint seen_by
 //!       varint passes  varint removed
+//!       varint depth map count, then per map: varint w, h, step, and its cells as runs
+//!       (varints, alternating none / some, none first), each run of some followed by its
+//!       depths as f32 bits
 //! u64 checksum of everything before it
 //! ```
 //!
@@ -27,8 +30,8 @@ use crate::{Camera, Error, Mask, Result};
 
 /// The file's first 8 bytes.
 pub const MAGIC: &[u8; 8] = b"VTFVMODL";
-/// The version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The version this build writes (it reads 1 as well: a model without depth maps).
+pub const VERSION: u32 = 2;
 /// Largest JSON header read (bytes).
 pub const MAX_HEADER_BYTES: usize = 1 << 24;
 
@@ -182,6 +185,24 @@ pub fn encode(model: &VoxelModel, header: &ModelHeader) -> Vec<u8> {
     }
     put_varint(&mut out, model.passes as u64);
     put_varint(&mut out, model.removed as u64);
+    put_varint(&mut out, model.depths.len() as u64);
+    for m in &model.depths {
+        for v in [m.w, m.h, m.step] {
+            put_varint(&mut out, v as u64);
+        }
+        let mut k = 0;
+        while k < m.depth.len() {
+            let none = m.depth[k..].iter().take_while(|d| !d.is_finite()).count();
+            k += none;
+            let some = m.depth[k..].iter().take_while(|d| d.is_finite()).count();
+            put_varint(&mut out, none as u64);
+            put_varint(&mut out, some as u64);
+            for d in &m.depth[k..k + some] {
+                out.extend_from_slice(&d.to_le_bytes());
+            }
+            k += some;
+        }
+    }
     let sum = fold_bytes(0, &out);
     out.extend_from_slice(&sum.to_le_bytes());
     out
@@ -243,9 +264,9 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelModel, ModelHeader)> {
         at: MAGIC.len(),
     };
     let version = r.u32()?;
-    if version != VERSION {
+    if version != VERSION && version != 1 {
         return Err(bad(format!(
-            "model file version {version}; this vt reads version {VERSION} (build the model again with `vt fv hull`)"
+            "model file version {version}; this vt reads versions 1 and {VERSION} (build the model again with `vt fv hull`)"
         )));
     }
     if bytes.len() < 8 + 16 {
@@ -320,6 +341,49 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelModel, ModelHeader)> {
     }
     let passes = r.varint()? as usize;
     let removed = r.varint()? as usize;
+    let mut depths = Vec::new();
+    if version >= 2 {
+        let count = r.varint()?;
+        if count > header.views.len() as u64 {
+            return Err(bad(format!(
+                "{count} depth maps for {} views",
+                header.views.len()
+            )));
+        }
+        for k in 0..count {
+            let (w, h, step) = (r.varint()?, r.varint()?, r.varint()?);
+            // A map has a cell every `step` pixels of the photos the model was built from.
+            let [iw, ih] = header.image_size.map(|v| v as u64);
+            if !(1..=64).contains(&step) || w != iw.div_ceil(step) || h != ih.div_ceil(step) {
+                return Err(bad(format!(
+                    "depth map {k}: {w}x{h} cells every {step} pixels, for {iw}x{ih} photos"
+                )));
+            }
+            let cells = (w * h) as usize;
+            let mut depth = Vec::with_capacity(cells);
+            while depth.len() < cells {
+                let none = r.varint()?;
+                let some = r.varint()?;
+                if none.saturating_add(some) > (cells - depth.len()) as u64 || none + some == 0 {
+                    return Err(bad(format!("depth map {k}: runs exceed its cells")));
+                }
+                depth.extend(std::iter::repeat_n(f32::NAN, none as usize));
+                for _ in 0..some {
+                    let d = f32::from_le_bytes(r.take(4)?.try_into().expect("4"));
+                    if !(d.is_finite() && d > 0.0) {
+                        return Err(bad(format!("depth map {k}: depth {d}")));
+                    }
+                    depth.push(d);
+                }
+            }
+            depths.push(crate::stereo::DepthMap {
+                w: w as usize,
+                h: h as usize,
+                step: step as usize,
+                depth,
+            });
+        }
+    }
     if r.at != body.len() {
         return Err(bad(format!("{} bytes after the model", body.len() - r.at)));
     }
@@ -330,6 +394,7 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelModel, ModelHeader)> {
             passes,
             removed,
             stereo: None,
+            depths,
         },
         header,
     ))

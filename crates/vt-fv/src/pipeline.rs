@@ -10,7 +10,10 @@ use crate::eval::{psnr, ssim};
 use crate::guided::{guided_synthesis, GuidedParams};
 use crate::hull::{visual_hull, HullParams};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
-use crate::render::{clip_to_silhouettes, grow_to_silhouettes, render_rough, ClipParams, Rendered};
+use crate::render::{
+    clip_to_depths, clip_to_silhouettes, grow_to_silhouettes, render_rough, ClipParams,
+    DepthClipParams, Rendered,
+};
 use crate::silhouette::Mask;
 use crate::texture::{model_centre, nearest_by_direction, texture_view, TextureParams};
 use crate::voting::{voting_synthesis, VotingParams};
@@ -68,6 +71,10 @@ pub struct ViewParams {
     /// With `refine`: refine by patch voting ([`crate::voting`]) with these settings instead
     /// of the paper's synthesis (`None`, the default).
     pub voting: Option<VotingParams>,
+    /// With `clip` and a model that holds the photos' depth maps (stereo on): move the render
+    /// past the free space they prove, at pixel accuracy ([`clip_to_depths`]; on, `None` =
+    /// off).
+    pub depth_clip: Option<DepthClipParams>,
 }
 
 impl Default for ViewParams {
@@ -80,6 +87,7 @@ impl Default for ViewParams {
             clip: Some(ClipParams::default()),
             grow: 0,
             voting: None,
+            depth_clip: Some(DepthClipParams::default()),
         }
     }
 }
@@ -130,6 +138,7 @@ impl ViewParams {
             guided,
             clip: None,
             grow: 0,
+            depth_clip: None,
             ..Self::default()
         }
     }
@@ -312,6 +321,9 @@ pub fn novel_view_in(
     if let (Some(m), Some(c)) = (silhouettes, &p.clip) {
         let t = Instant::now();
         clip_to_silhouettes(&mut rough, model, cam, cams, m, c);
+        if let Some(dc) = &p.depth_clip {
+            clip_to_depths(&mut rough, model, cam, cams, m, c, dc);
+        }
         times.push(("clip", t.elapsed().as_secs_f64()));
     }
     let (guide, references, synthesise) = match p.method {

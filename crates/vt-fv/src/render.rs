@@ -270,3 +270,149 @@ pub fn grow_to_silhouettes(
     }
     total
 }
+
+/// Settings of [`clip_to_depths`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthClipParams {
+    /// A point is free space for a photo when the photo's confirmed depth there lies this many
+    /// voxels beyond it (1).
+    pub margin: f64,
+    /// ... unless some photo's confirmed depth puts it on a surface, within this many voxels
+    /// (0.75; 0: no protection).
+    pub protect: f64,
+    /// March step along the ray in voxels (0.5).
+    pub step: f64,
+    /// Photos whose depths must see through a point for it to be free (2); a silhouette that
+    /// misses it is enough alone. (Lego 8-view, with PatchMatch depths: 20.86 dB without the
+    /// clip; 21.13 with margin 2, protect 1.5, through 2; 21.28 with these. Kettle
+    /// leave-one-out inside the silhouette 24.76 / 24.73 / 24.66 dB, over the silhouette and the
+    /// view's own coverage 23.24 / 23.28 / 23.32.)
+    pub through: usize,
+}
+
+impl Default for DepthClipParams {
+    fn default() -> Self {
+        Self {
+            margin: 1.0,
+            protect: 0.75,
+            step: 0.5,
+            through: 2,
+        }
+    }
+}
+
+/// Moves each covered pixel of a render back along its ray past the free space the photos'
+/// depth maps prove, at pixel accuracy: from its rendered depth the ray is marched through
+/// the model's occupied voxels to the first point no photo sees through (a photo sees through a
+/// point when its confirmed depth there lies `margin` voxels beyond, or the point falls outside
+/// its silhouette, closed and grown as `clip` says), unless some photo's depth puts the point
+/// on a surface (`protect`). A pixel
+/// whose ray leaves the model first is uncovered. The voxel carving cannot cut within a voxel
+/// or two of a surface (its test needs a whole neighbourhood of depths beyond the voxel); this
+/// takes the fringe back and puts phantom fronts onto the surface behind them. Returns the
+/// number of pixels uncovered and moved. Does nothing without `model.depths`.
+pub fn clip_to_depths(
+    r: &mut Rendered,
+    model: &VoxelModel,
+    cam: &Camera,
+    cams: &[Camera],
+    masks: &[Mask],
+    clip: &ClipParams,
+    p: &DepthClipParams,
+) -> (usize, usize) {
+    use rayon::prelude::*;
+    let maps = &model.depths;
+    if maps.len() != cams.len() || masks.len() != cams.len() {
+        return (0, 0);
+    }
+    let (w, h) = r.image.dimensions();
+    let grid = &model.grid;
+    let vs = grid.voxel_size().min();
+    let Some(kinv) = cam.k.try_inverse() else {
+        return (0, 0);
+    };
+    let a = cam.r.transpose() * kinv;
+    let c = cam.centre();
+    // The silhouettes as the hull clip tests them (closed, with its slack).
+    let hull = HullTest::new(cams, masks, clip.close, clip.slack);
+    let (projs, masks) = (&hull.projs, &hull.masks);
+    // Free: some photo sees through x; protected: some photo's depth puts x on a surface.
+    let free = |x: &nalgebra::Vector3<f64>| -> bool {
+        let mut through = 0;
+        for ((pm, map), m) in projs.iter().zip(maps).zip(masks) {
+            let q = pm * x.push(1.0);
+            if q.z <= 0.0 {
+                continue;
+            }
+            let (u, v) = (q.x / q.z, q.y / q.z);
+            let (ui, vi) = ((u + 0.5).floor(), (v + 0.5).floor());
+            if ui < 0.0 || vi < 0.0 || ui >= m.width() as f64 || vi >= m.height() as f64 {
+                continue;
+            }
+            if !m.get(ui as u32, vi as u32) {
+                through += p.through;
+                continue;
+            }
+            let d = map.nearest(u, v) as f64;
+            if !d.is_finite() {
+                continue;
+            }
+            if (d - q.z).abs() <= p.protect * vs {
+                return false;
+            }
+            if d > q.z + p.margin * vs {
+                through += 1;
+            }
+        }
+        through >= p.through
+    };
+    let b = grid.bounds();
+    let changes: Vec<(usize, f32)> = (0..(w as usize * h as usize))
+        .into_par_iter()
+        .filter_map(|i| {
+            let d = r.depth[i] as f64;
+            if !d.is_finite() {
+                return None;
+            }
+            let ray =
+                a * nalgebra::Vector3::new((i % w as usize) as f64, (i / w as usize) as f64, 1.0);
+            // Where the ray leaves the bounds.
+            let mut t1 = f64::INFINITY;
+            for k in 0..3 {
+                if ray[k].abs() > 1e-12 {
+                    let (e0, e1) = ((b.min[k] - c[k]) / ray[k], (b.max[k] - c[k]) / ray[k]);
+                    t1 = t1.min(e0.max(e1));
+                }
+            }
+            let dt = p.step * vs / ray.norm();
+            let mut t = d;
+            // The rendered point itself, then on through occupied voxels.
+            loop {
+                let x = c + ray * t;
+                let occupied = t == d
+                    || grid
+                        .voxel_of(&x)
+                        .is_some_and(|v| grid.get(v[0] as i64, v[1] as i64, v[2] as i64));
+                if occupied && !free(&x) {
+                    return (t != d).then_some((i, t as f32));
+                }
+                t += dt;
+                if t > t1 {
+                    return Some((i, f32::INFINITY));
+                }
+            }
+        })
+        .collect();
+    let (mut cut, mut moved) = (0, 0);
+    for &(i, t) in &changes {
+        r.depth[i] = t;
+        if t.is_finite() {
+            moved += 1;
+        } else {
+            cut += 1;
+            r.image.as_mut()[3 * i..3 * i + 3].fill(0);
+            r.coverage.set(i as u32 % w, i as u32 / w, false);
+        }
+    }
+    (cut, moved)
+}

@@ -48,24 +48,38 @@ fn model_read_back_renders_the_same_bytes_and_faster() {
     assert_eq!(back.grid, model.grid);
     assert_eq!(back.surface, model.surface);
     assert_eq!(header.views.len(), 16);
+    // The photos' depth maps travel with the model, bit for bit (NaN where there is none).
+    assert_eq!(back.depths.len(), 16);
+    for (a, b) in model.depths.iter().zip(&back.depths) {
+        assert_eq!((a.w, a.h, a.step), (b.w, b.h, b.step));
+        let bits = |m: &vt_fv::stereo::DepthMap| -> Vec<u32> {
+            m.depth
+                .iter()
+                .map(|d| if d.is_nan() { u32::MAX } else { d.to_bits() })
+                .collect()
+        };
+        assert_eq!(bits(a), bits(b));
+    }
+    assert!(back.depths.iter().map(|m| m.count()).sum::<usize>() > 1000);
     let ring = Ring::fit(&d.cams).unwrap();
     let (w, h) = d.size();
-    let view = ViewParams::default();
-    for angle in [0.0, 50.0, 200.0] {
+    // Both with and without the depth clip, which reads the depth maps.
+    for (view, angle) in [
+        (ViewParams::default(), 0.0),
+        (ViewParams::default(), 50.0),
+        (
+            ViewParams {
+                depth_clip: Some(Default::default()),
+                ..Default::default()
+            },
+            200.0,
+        ),
+    ] {
+        let view = &view;
         let cam = ring.camera(angle, &model_centre(&model)).unwrap();
-        let a = novel_view_in(
-            &model,
-            &d.cams,
-            &d.images,
-            Some(&d.masks),
-            &cam,
-            w,
-            h,
-            &view,
-        )
-        .unwrap();
-        let b =
-            novel_view_in(&back, &d.cams, &d.images, Some(&d.masks), &cam, w, h, &view).unwrap();
+        let a =
+            novel_view_in(&model, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
+        let b = novel_view_in(&back, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
         assert!(a.rough.coverage.count_ones() > 1000);
         assert_eq!(a.guided.as_raw(), b.guided.as_raw(), "angle {angle}");
     }
@@ -96,10 +110,10 @@ fn bad_model_files_are_refused_naming_the_file() {
     assert!(e.contains("checksum"), "{e}");
     let e = refused(&good[..10]);
     assert!(e.contains("cut short"), "{e}");
-    let mut v2 = good.clone();
-    v2[8] = 2;
-    let e = refused(&v2);
-    assert!(e.contains("version 2"), "{e}");
+    let mut v3 = good.clone();
+    v3[8] = 3;
+    let e = refused(&v3);
+    assert!(e.contains("version 3"), "{e}");
     let e = refused(b"ply\nformat ascii 1.0\n");
     assert!(e.contains("not a vt fv model file"), "{e}");
     let mut flipped = good.clone();

@@ -3,7 +3,7 @@
 //! Texturing: `refs`, `smooth`, `sweep`, `step`, `window`, `fill`, `tol`, `soft`, `agree`,
 //! `reach`, `consensus`, `within`, `eps`; the model: `pthr` (photo threshold), and the stereo
 //! carving's `sources`, `best`, `radius`, `stride`, `step_v` (depth step in voxels), `coarse`,
-//! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `stereo` (0: off); the clip:
+//! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations, 0: the sweep), `unseen` (-1: off), `texture`, `grid`, `stereo` (0: off); the clip:
 //! `grow`, `slack`, `close`.
 
 // Each example includes this file and uses part of it.
@@ -41,6 +41,10 @@ pub fn apply_view(k: &str, v: &str, view: &mut ViewParams) -> bool {
         "within" => t.soften_within = f() > 0.0,
         "eps" => t.eps_deg = f(),
         "grow" => view.grow = f() as u32,
+        "dclip" => view.depth_clip = (f() > 0.0).then(Default::default),
+        "dmargin" => view.depth_clip.as_mut().expect("dclip").margin = f(),
+        "dthrough" => view.depth_clip.as_mut().expect("dclip").through = f() as usize,
+        "dprotect" => view.depth_clip.as_mut().expect("dclip").protect = f(),
         "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
         "close" => view.clip.as_mut().expect("clip").close = f() as u32,
         _ => return false,
@@ -66,6 +70,11 @@ fn apply_model(k: &str, v: &str, model: &mut ModelParams) -> bool {
         "margin" => st.margin = f(),
         "protect" => st.protect = f(),
         "passes" => st.passes = f() as usize,
+        "pm" => st.patchmatch = f() as usize,
+        "conf" => st.confirmations = f() as usize,
+        "unseen" => st.unseen_keep = (f() >= 0.0).then(|| f() as usize),
+        "texture" => st.min_texture = f(),
+        "grid" => model.grid = f() as usize,
         "stereo" => model.stereo = f() > 0.0,
         _ => return false,
     }

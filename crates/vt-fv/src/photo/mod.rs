@@ -174,6 +174,9 @@ pub struct VoxelModel {
     pub removed: usize,
     /// What the stereo carving before it did ([`PhotoParams::stereo`]), when it ran.
     pub stereo: Option<crate::stereo::StereoSummary>,
+    /// The photos' confirmed depth maps from the stereo carving, one per camera the model was
+    /// built from, in their order (empty when it did not run, and in a model read from a file).
+    pub depths: Vec<crate::stereo::DepthMap>,
 }
 
 impl VoxelModel {
@@ -303,10 +306,12 @@ pub fn photo_hull_keeping(
         }
     }
     let mut stereo = None;
+    let mut depths = Vec::new();
     if let (Some(sp), Some(masks)) = (&params.stereo, silhouettes) {
         progress("stereo", 0, 1);
-        let (_, s) = crate::stereo::carve_by_stereo(&mut grid, cams, images, masks, sp)?;
+        let (maps, s) = crate::stereo::carve_by_stereo(&mut grid, cams, images, masks, sp)?;
         stereo = Some(s);
+        depths = maps;
         progress("stereo", 1, 1);
     }
     let vs = grid.voxel_size();
@@ -488,5 +493,6 @@ pub fn photo_hull_keeping(
         passes,
         removed: removed_total,
         stereo,
+        depths,
     })
 }

@@ -39,12 +39,16 @@ fn load(views: usize) -> Result<(Dataset, Dataset)> {
 }
 
 /// Builds the model with `model`, scores every test view, and times both.
-fn measure(train: &Dataset, test: &Dataset, model: &ModelParams) -> Result<TestSummary> {
-    let view = ViewParams::default();
+fn measure(
+    train: &Dataset,
+    test: &Dataset,
+    model: &ModelParams,
+    view: &ViewParams,
+) -> Result<TestSummary> {
     let t = std::time::Instant::now();
     let (m, _) = train.build_without(None, model, &mut |_, _, _| {})?;
     let model_secs = t.elapsed().as_secs_f64();
-    let (views, _) = train.score_test_set(&m, test, &view, &mut |_| {})?;
+    let (views, _) = train.score_test_set(&m, test, view, &mut |_| {})?;
     Ok(TestSummary::new(
         view.name(),
         train.background,
@@ -93,7 +97,8 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             json!(null),
         ]);
     }
-    let default = measure(&train, &test, &ModelParams::default())?;
+    let view = ViewParams::default();
+    let default = measure(&train, &test, &ModelParams::default(), &view)?;
     let hull = measure(
         &train,
         &test,
@@ -101,6 +106,7 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             stereo: false,
             ..Default::default()
         },
+        &view,
     )?;
     let row = |name: &str, s: &TestSummary| {
         vec![
@@ -114,7 +120,10 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             json!(s.view_secs_median),
         ]
     };
-    t.row(row("vt default (stereo-carved hull, textured)", &default));
+    t.row(row(
+        "vt default (PatchMatch-carved hull, depth clip, textured)",
+        &default,
+    ));
     t.row(row("vt --no-stereo (photo hull, textured)", &hull));
     for (name, sc) in [
         ("baseline: vt's rough render", default.rough),
@@ -173,13 +182,26 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
                 "depth every pixel".into(),
                 StereoParams { pixel_step: 1, ..d },
             ),
-            ("no coarse sweep".into(), StereoParams { coarse: 1, ..d }),
+            (
+                "plane sweep, not PatchMatch".into(),
+                StereoParams { patchmatch: 0, ..d },
+            ),
+            (
+                "PatchMatch 6 iterations".into(),
+                StereoParams { patchmatch: 6, ..d },
+            ),
             (
                 "window 7x7 every pixel".into(),
                 StereoParams { stride: 1, ..d },
             ),
-            ("distinct 0.1".into(), StereoParams { distinct: 0.1, ..d }),
-            ("distinct 0.2".into(), StereoParams { distinct: 0.2, ..d }),
+            (
+                "plane sweep, distinct 0.2".into(),
+                StereoParams {
+                    patchmatch: 0,
+                    distinct: 0.2,
+                    ..d
+                },
+            ),
             (
                 "2 confirmations".into(),
                 StereoParams {
@@ -216,8 +238,22 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
                 stereo_params: sp,
                 ..Default::default()
             },
+            &ViewParams::default(),
         )?;
         k.row(knob_row(&name, &s));
+    }
+    if !ctx.quick {
+        // The view's clip to the depth maps' free space (the default model).
+        let s = measure(
+            &train,
+            &test,
+            &ModelParams::default(),
+            &ViewParams {
+                depth_clip: None,
+                ..Default::default()
+            },
+        )?;
+        k.row(knob_row("no depth clip in the view", &s));
     }
     Ok(vec![Item::Table(t), Item::Table(k)])
 }

@@ -1,6 +1,12 @@
-//! Geometry from the photos themselves: a depth map per photo by plane-sweep stereo inside the
-//! visual hull, checked against the other photos' depth maps, then the hull carved to the free
-//! space the depth maps prove.
+//! Geometry from the photos themselves: a depth map per photo by stereo inside the visual hull,
+//! checked against the other photos' depth maps, then the hull carved to the free space the
+//! depth maps prove.
+//!
+//! By default each depth map comes from PatchMatch over slanted planes ([`planes`]): each cell
+//! holds a depth and a normal, and its window is compared with the sources through the
+//! homography of that plane. The fronto-parallel plane sweep below (`patchmatch: 0`) is kept
+//! as the measured alternative; the rest (sources, scores, acceptance, confirmation, carving)
+//! is the same for both. What follows describes the sweep.
 //!
 //! The visual hull of a few views is fat: every concavity and every region between the views'
 //! silhouette cones stays full. Colours see what silhouettes cannot. For each photo (the
@@ -27,6 +33,8 @@ use crate::silhouette::Mask;
 use crate::texture::nearest_by_direction;
 use crate::{Error, Result};
 
+mod planes;
+
 /// Settings of [`carve_by_stereo`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StereoParams {
@@ -49,8 +57,8 @@ pub struct StereoParams {
     pub pixel_step: usize,
     /// Least score a depth is kept at (0.4).
     pub min_ncc: f64,
-    /// Least lead of the best depth's score over any other depth farther than `apart` voxels
-    /// (0: off). A repeated pattern matches at several depths; 0.1-0.2 drops those and carves
+    /// Sweep only: least lead of the best depth's score over any other depth farther than
+    /// `apart` voxels (0: off). A repeated pattern matches at several depths; 0.1-0.2 drops those and carves
     /// less, safer on periodic texture (the synthetic object) but less on real photos (the
     /// report's stereo table).
     pub distinct: f64,
@@ -74,6 +82,12 @@ pub struct StereoParams {
     /// Sweep and carve up to this many times (2): each pass measures inside what the one
     /// before left, where fewer phantom surfaces hide the real ones.
     pub passes: usize,
+    /// PatchMatch iterations over slanted planes ([`planes`]) instead of the fronto-parallel
+    /// plane sweep (3; 0: the sweep). On the synthetic object's ray-cast truth (tests/stereo.rs)
+    /// the median depth error falls from 1.24 to 0.60 voxels and the 90th percentile from 19.9
+    /// to 5.6, with more cells confirmed; lego 8-view 20.45 -> 20.86 dB (6 iterations 20.90),
+    /// kettle leave-one-out 24.72 -> 24.76. `distinct` and `coarse` apply to the sweep only.
+    pub patchmatch: usize,
 }
 
 impl Default for StereoParams {
@@ -96,6 +110,7 @@ impl Default for StereoParams {
             protect: 1.5,
             unseen_keep: Some(3),
             passes: 2,
+            patchmatch: 3,
         }
     }
 }
@@ -122,6 +137,13 @@ impl StereoParams {
                 "stereo_radius",
                 format!("{} (stride {})", self.radius, self.stride),
                 "radius in 1..=15, stride in 1..=radius",
+            );
+        }
+        if self.patchmatch > 16 {
+            return bad(
+                "stereo_patchmatch",
+                self.patchmatch.to_string(),
+                "in 0..=16",
             );
         }
         if !(1..=8).contains(&self.passes) {
@@ -173,6 +195,12 @@ impl DepthMap {
             return f32::NAN;
         }
         self.depth[y as usize * self.w + x as usize]
+    }
+
+    /// The depth at the cell nearest pixel `(u, v)` (`NaN` where there is none or outside).
+    pub fn nearest(&self, u: f64, v: f64) -> f32 {
+        let (x, y) = self.cell(u, v);
+        self.at(x, y)
     }
 
     /// The cell nearest pixel `(u, v)`.
@@ -573,7 +601,13 @@ fn measure(
 ) -> (Vec<DepthMap>, StereoSummary) {
     let centre = grid.bounds().centre();
     let raw: Vec<DepthMap> = (0..cams.len())
-        .map(|i| sweep(i, grid, cams, planes, masks, &centre, p))
+        .map(|i| {
+            if p.patchmatch > 0 {
+                planes::patchmatch_map(i, grid, cams, planes, masks, &centre, p)
+            } else {
+                sweep(i, grid, cams, planes, masks, &centre, p)
+            }
+        })
         .collect();
     let vs = grid.voxel_size().min();
     let maps = confirm(&raw, cams, p.agree * vs, p.confirmations);

@@ -1,0 +1,352 @@
+//! PatchMatch stereo with a slanted plane per pixel (Bleyer et al. 2011; Schönberger et al.
+//! 2016's multi-view form): each cell of a photo's depth map holds a plane, a depth and a
+//! normal, and its window is compared with the sources through the homography that plane
+//! induces, so a surface seen at a slant matches across wide baselines, where the plane sweep's
+//! fronto-parallel window smears. Planes start at random inside the hull's stretch of the ray,
+//! then spread to neighbours (red-black: every cell of one colour updates in parallel from the
+//! other colour's planes, the four nearest and four three cells away) and are refined by random
+//! perturbations that shrink every iteration.
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use vt_core::rng::{hash, Rng};
+
+use super::{hull_interval, DepthMap, Plane, StereoParams, Transfer};
+use crate::camera::Camera;
+use crate::hull::VoxelGrid;
+use crate::silhouette::Mask;
+use crate::texture::nearest_by_direction;
+
+/// One cell's plane: camera depth at the cell's pixel, unit normal in camera axes (facing the
+/// camera), and the plane's score (mean NCC of the best sources; `-inf` when unscored).
+#[derive(Clone, Copy)]
+struct Hyp {
+    d: f64,
+    n: Vector3<f64>,
+    score: f64,
+}
+
+/// What a cell needs to score planes: its pixel, ray, the reference window (centred) and its
+/// energy, and the hull's stretch of its ray.
+struct Cell {
+    x: f64,
+    y: f64,
+    ray: Vector3<f64>,
+    refv: Vec<f32>,
+    var: f32,
+    near: f64,
+    far: f64,
+}
+
+struct Scorer<'a> {
+    planes: &'a [Plane],
+    transfers: Vec<Transfer>,
+    offsets: Vec<(i32, i32)>,
+    kinv: Matrix3<f64>,
+    best: usize,
+}
+
+impl Scorer<'_> {
+    /// Mean NCC of the best sources for plane `(d, n)` at `cell`; `-inf` when the plane is
+    /// seen edge-on or too few sources see the window.
+    fn score(
+        &self,
+        cell: &Cell,
+        d: f64,
+        n: &Vector3<f64>,
+        dq: &mut [f64],
+        srcv: &mut [f32],
+        scores: &mut Vec<f32>,
+    ) -> f64 {
+        let nr = n.dot(&cell.ray);
+        if nr > -1e-3 {
+            return f64::NEG_INFINITY;
+        }
+        let (nkx, nky) = (n.dot(&self.kinv.column(0)), n.dot(&self.kinv.column(1)));
+        let c = d * nr;
+        for (k, &(dx, dy)) in self.offsets.iter().enumerate() {
+            let den = nr + nkx * dx as f64 + nky * dy as f64;
+            if den > -1e-6 {
+                return f64::NEG_INFINITY;
+            }
+            dq[k] = c / den;
+        }
+        let n_s = self.offsets.len() as f32;
+        scores.clear();
+        for tr in &self.transfers {
+            let src = &self.planes[tr.src];
+            let base = tr.a * Vector3::new(cell.x, cell.y, 1.0);
+            let (ax, ay) = (tr.a.column(0).into_owned(), tr.a.column(1).into_owned());
+            let mut smean = 0.0;
+            let mut ok = true;
+            for (k, &(dx, dy)) in self.offsets.iter().enumerate() {
+                let q = (base + ax * dx as f64 + ay * dy as f64) * dq[k] + tr.b;
+                if q.z <= 1e-9 {
+                    ok = false;
+                    break;
+                }
+                match src.sample(q.x / q.z, q.y / q.z) {
+                    Some(v) => {
+                        srcv[k] = v;
+                        smean += v;
+                    }
+                    None => {
+                        ok = false;
+                        break;
+                    }
+                }
+            }
+            if !ok {
+                continue;
+            }
+            smean /= n_s;
+            let (mut cov, mut svar) = (0.0f32, 0.0f32);
+            for k in 0..self.offsets.len() {
+                let s = srcv[k] - smean;
+                cov += cell.refv[k] * s;
+                svar += s * s;
+            }
+            scores.push(if svar > 1e-6 {
+                cov / (cell.var * svar).sqrt()
+            } else {
+                0.0
+            });
+        }
+        if scores.len() < self.best {
+            return f64::NEG_INFINITY;
+        }
+        scores.sort_by(|a, b| b.total_cmp(a));
+        scores[..self.best].iter().sum::<f32>() as f64 / self.best as f64
+    }
+}
+
+/// A random unit normal facing the camera along `ray` (at most about 80 degrees off it).
+fn random_normal(rng: &mut Rng, ray: &Vector3<f64>) -> Vector3<f64> {
+    let back = -ray.normalize();
+    for _ in 0..8 {
+        let v = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+        let Some(mut v) = v.try_normalize(1e-9) else {
+            continue;
+        };
+        if v.dot(&back) < 0.0 {
+            v = -v;
+        }
+        if v.dot(&back) > 0.17 {
+            return v;
+        }
+    }
+    back
+}
+
+/// `n` turned by a random small angle (about `sigma` radians), still facing the camera.
+fn perturb_normal(rng: &mut Rng, n: &Vector3<f64>, sigma: f64, ray: &Vector3<f64>) -> Vector3<f64> {
+    let v = n + Vector3::new(rng.normal(), rng.normal(), rng.normal()) * sigma;
+    match v.try_normalize(1e-9) {
+        Some(v) if v.dot(&-ray.normalize()) > 0.17 => v,
+        _ => *n,
+    }
+}
+
+/// The depth map of photo `i` by PatchMatch over slanted planes inside `grid`'s hull, against its
+/// nearest photos: the same cells, sources, window and acceptance as the plane sweep.
+pub(super) fn patchmatch_map(
+    i: usize,
+    grid: &VoxelGrid,
+    cams: &[Camera],
+    planes: &[Plane],
+    masks: &[Mask],
+    centre: &Vector3<f64>,
+    p: &StereoParams,
+) -> DepthMap {
+    let cam = &cams[i];
+    let plane = &planes[i];
+    let (w, h) = (plane.w, plane.h);
+    let kinv = cam
+        .k
+        .try_inverse()
+        .expect("K is invertible: checked by Camera::new");
+    let transfers: Vec<Transfer> = nearest_by_direction(cams, cam, centre, p.sources + 1)
+        .into_iter()
+        .filter(|&j| j != i)
+        .take(p.sources)
+        .map(|j| Transfer::new(cam, &cams[j], j))
+        .collect();
+    let offsets: Vec<(i32, i32)> = (-p.radius..=p.radius)
+        .step_by(p.stride as usize)
+        .flat_map(|dy| {
+            (-p.radius..=p.radius)
+                .step_by(p.stride as usize)
+                .map(move |dx| (dx, dy))
+        })
+        .collect();
+    let scorer = Scorer {
+        planes,
+        transfers,
+        offsets,
+        kinv,
+        best: p.best,
+    };
+    let nk = scorer.offsets.len();
+    let step = p.pixel_step;
+    let (mw, mh) = (w.div_ceil(step), h.div_ceil(step));
+    let r = p.radius as usize;
+    // The cells inside the silhouette, with texture and a stretch of hull on their ray.
+    let cells: Vec<Option<Cell>> = (0..mw * mh)
+        .into_par_iter()
+        .map(|ci| {
+            let (x, y) = ((ci % mw) * step, (ci / mw) * step);
+            if !masks[i].get(x as u32, y as u32) || x < r || y < r || x + r >= w || y + r >= h {
+                return None;
+            }
+            let mut refv: Vec<f32> = scorer
+                .offsets
+                .iter()
+                .map(|&(dx, dy)| {
+                    plane.v[(y as i64 + dy as i64) as usize * w + (x as i64 + dx as i64) as usize]
+                })
+                .collect();
+            let mean = refv.iter().sum::<f32>() / nk as f32;
+            let mut var = 0.0;
+            for v in refv.iter_mut() {
+                *v -= mean;
+                var += *v * *v;
+            }
+            if ((var / nk as f32) as f64).sqrt() < p.min_texture {
+                return None;
+            }
+            let (near, far) = hull_interval(grid, cam, &kinv, x as f64, y as f64)?;
+            Some(Cell {
+                x: x as f64,
+                y: y as f64,
+                ray: kinv * Vector3::new(x as f64, y as f64, 1.0),
+                refv,
+                var,
+                near,
+                far,
+            })
+        })
+        .collect();
+    let vs = grid.voxel_size().min();
+    let seed = hash(&[0x5057_4d56, i as u64]);
+    let unscored = Hyp {
+        d: f64::NAN,
+        n: Vector3::zeros(),
+        score: f64::NEG_INFINITY,
+    };
+    // Random planes to start.
+    let mut hyps: Vec<Hyp> = cells
+        .par_iter()
+        .enumerate()
+        .map(|(ci, c)| {
+            let Some(c) = c else { return unscored };
+            let mut rng = Rng::new(hash(&[seed, ci as u64, u64::MAX]));
+            let d = c.near + rng.f64() * (c.far - c.near);
+            let n = random_normal(&mut rng, &c.ray);
+            let (mut dq, mut sv, mut sc) = (vec![0.0; nk], vec![0.0; nk], Vec::new());
+            Hyp {
+                d,
+                n,
+                score: scorer.score(c, d, &n, &mut dq, &mut sv, &mut sc),
+            }
+        })
+        .collect();
+    // The slack a depth may leave the hull's stretch by (a voxel along the ray).
+    let slack = |c: &Cell| vs / (cam.r.transpose() * c.ray).norm();
+    let neighbours: [(i64, i64); 8] = [
+        (-1, 0),
+        (1, 0),
+        (0, -1),
+        (0, 1),
+        (-3, 0),
+        (3, 0),
+        (0, -3),
+        (0, 3),
+    ];
+    for it in 0..p.patchmatch {
+        let shrink = 0.5f64.powi(it as i32 + 1);
+        for colour in 0..2 {
+            let updates: Vec<(usize, Hyp)> = (0..mh)
+                .into_par_iter()
+                .flat_map_iter(|cy| {
+                    let (mut dq, mut sv, mut sc) = (vec![0.0; nk], vec![0.0f32; nk], Vec::new());
+                    let mut out = Vec::new();
+                    let hyps = &hyps;
+                    let cells = &cells;
+                    let scorer = &scorer;
+                    for cx in ((cy + colour) % 2..mw).step_by(2) {
+                        let ci = cy * mw + cx;
+                        let Some(c) = &cells[ci] else { continue };
+                        let mut best = hyps[ci];
+                        let (lo, hi) = (c.near - slack(c), c.far + slack(c));
+                        let mut rng = Rng::new(hash(&[seed, ci as u64, it as u64]));
+                        let mut try_plane = |d: f64, n: Vector3<f64>, best: &mut Hyp| {
+                            if !(d >= lo && d <= hi) {
+                                return;
+                            }
+                            let s = scorer.score(c, d, &n, &mut dq, &mut sv, &mut sc);
+                            if s > best.score {
+                                *best = Hyp { d, n, score: s };
+                            }
+                        };
+                        // Neighbours' planes, carried to this cell's ray.
+                        for (dx, dy) in neighbours {
+                            let (nx, ny) = (cx as i64 + dx, cy as i64 + dy);
+                            if nx < 0 || ny < 0 || nx >= mw as i64 || ny >= mh as i64 {
+                                continue;
+                            }
+                            let nb = &hyps[ny as usize * mw + nx as usize];
+                            let Some(nc) = &cells[ny as usize * mw + nx as usize] else {
+                                continue;
+                            };
+                            if !nb.score.is_finite() {
+                                continue;
+                            }
+                            let den = nb.n.dot(&c.ray);
+                            if den > -1e-6 {
+                                continue;
+                            }
+                            let d = nb.d * nb.n.dot(&nc.ray) / den;
+                            try_plane(d, nb.n, &mut best);
+                        }
+                        // Random refinement around the best so far, then a fresh guess.
+                        let range = (c.far - c.near + 2.0 * slack(c)) * shrink;
+                        let sigma = 0.6 * shrink;
+                        let cur = best;
+                        if cur.score.is_finite() {
+                            let d = cur.d + (rng.f64() - 0.5) * range;
+                            let n = perturb_normal(&mut rng, &cur.n, sigma, &c.ray);
+                            try_plane(d, n, &mut best);
+                            let d = cur.d + (rng.f64() - 0.5) * range;
+                            try_plane(d, cur.n, &mut best);
+                            let n = perturb_normal(&mut rng, &cur.n, sigma, &c.ray);
+                            try_plane(cur.d, n, &mut best);
+                        }
+                        let d = c.near + rng.f64() * (c.far - c.near);
+                        let n = random_normal(&mut rng, &c.ray);
+                        try_plane(d, n, &mut best);
+                        out.push((ci, best));
+                    }
+                    out
+                })
+                .collect();
+            for (ci, hyp) in updates {
+                hyps[ci] = hyp;
+            }
+        }
+    }
+    DepthMap {
+        w: mw,
+        h: mh,
+        step,
+        depth: hyps
+            .iter()
+            .map(|h| {
+                if h.score >= p.min_ncc {
+                    h.d as f32
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect(),
+    }
+}
