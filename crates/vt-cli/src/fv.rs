@@ -227,7 +227,7 @@ pub struct RenderArgs {
     view: ViewArgs,
     /// The new camera: a par line `name k11..k33 r11..r33 t1 t2 t3`, `angle:DEG` (on the
     /// cameras' ring, 0 = first camera, growing towards the second) or `between:I,J,T` (between
-    /// views I and J, 0-based in camera order (the par file's lines, COLMAP's image ids, the matrix files' names), at T in [0, 1]).
+    /// views I and J, 0-based in camera order (the par file's lines, COLMAP's image ids, the matrix files' names), at T in [0, 1], carried round the model's centre).
     #[arg(long, allow_hyphen_values = true)]
     camera: String,
     /// Output image (.png or .jpg), written to a temporary file and renamed.

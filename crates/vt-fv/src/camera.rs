@@ -675,7 +675,7 @@ impl Ring {
 /// A new camera from a spec: a par line `name k11..k33 r11..r33 t1 t2 t3` (scaled by `scale`,
 /// like the photos), `angle:DEG` (on the cameras' [`Ring`], 0 = first camera, growing towards
 /// the second, looking at `target`) or `between:I,J,T` (between views I and J, 0-based, at T in
-/// [0, 1], see [`interpolate`]).
+/// [0, 1], round `target`: see [`interpolate_around`]).
 pub fn parse_camera_spec(
     spec: &str,
     cams: &[Camera],
@@ -720,7 +720,7 @@ pub fn parse_camera_spec(
             .ok()
             .filter(|t| (0.0..=1.0).contains(t))
             .ok_or_else(|| bad(format!("T {:?} is not in [0, 1]", f[2])))?;
-        return interpolate(&cams[i], &cams[j], t).map_err(|e| bad(e.to_string()));
+        return interpolate_around(&cams[i], &cams[j], t, target).map_err(|e| bad(e.to_string()));
     }
     // A word and a colon is a named spec, not a par line: an unknown or misspelt name.
     if let Some((word, _)) = spec.split_once(':') {
@@ -775,6 +775,46 @@ pub fn interpolate(a: &Camera, b: &Camera, s: f64) -> Result<Camera> {
         .unwrap_or(if s < 0.5 { qa } else { qb });
     let r = q.to_rotation_matrix().into_inner();
     let c = a.centre() * (1.0 - s) + b.centre() * s;
+    let k = a.k * (1.0 - s) + b.k * s;
+    Camera::new(format!("{}~{}@{s:.3}", a.name, b.name), k, r, -(r * c))
+}
+
+/// [`interpolate`] carried round `target`: the centre's direction from `target` by slerp and
+/// its distance by lerp, and the camera turned with it. Each camera's rotation is split into
+/// the look at `target` from its centre (its own down direction kept) and the offset from that
+/// look (how far off-centre the target sits in its photo); the new camera looks at `target`
+/// from its centre with the lerped down direction, then takes the slerped offset. Views far
+/// apart round an object (lego's r_26 and r_86 are 98 degrees apart) would otherwise put the
+/// camera inside the orbit, close enough to see only part of the object.
+pub fn interpolate_around(a: &Camera, b: &Camera, s: f64, target: &Vector3<f64>) -> Result<Camera> {
+    let (da, db) = (a.centre() - target, b.centre() - target);
+    let (ra, rb) = (da.norm(), db.norm());
+    let angle = if ra < 1e-12 || rb < 1e-12 {
+        0.0
+    } else {
+        (da / ra).dot(&(db / rb)).clamp(-1.0, 1.0).acos()
+    };
+    // A camera at the target, nearly the same direction, or opposite ones (no unique great
+    // circle): the straight line.
+    if angle < 1e-9 || angle > std::f64::consts::PI - 1e-6 {
+        return interpolate(a, b, s);
+    }
+    let dir = (da / ra * ((1.0 - s) * angle).sin() + db / rb * (s * angle).sin()) / angle.sin();
+    let c = target + dir * ((1.0 - s) * ra + s * rb);
+    let down = |cam: &Camera| cam.r.row(1).transpose();
+    let look = |centre: Vector3<f64>, d: Vector3<f64>| -> Result<Matrix3<f64>> {
+        Ok(Camera::look_at("", Matrix3::identity(), centre, *target, d)?.r)
+    };
+    let quat = |m: Matrix3<f64>| UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&m));
+    let (la, lb) = (look(a.centre(), down(a))?, look(b.centre(), down(b))?);
+    let (oa, ob) = (quat(a.r * la.transpose()), quat(b.r * lb.transpose()));
+    let offset = oa
+        .try_slerp(&ob, s, 1e-9)
+        .unwrap_or(if s < 0.5 { oa } else { ob });
+    let d = (down(a) * (1.0 - s) + down(b) * s)
+        .try_normalize(1e-9)
+        .unwrap_or_else(|| down(a));
+    let r = offset.to_rotation_matrix().into_inner() * look(c, d)?;
     let k = a.k * (1.0 - s) + b.k * s;
     Camera::new(format!("{}~{}@{s:.3}", a.name, b.name), k, r, -(r * c))
 }
@@ -965,5 +1005,46 @@ mod tests {
         assert!((mid.r - cams[1].r).norm() < 1e-6);
         let end = interpolate(&cams[0], &cams[2], 1.0).unwrap();
         assert!((end.centre() - cams[2].centre()).norm() < 1e-9);
+        // Round the target: views 81 degrees apart at distance 3; the straight line's middle is
+        // 3 cos 40.6 = 2.28 from the target, the orbit's stays at 3 and still looks at it.
+        let cut = interpolate(&cams[0], &cams[2], 0.5).unwrap();
+        assert!(((cut.centre() - target).norm() - 2.28).abs() < 0.01);
+        for s in [0.0, 0.25, 0.5, 0.75, 1.0] {
+            let c = interpolate_around(&cams[0], &cams[2], s, &target).unwrap();
+            assert_relative_eq!((c.centre() - target).norm(), 3.0, epsilon = 1e-9);
+            let (u, v, _) = c.project(&target).unwrap();
+            let (pu, pv) = (c.k[(0, 2)], c.k[(1, 2)]);
+            assert!(
+                (u - pu).hypot(v - pv) < 1.0,
+                "{s}: target at {u:.2}, {v:.2}"
+            );
+        }
+        let mid = interpolate_around(&cams[0], &cams[2], 0.5, &target).unwrap();
+        // The great circle rises above the ring between two views at one elevation (23 degrees
+        // here, 31 at the middle): 0.41 from the ring's own middle camera.
+        assert!((mid.centre() - cams[1].centre()).norm() < 0.45);
+        for (s, cam) in [(0.0, &cams[0]), (1.0, &cams[2])] {
+            let end = interpolate_around(&cams[0], &cams[2], s, &target).unwrap();
+            assert!((end.centre() - cam.centre()).norm() < 1e-9);
+            assert!((end.r - cam.r).norm() < 1e-9);
+        }
+        // A camera that does not look at the target keeps its offset: the target stays where
+        // it was in its photo at both ends, and between them moves between the two places.
+        let turn = Rotation3::from_euler_angles(0.0, 0.05, 0.0).into_inner();
+        let off = Camera::new(
+            "o",
+            cams[2].k,
+            turn * cams[2].r,
+            -(turn * cams[2].r * cams[2].centre()),
+        )
+        .unwrap();
+        let end = interpolate_around(&cams[0], &off, 1.0, &target).unwrap();
+        assert!((end.r - off.r).norm() < 1e-9);
+        let (u1, _, _) = off.project(&target).unwrap();
+        let (um, _, _) = interpolate_around(&cams[0], &off, 0.5, &target)
+            .unwrap()
+            .project(&target)
+            .unwrap();
+        assert!((u1 - 200.0).abs() > 10.0 && (um - 200.0).abs() < (u1 - 200.0).abs());
     }
 }
