@@ -796,7 +796,7 @@ pub fn interpolate_around(a: &Camera, b: &Camera, s: f64, target: &Vector3<f64>)
     };
     // A camera at the target, nearly the same direction, or opposite ones (no unique great
     // circle): the straight line.
-    if angle < 1e-9 || angle > std::f64::consts::PI - 1e-6 {
+    if !(1e-9..=std::f64::consts::PI - 1e-6).contains(&angle) {
         return interpolate(a, b, s);
     }
     let dir = (da / ra * ((1.0 - s) * angle).sin() + db / rb * (s * angle).sin()) / angle.sin();
