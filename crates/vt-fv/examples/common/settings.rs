@@ -71,6 +71,8 @@ fn apply_model(k: &str, v: &str, model: &mut ModelParams) -> bool {
         "protect" => st.protect = f(),
         "passes" => st.passes = f() as usize,
         "pm" => st.patchmatch = f() as usize,
+        "geo" => st.geo_iters = f() as usize,
+        "geow" => st.geo_weight = f(),
         "conf" => st.confirmations = f() as usize,
         "unseen" => st.unseen_keep = (f() >= 0.0).then(|| f() as usize),
         "texture" => st.min_texture = f(),

@@ -5,7 +5,10 @@
 //! fronto-parallel window smears. Planes start at random inside the hull's stretch of the ray,
 //! then spread to neighbours (red-black: every cell of one colour updates in parallel from the
 //! other colour's planes, the four nearest and four three cells away) and are refined by random
-//! perturbations that shrink every iteration.
+//! perturbations that shrink every iteration. A second round starts from the first's planes and
+//! docks each source's score for how far the point, carried into the source by the plane and
+//! back by the source's own first-round depth, lands from where it started (geometric
+//! consistency, as COLMAP's PatchMatch stereo).
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -20,7 +23,7 @@ use crate::texture::nearest_by_direction;
 /// One cell's plane: camera depth at the cell's pixel, unit normal in camera axes (facing the
 /// camera), and the plane's score (mean NCC of the best sources; `-inf` when unscored).
 #[derive(Clone, Copy)]
-struct Hyp {
+pub(super) struct Hyp {
     d: f64,
     n: Vector3<f64>,
     score: f64,
@@ -41,6 +44,11 @@ struct Cell {
 struct Scorer<'a> {
     planes: &'a [Plane],
     transfers: Vec<Transfer>,
+    /// Per source, the map back from it to the reference (for the geometric term).
+    backs: Vec<Transfer>,
+    /// The other photos' depth maps from a first round, and the weight of the forward-backward
+    /// reprojection error (pixels, capped at 3, scaled to 0..1) taken off each source's NCC.
+    geo: Option<(&'a [DepthMap], f64)>,
     offsets: Vec<(i32, i32)>,
     kinv: Matrix3<f64>,
     best: usize,
@@ -73,7 +81,7 @@ impl Scorer<'_> {
         }
         let n_s = self.offsets.len() as f32;
         scores.clear();
-        for tr in &self.transfers {
+        for (t, tr) in self.transfers.iter().enumerate() {
             let src = &self.planes[tr.src];
             let base = tr.a * Vector3::new(cell.x, cell.y, 1.0);
             let (ax, ay) = (tr.a.column(0).into_owned(), tr.a.column(1).into_owned());
@@ -106,11 +114,25 @@ impl Scorer<'_> {
                 cov += cell.refv[k] * s;
                 svar += s * s;
             }
-            scores.push(if svar > 1e-6 {
+            let mut ncc = if svar > 1e-6 {
                 cov / (cell.var * svar).sqrt()
             } else {
                 0.0
-            });
+            };
+            if let Some((maps, weight)) = self.geo {
+                let q0 = base * d + tr.b;
+                let (u, v) = (q0.x / q0.z, q0.y / q0.z);
+                let ds = maps[tr.src].nearest(u, v) as f64;
+                let err = if ds.is_finite() {
+                    let bk = &self.backs[t];
+                    let pb = bk.a * Vector3::new(u, v, 1.0) * ds + bk.b;
+                    ((pb.x / pb.z - cell.x).powi(2) + (pb.y / pb.z - cell.y).powi(2)).sqrt()
+                } else {
+                    3.0
+                };
+                ncc -= (weight * err.min(3.0) / 3.0) as f32;
+            }
+            scores.push(ncc);
         }
         if scores.len() < self.best {
             return f64::NEG_INFINITY;
@@ -148,7 +170,10 @@ fn perturb_normal(rng: &mut Rng, n: &Vector3<f64>, sigma: f64, ray: &Vector3<f64
 }
 
 /// The depth map of photo `i` by PatchMatch over slanted planes inside `grid`'s hull, against its
-/// nearest photos: the same cells, sources, window and acceptance as the plane sweep.
+/// nearest photos: the same cells, sources, window and acceptance as the plane sweep. `start`:
+/// the planes to go on from (a second round), `geo`: the first round's maps and the weight of
+/// the geometric term. Returns the map and the planes.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn patchmatch_map(
     i: usize,
     grid: &VoxelGrid,
@@ -157,7 +182,9 @@ pub(super) fn patchmatch_map(
     masks: &[Mask],
     centre: &Vector3<f64>,
     p: &StereoParams,
-) -> DepthMap {
+    start: Option<&[Hyp]>,
+    geo: Option<(&[DepthMap], f64)>,
+) -> (DepthMap, Vec<Hyp>) {
     let cam = &cams[i];
     let plane = &planes[i];
     let (w, h) = (plane.w, plane.h);
@@ -165,11 +192,18 @@ pub(super) fn patchmatch_map(
         .k
         .try_inverse()
         .expect("K is invertible: checked by Camera::new");
-    let transfers: Vec<Transfer> = nearest_by_direction(cams, cam, centre, p.sources + 1)
+    let sources: Vec<usize> = nearest_by_direction(cams, cam, centre, p.sources + 1)
         .into_iter()
         .filter(|&j| j != i)
         .take(p.sources)
-        .map(|j| Transfer::new(cam, &cams[j], j))
+        .collect();
+    let transfers: Vec<Transfer> = sources
+        .iter()
+        .map(|&j| Transfer::new(cam, &cams[j], j))
+        .collect();
+    let backs: Vec<Transfer> = sources
+        .iter()
+        .map(|&j| Transfer::new(&cams[j], cam, i))
         .collect();
     let offsets: Vec<(i32, i32)> = (-p.radius..=p.radius)
         .step_by(p.stride as usize)
@@ -182,6 +216,8 @@ pub(super) fn patchmatch_map(
     let scorer = Scorer {
         planes,
         transfers,
+        backs,
+        geo,
         offsets,
         kinv,
         best: p.best,
@@ -240,8 +276,13 @@ pub(super) fn patchmatch_map(
         .map(|(ci, c)| {
             let Some(c) = c else { return unscored };
             let mut rng = Rng::new(hash(&[seed, ci as u64, u64::MAX]));
-            let d = c.near + rng.f64() * (c.far - c.near);
-            let n = random_normal(&mut rng, &c.ray);
+            let (d, n) = match start {
+                Some(h) if h[ci].score.is_finite() => (h[ci].d, h[ci].n),
+                _ => (
+                    c.near + rng.f64() * (c.far - c.near),
+                    random_normal(&mut rng, &c.ray),
+                ),
+            };
             let (mut dq, mut sv, mut sc) = (vec![0.0; nk], vec![0.0; nk], Vec::new());
             Hyp {
                 d,
@@ -262,7 +303,12 @@ pub(super) fn patchmatch_map(
         (0, -3),
         (0, 3),
     ];
-    for it in 0..p.patchmatch {
+    let (first, iters) = if start.is_some() {
+        (p.patchmatch, p.patchmatch + p.geo_iters)
+    } else {
+        (0, p.patchmatch)
+    };
+    for it in first..iters {
         let shrink = 0.5f64.powi(it as i32 + 1);
         for colour in 0..2 {
             let updates: Vec<(usize, Hyp)> = (0..mh)
@@ -334,7 +380,7 @@ pub(super) fn patchmatch_map(
             }
         }
     }
-    DepthMap {
+    let map = DepthMap {
         w: mw,
         h: mh,
         step,
@@ -348,5 +394,42 @@ pub(super) fn patchmatch_map(
                 }
             })
             .collect(),
+    };
+    (map, hyps)
+}
+
+/// Every photo's depth map by PatchMatch; with `geo_iters`, a second round from the first's
+/// planes with the geometric term against the first round's maps (each photo's first round
+/// runs without it, so the rounds do not depend on the order of the photos).
+pub(super) fn patchmatch_all(
+    grid: &VoxelGrid,
+    cams: &[Camera],
+    planes: &[Plane],
+    masks: &[Mask],
+    centre: &Vector3<f64>,
+    p: &StereoParams,
+) -> Vec<DepthMap> {
+    let first: Vec<(DepthMap, Vec<Hyp>)> = (0..cams.len())
+        .map(|i| patchmatch_map(i, grid, cams, planes, masks, centre, p, None, None))
+        .collect();
+    if p.geo_iters == 0 {
+        return first.into_iter().map(|(m, _)| m).collect();
     }
+    let maps: Vec<DepthMap> = first.iter().map(|(m, _)| m.clone()).collect();
+    (0..cams.len())
+        .map(|i| {
+            patchmatch_map(
+                i,
+                grid,
+                cams,
+                planes,
+                masks,
+                centre,
+                p,
+                Some(&first[i].1),
+                Some((&maps, p.geo_weight)),
+            )
+            .0
+        })
+        .collect()
 }

@@ -191,6 +191,10 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
                 StereoParams { patchmatch: 6, ..d },
             ),
             (
+                "no geometric round".into(),
+                StereoParams { geo_iters: 0, ..d },
+            ),
+            (
                 "window 7x7 every pixel".into(),
                 StereoParams { stride: 1, ..d },
             ),
