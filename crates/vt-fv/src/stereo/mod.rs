@@ -300,6 +300,97 @@ impl Transfer {
     }
 }
 
+/// The samples of a window of half side `radius` taken every `stride` pixels, as offsets.
+fn window_offsets(radius: i32, stride: i32) -> Vec<(i32, i32)> {
+    (-radius..=radius)
+        .step_by(stride as usize)
+        .flat_map(|dy| {
+            (-radius..=radius)
+                .step_by(stride as usize)
+                .map(move |dx| (dx, dy))
+        })
+        .collect()
+}
+
+/// The maps from photo `i` into its `n` nearest other photos by viewing direction.
+fn source_transfers(i: usize, cams: &[Camera], centre: &Vector3<f64>, n: usize) -> Vec<Transfer> {
+    nearest_by_direction(cams, &cams[i], centre, n + 1)
+        .into_iter()
+        .filter(|&j| j != i)
+        .take(n)
+        .map(|j| Transfer::new(&cams[i], &cams[j], j))
+        .collect()
+}
+
+/// The reference window at pixel `(x, y)` into `refv`, centred (mean 0); returns its energy
+/// (the sum of squares) and its standard deviation.
+fn reference_window(
+    plane: &Plane,
+    x: usize,
+    y: usize,
+    offsets: &[(i32, i32)],
+    refv: &mut [f32],
+) -> (f32, f64) {
+    let n = offsets.len() as f32;
+    let mut mean = 0.0;
+    for (k, &(dx, dy)) in offsets.iter().enumerate() {
+        let v =
+            plane.v[(y as i64 + dy as i64) as usize * plane.w + (x as i64 + dx as i64) as usize];
+        refv[k] = v;
+        mean += v;
+    }
+    mean /= n;
+    let mut var = 0.0;
+    for v in refv.iter_mut() {
+        *v -= mean;
+        var += *v * *v;
+    }
+    (var, ((var / n) as f64).sqrt())
+}
+
+/// NCC of the centred reference window `refv` (energy `var`) against photo `src` at the
+/// window's points there, `point(k)` (homogeneous pixel coordinates); `None` when a point lies
+/// behind the source camera or outside its photo. `srcv` is scratch of the window's size.
+#[inline]
+fn ncc(
+    src: &Plane,
+    refv: &[f32],
+    var: f32,
+    srcv: &mut [f32],
+    point: impl Fn(usize) -> Vector3<f64>,
+) -> Option<f32> {
+    let mut smean = 0.0;
+    for (k, sv) in srcv.iter_mut().enumerate() {
+        let q = point(k);
+        if q.z <= 1e-9 {
+            return None;
+        }
+        *sv = src.sample(q.x / q.z, q.y / q.z)?;
+        smean += *sv;
+    }
+    smean /= srcv.len() as f32;
+    let (mut cov, mut svar) = (0.0f32, 0.0f32);
+    for (r, sv) in refv.iter().zip(srcv.iter()) {
+        let s = sv - smean;
+        cov += r * s;
+        svar += s * s;
+    }
+    Some(if svar > 1e-6 {
+        cov / (var * svar).sqrt()
+    } else {
+        0.0
+    })
+}
+
+/// The mean of the `best` highest scores (sorted in place); `-inf` with fewer.
+fn best_mean(scores: &mut [f32], best: usize) -> f64 {
+    if scores.len() < best {
+        return f64::NEG_INFINITY;
+    }
+    scores.sort_by(|a, b| b.total_cmp(a));
+    scores[..best].iter().sum::<f32>() as f64 / best as f64
+}
+
 /// The occupied voxels along pixel `(u, v)`'s ray, sampled every half voxel inside the grid's
 /// bounds: `(t, voxel index)` in order, `t` the ray parameter, which is the camera depth.
 fn occupied_along<'a>(
@@ -371,22 +462,8 @@ fn sweep(
         .k
         .try_inverse()
         .expect("K is invertible: checked by Camera::new");
-    // The nearest other photos by viewing direction (the reference itself comes first).
-    let transfers: Vec<Transfer> = nearest_by_direction(cams, cam, centre, p.sources + 1)
-        .into_iter()
-        .filter(|&j| j != i)
-        .take(p.sources)
-        .map(|j| Transfer::new(cam, &cams[j], j))
-        .collect();
-    let offsets: Vec<(i32, i32)> = (-p.radius..=p.radius)
-        .step_by(p.stride as usize)
-        .flat_map(|dy| {
-            (-p.radius..=p.radius)
-                .step_by(p.stride as usize)
-                .map(move |dx| (dx, dy))
-        })
-        .collect();
-    let n = offsets.len() as f32;
+    let transfers = source_transfers(i, cams, centre, p.sources);
+    let offsets = window_offsets(p.radius, p.stride);
     let vs = grid.voxel_size().min();
     let step = p.pixel_step;
     let (mw, mh) = (w.div_ceil(step), h.div_ceil(step));
@@ -405,21 +482,8 @@ fn sweep(
                 if !masks[i].get(x as u32, y as u32) || x < r || y < r || x + r >= w || y + r >= h {
                     continue;
                 }
-                // The reference window, centred (mean 0), and its spread.
-                let mut mean = 0.0;
-                for (k, &(dx, dy)) in offsets.iter().enumerate() {
-                    let v = plane.v
-                        [(y as i64 + dy as i64) as usize * w + (x as i64 + dx as i64) as usize];
-                    refv[k] = v;
-                    mean += v;
-                }
-                mean /= n;
-                let mut var = 0.0;
-                for v in refv.iter_mut() {
-                    *v -= mean;
-                    var += *v * *v;
-                }
-                if ((var / n) as f64).sqrt() < p.min_texture {
+                let (var, spread) = reference_window(plane, x, y, &offsets, &mut refv);
+                if spread < p.min_texture {
                     continue;
                 }
                 let Some((near, far)) = hull_interval(grid, cam, &kinv, x as f64, y as f64) else {
@@ -433,49 +497,17 @@ fn sweep(
                 let mut score = |d: f64| -> f64 {
                     scores.clear();
                     for tr in &transfers {
-                        let src = &planes[tr.src];
                         let base = tr.a * Vector3::new(x as f64, y as f64, 1.0) * d + tr.b;
                         let (ax, ay) = (tr.a.column(0) * d, tr.a.column(1) * d);
-                        let mut ok = true;
-                        let mut smean = 0.0;
-                        for (k, &(dx, dy)) in offsets.iter().enumerate() {
-                            let q = base + ax * dx as f64 + ay * dy as f64;
-                            if q.z <= 1e-9 {
-                                ok = false;
-                                break;
-                            }
-                            match src.sample(q.x / q.z, q.y / q.z) {
-                                Some(v) => {
-                                    srcv[k] = v;
-                                    smean += v;
-                                }
-                                None => {
-                                    ok = false;
-                                    break;
-                                }
-                            }
+                        let at = |k: usize| {
+                            let (dx, dy) = offsets[k];
+                            base + ax * dx as f64 + ay * dy as f64
+                        };
+                        if let Some(v) = ncc(&planes[tr.src], &refv, var, &mut srcv, at) {
+                            scores.push(v);
                         }
-                        if !ok {
-                            continue;
-                        }
-                        smean /= n;
-                        let (mut cov, mut svar) = (0.0f32, 0.0f32);
-                        for k in 0..offsets.len() {
-                            let s = srcv[k] - smean;
-                            cov += refv[k] * s;
-                            svar += s * s;
-                        }
-                        scores.push(if svar > 1e-6 {
-                            cov / (var * svar).sqrt()
-                        } else {
-                            0.0
-                        });
                     }
-                    if scores.len() < p.best {
-                        return f64::NEG_INFINITY;
-                    }
-                    scores.sort_by(|a, b| b.total_cmp(a));
-                    scores[..p.best].iter().sum::<f32>() as f64 / p.best as f64
+                    best_mean(&mut scores, p.best)
                 };
                 // Coarse to fine: every `coarse` steps, then every step around the best.
                 let coarse = dt * p.coarse as f64;

@@ -14,11 +14,13 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use vt_core::rng::{hash, Rng};
 
-use super::{hull_interval, DepthMap, Plane, StereoParams, Transfer};
+use super::{
+    best_mean, hull_interval, ncc, reference_window, source_transfers, window_offsets, DepthMap,
+    Plane, StereoParams, Transfer,
+};
 use crate::camera::Camera;
 use crate::hull::VoxelGrid;
 use crate::silhouette::Mask;
-use crate::texture::nearest_by_direction;
 
 /// One cell's plane: camera depth at the cell's pixel, unit normal in camera axes (facing the
 /// camera), and the plane's score (mean NCC of the best sources; `-inf` when unscored).
@@ -79,45 +81,16 @@ impl Scorer<'_> {
             }
             dq[k] = c / den;
         }
-        let n_s = self.offsets.len() as f32;
         scores.clear();
         for (t, tr) in self.transfers.iter().enumerate() {
-            let src = &self.planes[tr.src];
             let base = tr.a * Vector3::new(cell.x, cell.y, 1.0);
             let (ax, ay) = (tr.a.column(0).into_owned(), tr.a.column(1).into_owned());
-            let mut smean = 0.0;
-            let mut ok = true;
-            for (k, &(dx, dy)) in self.offsets.iter().enumerate() {
-                let q = (base + ax * dx as f64 + ay * dy as f64) * dq[k] + tr.b;
-                if q.z <= 1e-9 {
-                    ok = false;
-                    break;
-                }
-                match src.sample(q.x / q.z, q.y / q.z) {
-                    Some(v) => {
-                        srcv[k] = v;
-                        smean += v;
-                    }
-                    None => {
-                        ok = false;
-                        break;
-                    }
-                }
-            }
-            if !ok {
+            let at = |k: usize| {
+                let (dx, dy) = self.offsets[k];
+                (base + ax * dx as f64 + ay * dy as f64) * dq[k] + tr.b
+            };
+            let Some(mut ncc) = ncc(&self.planes[tr.src], &cell.refv, cell.var, srcv, at) else {
                 continue;
-            }
-            smean /= n_s;
-            let (mut cov, mut svar) = (0.0f32, 0.0f32);
-            for k in 0..self.offsets.len() {
-                let s = srcv[k] - smean;
-                cov += cell.refv[k] * s;
-                svar += s * s;
-            }
-            let mut ncc = if svar > 1e-6 {
-                cov / (cell.var * svar).sqrt()
-            } else {
-                0.0
             };
             if let Some((maps, weight)) = self.geo {
                 let q0 = base * d + tr.b;
@@ -134,11 +107,7 @@ impl Scorer<'_> {
             }
             scores.push(ncc);
         }
-        if scores.len() < self.best {
-            return f64::NEG_INFINITY;
-        }
-        scores.sort_by(|a, b| b.total_cmp(a));
-        scores[..self.best].iter().sum::<f32>() as f64 / self.best as f64
+        best_mean(scores, self.best)
     }
 }
 
@@ -192,27 +161,12 @@ pub(super) fn patchmatch_map(
         .k
         .try_inverse()
         .expect("K is invertible: checked by Camera::new");
-    let sources: Vec<usize> = nearest_by_direction(cams, cam, centre, p.sources + 1)
-        .into_iter()
-        .filter(|&j| j != i)
-        .take(p.sources)
-        .collect();
-    let transfers: Vec<Transfer> = sources
+    let transfers = source_transfers(i, cams, centre, p.sources);
+    let backs: Vec<Transfer> = transfers
         .iter()
-        .map(|&j| Transfer::new(cam, &cams[j], j))
+        .map(|tr| Transfer::new(&cams[tr.src], cam, i))
         .collect();
-    let backs: Vec<Transfer> = sources
-        .iter()
-        .map(|&j| Transfer::new(&cams[j], cam, i))
-        .collect();
-    let offsets: Vec<(i32, i32)> = (-p.radius..=p.radius)
-        .step_by(p.stride as usize)
-        .flat_map(|dy| {
-            (-p.radius..=p.radius)
-                .step_by(p.stride as usize)
-                .map(move |dx| (dx, dy))
-        })
-        .collect();
+    let offsets = window_offsets(p.radius, p.stride);
     let scorer = Scorer {
         planes,
         transfers,
@@ -234,20 +188,9 @@ pub(super) fn patchmatch_map(
             if !masks[i].get(x as u32, y as u32) || x < r || y < r || x + r >= w || y + r >= h {
                 return None;
             }
-            let mut refv: Vec<f32> = scorer
-                .offsets
-                .iter()
-                .map(|&(dx, dy)| {
-                    plane.v[(y as i64 + dy as i64) as usize * w + (x as i64 + dx as i64) as usize]
-                })
-                .collect();
-            let mean = refv.iter().sum::<f32>() / nk as f32;
-            let mut var = 0.0;
-            for v in refv.iter_mut() {
-                *v -= mean;
-                var += *v * *v;
-            }
-            if ((var / nk as f32) as f64).sqrt() < p.min_texture {
+            let mut refv = vec![0f32; nk];
+            let (var, spread) = reference_window(plane, x, y, &scorer.offsets, &mut refv);
+            if spread < p.min_texture {
                 return None;
             }
             let (near, far) = hull_interval(grid, cam, &kinv, x as f64, y as f64)?;
