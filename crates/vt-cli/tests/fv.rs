@@ -749,10 +749,16 @@ fn nerf_lego_test_set_is_scored_as_the_benchmarks_do() {
     let data = nerf_lego();
     // The test file is found inside DATA (the tests run in crates/vt-cli).
     assert!(!Path::new("transforms_test.json").exists());
+    // One model for the two scorings of all 8 views (built as `eval` would build it).
+    let root = scratch("nerf-eval");
+    let hull = root.join("hull");
+    vt_ok(&["fv", "hull", s(&data), "--out", s(&hull)]);
     let out = vt_ok(&[
         "fv",
         "eval",
         s(&data),
+        "--model",
+        s(&hull),
         "--test",
         "transforms_test.json",
         "--json",
@@ -820,12 +826,13 @@ fn nerf_lego_test_set_is_scored_as_the_benchmarks_do() {
 
     // --save: every view, eval.json and a contact sheet of the 4 worst views: truth, view, error
     // side by side.
-    let root = scratch("nerf-eval");
     let save = root.join("saved");
     let said = vt_ok(&[
         "fv",
         "eval",
         s(&data),
+        "--model",
+        s(&hull),
         "--test",
         "transforms_test.json",
         "--save",
@@ -912,19 +919,23 @@ fn nerf_lego_test_set_is_scored_as_the_benchmarks_do() {
 fn nerf_lego_render_backgrounds() {
     let data = nerf_lego();
     let root = scratch("nerf-render");
+    // One model for the renders over white (a transparent background loads other photos, so
+    // that render builds its own).
+    let hull = root.join("hull");
+    vt_ok(&["fv", "hull", s(&data), "--out", s(&hull)]);
+    let model = ["--model", s(&hull)];
     let render = |name: &str, extra: &[&str]| {
         let out = root.join(name);
+        let with_model: &[&str] = if extra.contains(&"transparent") {
+            &[]
+        } else {
+            &model
+        };
         vt_ok(
             &[
-                &[
-                    "fv",
-                    "render",
-                    s(&data),
-                    "--camera",
-                    "between:0,4,0.5",
-                    "--out",
-                    s(&out),
-                ],
+                &["fv", "render", s(&data)],
+                with_model,
+                &["--camera", "between:0,4,0.5", "--out", s(&out)],
                 extra,
             ]
             .concat(),
