@@ -32,6 +32,9 @@ use crate::{Camera, Error, Mask, Result};
 pub const MAGIC: &[u8; 8] = b"VTFVMODL";
 /// The version this build writes (it reads 1 as well: a model without depth maps).
 pub const VERSION: u32 = 2;
+/// Most depth-map cells a model file may hold, all maps together (256 MB of depths: 8 photos of
+/// 8K x 4K at a cell every 2 pixels take 16 million).
+const MAX_DEPTH_CELLS: u64 = 1 << 26;
 /// Largest JSON header read (bytes).
 pub const MAX_HEADER_BYTES: usize = 1 << 24;
 
@@ -350,6 +353,7 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelModel, ModelHeader)> {
                 header.views.len()
             )));
         }
+        let mut total = 0u64;
         for k in 0..count {
             let (w, h, step) = (r.varint()?, r.varint()?, r.varint()?);
             // A map has a cell every `step` pixels of the photos the model was built from.
@@ -359,7 +363,18 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelModel, ModelHeader)> {
                     "depth map {k}: {w}x{h} cells every {step} pixels, for {iw}x{ih} photos"
                 )));
             }
-            let cells = (w * h) as usize;
+            // The maps together hold at most MAX_DEPTH_CELLS cells (a file cannot ask for more
+            // memory than that, whatever its header says).
+            let cells = w
+                .checked_mul(h)
+                .filter(|&c| total + c <= MAX_DEPTH_CELLS)
+                .ok_or_else(|| {
+                    bad(format!(
+                        "depth map {k}: {w}x{h} cells, over {MAX_DEPTH_CELLS} in all"
+                    ))
+                })?;
+            total += cells;
+            let cells = cells as usize;
             let mut depth = Vec::with_capacity(cells);
             while depth.len() < cells {
                 let none = r.varint()?;
@@ -398,4 +413,96 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelModel, ModelHeader)> {
         },
         header,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stereo::DepthMap;
+
+    /// A one-voxel model with the given depth maps, for `views` views of `size` photos.
+    fn model(depths: Vec<DepthMap>, views: usize, size: [u32; 2]) -> (VoxelModel, ModelHeader) {
+        let bounds = Aabb::new(nalgebra::Vector3::zeros(), nalgebra::Vector3::repeat(1.0));
+        let mut grid = VoxelGrid::new([2, 2, 2], bounds, 1 << 20).unwrap();
+        grid.set_index(0, true);
+        let print = |index| ViewPrint {
+            index,
+            name: format!("{index}.png"),
+            camera: 1,
+            photo: 2,
+            silhouette: 3,
+        };
+        let header = ModelHeader {
+            cameras: "c".into(),
+            all_views: views,
+            views: (0..views).map(print).collect(),
+            withheld: None,
+            image_size: size,
+            silhouettes: "s".into(),
+            photo_threshold: 15.0,
+            paper_carving: false,
+            stereo: true,
+            build_secs: 0.0,
+        };
+        let model = VoxelModel {
+            grid,
+            surface: vec![SurfaceVoxel {
+                index: 0,
+                colour: [1, 2, 3],
+                seen_by: 1,
+            }],
+            passes: 1,
+            removed: 0,
+            stereo: None,
+            depths,
+        };
+        (model, header)
+    }
+
+    #[test]
+    fn depth_maps_round_trip_and_bad_ones_are_refused() {
+        let map = DepthMap {
+            w: 3,
+            h: 2,
+            step: 2,
+            depth: vec![f32::NAN, 1.5, 2.25, f32::NAN, f32::NAN, 0.125],
+        };
+        let (m, h) = model(vec![map.clone()], 1, [5, 4]);
+        let (back, _) = decode(&encode(&m, &h)).unwrap();
+        let bits = |d: &[f32]| -> Vec<u32> {
+            d.iter()
+                .map(|v| if v.is_nan() { 0 } else { v.to_bits() })
+                .collect()
+        };
+        assert_eq!(
+            (back.depths[0].w, back.depths[0].h, back.depths[0].step),
+            (3, 2, 2)
+        );
+        assert_eq!(bits(&back.depths[0].depth), bits(&map.depth));
+        let refused = |m: &VoxelModel, h: &ModelHeader, needle: &str| {
+            let e = decode(&encode(m, h)).unwrap_err().to_string();
+            assert!(e.contains(needle), "{e}");
+        };
+        // Not the photos' size at its step.
+        let (m, h) = model(vec![map.clone()], 1, [8, 4]);
+        refused(&m, &h, "3x2 cells every 2 pixels, for 8x4 photos");
+        // More maps than views.
+        let (m, h) = model(vec![map.clone(), map.clone()], 1, [5, 4]);
+        refused(&m, &h, "2 depth maps for 1 views");
+        // A depth that is no depth.
+        let mut bad = map.clone();
+        bad.depth[1] = -1.0;
+        let (m, h) = model(vec![bad], 1, [5, 4]);
+        refused(&m, &h, "depth -1");
+        // A header whose photos would need more cells than any model holds: refused before
+        // anything is allocated.
+        let huge = DepthMap {
+            w: 1 << 20,
+            h: 1 << 20,
+            step: 2,
+            depth: Vec::new(),
+        };
+        let (m, h) = model(vec![huge], 1, [1 << 21, 1 << 21]);
+        refused(&m, &h, "over 67108864 in all");
+    }
 }
