@@ -3,8 +3,11 @@
 //! Texturing: `refs`, `smooth`, `sweep`, `step`, `window`, `fill`, `tol`, `soft`, `agree`,
 //! `reach`, `consensus`, `within`, `eps`; the model: `pthr` (photo threshold), and the stereo
 //! carving's `sources`, `best`, `radius`, `stride`, `step_v` (depth step in voxels), `coarse`,
-//! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations, 0: the sweep), `unseen` (-1: off), `texture`, `grid`, `stereo` (0: off); the clip:
-//! `grow`, `slack`, `close`.
+//! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations,
+//! 0: the sweep), `geo` (geometric round's iterations), `geow` (its weight), `conf`
+//! (confirmations), `unseen` (-1: off), `texture`, `grid`, `stereo` (0: off); the clip:
+//! `grow`, `slack`, `close`; the depth clip: `dclip` (0: off), `dmargin`, `dprotect`,
+//! `dthrough`.
 
 // Each example includes this file and uses part of it.
 #![allow(dead_code)]
