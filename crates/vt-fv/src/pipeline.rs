@@ -11,8 +11,8 @@ use crate::guided::{guided_synthesis, GuidedParams};
 use crate::hull::{visual_hull, HullParams};
 use crate::photo::{photo_hull_keeping, PhotoParams, VoxelModel};
 use crate::render::{
-    clip_to_depths, clip_to_silhouettes, grow_to_silhouettes, render_rough, ClipParams,
-    DepthClipParams, Rendered,
+    clip_to_free_space, clip_to_hull, grow_to_silhouettes, render_rough, ClipParams,
+    DepthClipParams, HullTest, Rendered,
 };
 use crate::silhouette::Mask;
 use crate::texture::{model_centre, nearest_by_direction, texture_view, TextureParams};
@@ -72,8 +72,8 @@ pub struct ViewParams {
     /// of the paper's synthesis (`None`, the default).
     pub voting: Option<VotingParams>,
     /// With `clip` and a model that holds the photos' depth maps (stereo on): move the render
-    /// past the free space they prove, at pixel accuracy ([`clip_to_depths`]; on, `None` =
-    /// off).
+    /// past the free space they prove, at pixel accuracy
+    /// ([`crate::render::clip_to_depths`]; on, `None` = off).
     pub depth_clip: Option<DepthClipParams>,
 }
 
@@ -288,7 +288,7 @@ pub fn novel_view(
 
 /// [`novel_view`] with the reference cameras' silhouettes (the ones the model was carved
 /// from): the rough render is then trimmed to them at pixel accuracy as [`ViewParams::clip`]
-/// says ([`clip_to_silhouettes`]) before anything is made from it.
+/// says ([`crate::render::clip_to_silhouettes`]) before anything is made from it.
 #[allow(clippy::too_many_arguments)]
 pub fn novel_view_in(
     model: &VoxelModel,
@@ -320,9 +320,11 @@ pub fn novel_view_in(
     times.push(("rough render", t.elapsed().as_secs_f64()));
     if let (Some(m), Some(c)) = (silhouettes, &p.clip) {
         let t = Instant::now();
-        clip_to_silhouettes(&mut rough, model, cam, cams, m, c);
+        // The silhouettes closed and grown once for both clips.
+        let hull = HullTest::new(cams, m, c.close, c.slack);
+        clip_to_hull(&mut rough, model, cam, &hull, c);
         if let Some(dc) = &p.depth_clip {
-            clip_to_depths(&mut rough, model, cam, cams, m, c, dc);
+            clip_to_free_space(&mut rough, model, cam, &hull, dc);
         }
         times.push(("clip", t.elapsed().as_secs_f64()));
     }

@@ -5,6 +5,7 @@ use image::{Rgb, RgbImage};
 use crate::camera::Camera;
 use crate::photo::{focal, footprint, splat, VoxelModel};
 use crate::silhouette::Mask;
+use crate::stereo::occupied_along;
 
 /// A rendered view.
 #[derive(Debug, Clone)]
@@ -102,13 +103,13 @@ impl Default for ClipParams {
 /// The image-based visual hull test of [`clip_to_silhouettes`] and [`grow_to_silhouettes`]:
 /// a world point is inside when it projects inside the (closed) silhouette of every camera
 /// that sees it in its frame.
-struct HullTest {
+pub(crate) struct HullTest {
     projs: Vec<nalgebra::Matrix3x4<f64>>,
     masks: Vec<Mask>,
 }
 
 impl HullTest {
-    fn new(cams: &[Camera], masks: &[Mask], close: u32, slack: u32) -> Self {
+    pub(crate) fn new(cams: &[Camera], masks: &[Mask], close: u32, slack: u32) -> Self {
         use rayon::prelude::*;
         Self {
             projs: cams.iter().map(|c| c.projection()).collect(),
@@ -156,6 +157,23 @@ pub fn clip_to_silhouettes(
     masks: &[Mask],
     p: &ClipParams,
 ) -> usize {
+    clip_to_hull(
+        r,
+        model,
+        cam,
+        &HullTest::new(cams, masks, p.close, p.slack),
+        p,
+    )
+}
+
+/// [`clip_to_silhouettes`] against silhouettes already closed and grown.
+pub(crate) fn clip_to_hull(
+    r: &mut Rendered,
+    model: &VoxelModel,
+    cam: &Camera,
+    hull: &HullTest,
+    p: &ClipParams,
+) -> usize {
     use rayon::prelude::*;
     let (w, h) = r.image.dimensions();
     let vs = model.grid.voxel_size();
@@ -165,7 +183,6 @@ pub fn clip_to_silhouettes(
     };
     let a = cam.r.transpose() * kinv;
     let b = -(cam.r.transpose() * cam.t);
-    let hull = HullTest::new(cams, masks, p.close, p.slack);
     let steps = ((p.before + p.behind) / p.step.max(1e-3)).round() as i64;
     let drop: Vec<usize> = (0..(w as usize * h as usize))
         .into_par_iter()
@@ -280,8 +297,6 @@ pub struct DepthClipParams {
     /// ... unless some photo's confirmed depth puts it on a surface, within this many voxels
     /// (0.75; 0: no protection).
     pub protect: f64,
-    /// March step along the ray in voxels (0.5; at least 0.05 is taken).
-    pub step: f64,
     /// Photos whose depths must see through a point for it to be free (2); a silhouette that
     /// misses it is enough alone. (Measured with PatchMatch depths before the geometric round:
     /// lego 8-view 20.86 dB without the clip, 21.13 with margin 2, protect 1.5, through 2, 21.28
@@ -296,7 +311,6 @@ impl Default for DepthClipParams {
         Self {
             margin: 1.0,
             protect: 0.75,
-            step: 0.5,
             through: 2,
         }
     }
@@ -307,7 +321,8 @@ impl Default for DepthClipParams {
 /// the model's occupied voxels to the first point no photo sees through (a photo sees through a
 /// point when its confirmed depth there lies `margin` voxels beyond, or the point falls outside
 /// its silhouette, closed and grown as `clip` says), unless some photo's depth puts the point
-/// on a surface (`protect`). A pixel whose ray leaves the model first is uncovered. The voxel
+/// on a surface (`protect`), in steps of half a voxel. A pixel whose ray leaves the model first
+/// is uncovered. The voxel
 /// carving cannot cut within a voxel or two of a surface (its test needs a whole neighbourhood
 /// of depths beyond the voxel); this takes the fringe back and puts phantom fronts onto the
 /// surface behind them. Returns the number of pixels uncovered and moved. Does nothing without
@@ -321,9 +336,25 @@ pub fn clip_to_depths(
     clip: &ClipParams,
     p: &DepthClipParams,
 ) -> (usize, usize) {
+    if masks.len() != cams.len() {
+        return (0, 0);
+    }
+    let hull = HullTest::new(cams, masks, clip.close, clip.slack);
+    clip_to_free_space(r, model, cam, &hull, p)
+}
+
+/// [`clip_to_depths`] against silhouettes already closed and grown (one per camera of the
+/// model's depth maps).
+pub(crate) fn clip_to_free_space(
+    r: &mut Rendered,
+    model: &VoxelModel,
+    cam: &Camera,
+    hull: &HullTest,
+    p: &DepthClipParams,
+) -> (usize, usize) {
     use rayon::prelude::*;
     let maps = &model.depths;
-    if maps.len() != cams.len() || masks.len() != cams.len() {
+    if maps.len() != hull.projs.len() {
         return (0, 0);
     }
     let (w, h) = r.image.dimensions();
@@ -334,8 +365,6 @@ pub fn clip_to_depths(
     };
     let a = cam.r.transpose() * kinv;
     let c = cam.centre();
-    // The silhouettes as the hull clip tests them (closed, with its slack).
-    let hull = HullTest::new(cams, masks, clip.close, clip.slack);
     let (projs, masks) = (&hull.projs, &hull.masks);
     // Free: some photo sees through x; protected: some photo's depth puts x on a surface.
     let free = |x: &nalgebra::Vector3<f64>| -> bool {
@@ -367,7 +396,6 @@ pub fn clip_to_depths(
         }
         through >= p.through
     };
-    let b = grid.bounds();
     let changes: Vec<(usize, f32)> = (0..(w as usize * h as usize))
         .into_par_iter()
         .filter_map(|i| {
@@ -375,34 +403,17 @@ pub fn clip_to_depths(
             if !d.is_finite() {
                 return None;
             }
-            let ray =
-                a * nalgebra::Vector3::new((i % w as usize) as f64, (i / w as usize) as f64, 1.0);
-            // Where the ray leaves the bounds.
-            let mut t1 = f64::INFINITY;
-            for k in 0..3 {
-                if ray[k].abs() > 1e-12 {
-                    let (e0, e1) = ((b.min[k] - c[k]) / ray[k], (b.max[k] - c[k]) / ray[k]);
-                    t1 = t1.min(e0.max(e1));
-                }
+            let px = ((i % w as usize) as f64, (i / w as usize) as f64);
+            let ray = a * nalgebra::Vector3::new(px.0, px.1, 1.0);
+            // The rendered point itself, then on through occupied voxels every half voxel.
+            if !free(&(c + ray * d)) {
+                return None;
             }
-            // At least a twentieth of a voxel per step, whatever `step` says.
-            let dt = p.step.max(0.05) * vs / ray.norm();
-            let mut t = d;
-            // The rendered point itself, then on through occupied voxels.
-            loop {
-                let x = c + ray * t;
-                let occupied = t == d
-                    || grid
-                        .voxel_of(&x)
-                        .is_some_and(|v| grid.get(v[0] as i64, v[1] as i64, v[2] as i64));
-                if occupied && !free(&x) {
-                    return (t != d).then_some((i, t as f32));
-                }
-                t += dt;
-                if t > t1 {
-                    return Some((i, f32::INFINITY));
-                }
-            }
+            let behind = d + 0.5 * vs / ray.norm();
+            let t = occupied_along(grid, cam, &kinv, px, behind)
+                .map(|(t, _)| t)
+                .find(|&t| !free(&(c + ray * t)));
+            Some((i, t.map_or(f32::INFINITY, |t| t as f32)))
         })
         .collect();
     let (mut cut, mut moved) = (0, 0);

@@ -300,26 +300,31 @@ impl Transfer {
     }
 }
 
-/// The samples of a window of half side `radius` taken every `stride` pixels, as offsets.
-fn window_offsets(radius: i32, stride: i32) -> Vec<(i32, i32)> {
-    (-radius..=radius)
-        .step_by(stride as usize)
-        .flat_map(|dy| {
-            (-radius..=radius)
-                .step_by(stride as usize)
-                .map(move |dx| (dx, dy))
-        })
-        .collect()
-}
-
-/// The maps from photo `i` into its `n` nearest other photos by viewing direction.
-fn source_transfers(i: usize, cams: &[Camera], centre: &Vector3<f64>, n: usize) -> Vec<Transfer> {
-    nearest_by_direction(cams, &cams[i], centre, n + 1)
+/// What every depth map of photo `i` starts from: its inverse intrinsics, the maps into its
+/// `p.sources` nearest other photos by viewing direction, and the window's samples (half side
+/// `p.radius`, every `p.stride` pixels) as offsets.
+fn setup(
+    i: usize,
+    cams: &[Camera],
+    centre: &Vector3<f64>,
+    p: &StereoParams,
+) -> (Matrix3<f64>, Vec<Transfer>, Vec<(i32, i32)>) {
+    let kinv = cams[i]
+        .k
+        .try_inverse()
+        .expect("K is invertible: checked by Camera::new");
+    let transfers = nearest_by_direction(cams, &cams[i], centre, p.sources + 1)
         .into_iter()
         .filter(|&j| j != i)
-        .take(n)
+        .take(p.sources)
         .map(|j| Transfer::new(&cams[i], &cams[j], j))
-        .collect()
+        .collect();
+    let (r, stride) = (p.radius, p.stride as usize);
+    let offsets = (-r..=r)
+        .step_by(stride)
+        .flat_map(|dy| (-r..=r).step_by(stride).map(move |dx| (dx, dy)))
+        .collect();
+    (kinv, transfers, offsets)
 }
 
 /// The reference window at pixel `(x, y)` into `refv`, centred (mean 0); returns its energy
@@ -392,19 +397,20 @@ fn best_mean(scores: &mut [f32], best: usize) -> f64 {
 }
 
 /// The occupied voxels along pixel `(u, v)`'s ray, sampled every half voxel inside the grid's
-/// bounds: `(t, voxel index)` in order, `t` the ray parameter, which is the camera depth.
-fn occupied_along<'a>(
+/// bounds from camera depth `from` on: `(t, voxel index)` in order, `t` the ray parameter,
+/// which is the camera depth.
+pub(crate) fn occupied_along<'a>(
     grid: &'a VoxelGrid,
     cam: &Camera,
     kinv: &Matrix3<f64>,
-    u: f64,
-    v: f64,
+    (u, v): (f64, f64),
+    from: f64,
 ) -> impl Iterator<Item = (f64, usize)> + 'a {
     let dir = cam.r.transpose() * (kinv * Vector3::new(u, v, 1.0));
     let c = cam.centre();
     let b = grid.bounds();
     // Slab intersection with the bounds.
-    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    let (mut t0, mut t1) = (from.max(0.0), f64::INFINITY);
     for k in 0..3 {
         if dir[k].abs() < 1e-12 {
             if c[k] < b.min[k] || c[k] > b.max[k] {
@@ -439,7 +445,7 @@ fn hull_interval(
     u: f64,
     v: f64,
 ) -> Option<(f64, f64)> {
-    let mut along = occupied_along(grid, cam, kinv, u, v);
+    let mut along = occupied_along(grid, cam, kinv, (u, v), 0.0);
     let (near, _) = along.next()?;
     let far = along.last().map_or(near, |(t, _)| t);
     Some((near, far))
@@ -458,12 +464,7 @@ fn sweep(
     let cam = &cams[i];
     let plane = &planes[i];
     let (w, h) = (plane.w, plane.h);
-    let kinv = cam
-        .k
-        .try_inverse()
-        .expect("K is invertible: checked by Camera::new");
-    let transfers = source_transfers(i, cams, centre, p.sources);
-    let offsets = window_offsets(p.radius, p.stride);
+    let (kinv, transfers, offsets) = setup(i, cams, centre, p);
     let vs = grid.voxel_size().min();
     let step = p.pixel_step;
     let (mw, mh) = (w.div_ceil(step), h.div_ceil(step));
@@ -835,5 +836,7 @@ pub fn carve_unseen(grid: &mut VoxelGrid, cams: &[Camera], masks: &[Mask], keep:
 
 /// The first occupied voxel along pixel `(u, v)`'s ray.
 fn first_hit(grid: &VoxelGrid, cam: &Camera, kinv: &Matrix3<f64>, u: f64, v: f64) -> Option<usize> {
-    occupied_along(grid, cam, kinv, u, v).next().map(|(_, i)| i)
+    occupied_along(grid, cam, kinv, (u, v), 0.0)
+        .next()
+        .map(|(_, i)| i)
 }

@@ -15,8 +15,7 @@ use rayon::prelude::*;
 use vt_core::rng::{hash, Rng};
 
 use super::{
-    best_mean, hull_interval, ncc, reference_window, source_transfers, window_offsets, DepthMap,
-    Plane, StereoParams, Transfer,
+    best_mean, hull_interval, ncc, reference_window, setup, DepthMap, Plane, StereoParams, Transfer,
 };
 use crate::camera::Camera;
 use crate::hull::VoxelGrid;
@@ -157,16 +156,11 @@ pub(super) fn patchmatch_map(
     let cam = &cams[i];
     let plane = &planes[i];
     let (w, h) = (plane.w, plane.h);
-    let kinv = cam
-        .k
-        .try_inverse()
-        .expect("K is invertible: checked by Camera::new");
-    let transfers = source_transfers(i, cams, centre, p.sources);
+    let (kinv, transfers, offsets) = setup(i, cams, centre, p);
     let backs: Vec<Transfer> = transfers
         .iter()
         .map(|tr| Transfer::new(&cams[tr.src], cam, i))
         .collect();
-    let offsets = window_offsets(p.radius, p.stride);
     let scorer = Scorer {
         planes,
         transfers,
@@ -216,26 +210,28 @@ pub(super) fn patchmatch_map(
     let mut hyps: Vec<Hyp> = cells
         .par_iter()
         .enumerate()
-        .map(|(ci, c)| {
-            let Some(c) = c else { return unscored };
-            let mut rng = Rng::new(hash(&[seed, ci as u64, u64::MAX]));
-            let (d, n) = match start {
-                Some(h) if h[ci].score.is_finite() => (h[ci].d, h[ci].n),
-                _ => (
-                    c.near + rng.f64() * (c.far - c.near),
-                    random_normal(&mut rng, &c.ray),
-                ),
-            };
-            let (mut dq, mut sv, mut sc) = (vec![0.0; nk], vec![0.0; nk], Vec::new());
-            Hyp {
-                d,
-                n,
-                score: scorer.score(c, d, &n, &mut dq, &mut sv, &mut sc),
-            }
-        })
+        .map_init(
+            || (vec![0.0; nk], vec![0.0f32; nk], Vec::new()),
+            |(dq, sv, sc), (ci, c)| {
+                let Some(c) = c else { return unscored };
+                let mut rng = Rng::new(hash(&[seed, ci as u64, u64::MAX]));
+                let (d, n) = match start {
+                    Some(h) if h[ci].score.is_finite() => (h[ci].d, h[ci].n),
+                    _ => (
+                        c.near + rng.f64() * (c.far - c.near),
+                        random_normal(&mut rng, &c.ray),
+                    ),
+                };
+                Hyp {
+                    d,
+                    n,
+                    score: scorer.score(c, d, &n, dq, sv, sc),
+                }
+            },
+        )
         .collect();
     // The slack a depth may leave the hull's stretch by (a voxel along the ray).
-    let slack = |c: &Cell| vs / (cam.r.transpose() * c.ray).norm();
+    let slack = |c: &Cell| vs / c.ray.norm();
     let neighbours: [(i64, i64); 8] = [
         (-1, 0),
         (1, 0),
@@ -352,13 +348,12 @@ pub(super) fn patchmatch_all(
     centre: &Vector3<f64>,
     p: &StereoParams,
 ) -> Vec<DepthMap> {
-    let first: Vec<(DepthMap, Vec<Hyp>)> = (0..cams.len())
+    let (maps, first): (Vec<DepthMap>, Vec<Vec<Hyp>>) = (0..cams.len())
         .map(|i| patchmatch_map(i, grid, cams, planes, masks, centre, p, None, None))
-        .collect();
+        .unzip();
     if p.geo_iters == 0 {
-        return first.into_iter().map(|(m, _)| m).collect();
+        return maps;
     }
-    let maps: Vec<DepthMap> = first.iter().map(|(m, _)| m.clone()).collect();
     (0..cams.len())
         .map(|i| {
             patchmatch_map(
@@ -369,7 +364,7 @@ pub(super) fn patchmatch_all(
                 masks,
                 centre,
                 p,
-                Some(&first[i].1),
+                Some(&first[i]),
                 Some((&maps, p.geo_weight)),
             )
             .0
