@@ -373,7 +373,7 @@ pub struct OrbitJob {
     pub frames: usize,
     /// Frames per second, 1..=[`MAX_ORBIT_FPS`].
     pub fps: u32,
-    /// The output (.mp4 or .gif).
+    /// The output (.mp4, .gif or .apng).
     pub out: PathBuf,
 }
 
@@ -381,7 +381,7 @@ impl OrbitJob {
     /// Checks the frame count, frame rate and output name.
     pub fn check(&self) -> Result<()> {
         self.data.check()?;
-        check_extension(&self.out, &["mp4", "gif"])?;
+        check_extension(&self.out, &vt_io::writer::VIDEO_EXTENSIONS)?;
         if self.frames == 0 || self.frames > MAX_ORBIT_FRAMES {
             return Err(Error::Param {
                 name: "frames",

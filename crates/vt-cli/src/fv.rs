@@ -29,7 +29,7 @@ pub enum FvCommand {
     Hull(HullArgs),
     /// Render one new view (textured by default; --method rough|paper) into an image file.
     Render(RenderArgs),
-    /// Views around the cameras' ring (made by --method, textured by default), encoded as an mp4 or gif (needs ffmpeg).
+    /// Views around the cameras' ring (made by --method, textured by default), encoded as an mp4, gif or apng (needs ffmpeg).
     Orbit(OrbitArgs),
     /// Leave one view out: rebuild without it, make it by --method, and score it and the baselines.
     Eval(EvalArgs),
@@ -252,7 +252,7 @@ pub struct OrbitArgs {
     /// Frames per second of the output.
     #[arg(long, default_value_t = 24)]
     fps: u32,
-    /// Output .mp4 (H.264) or .gif, written to a temporary file and renamed.
+    /// Output .mp4 (H.264), .gif or .apng (lossless animated PNG), written to a temporary file and renamed.
     #[arg(long)]
     out: PathBuf,
 }

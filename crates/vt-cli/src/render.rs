@@ -20,7 +20,7 @@ pub struct RenderArgs {
     /// (one per output frame).
     #[arg(long)]
     path: String,
-    /// Output: `.mp4` (H.264), `.gif`, or a folder of PNG frames (no extension).
+    /// Output: `.mp4` (H.264), `.gif`, `.apng` (lossless animated PNG), or a folder of PNG frames (no extension).
     #[arg(long)]
     out: PathBuf,
     /// Output frame rate (default: the scene's source frame rate, else 30).

@@ -590,7 +590,7 @@ fn one_cycle_files_repeat_seamlessly() {
         "one cycle of tree.avi 0-53: {length} frames, join {join:.3} ordinary steps; {stdout}"
     );
     assert!(join <= 1.0, "the file's join is {join:.3} ordinary steps");
-    for ext in ["mp4", "gif"] {
+    for ext in ["mp4", "gif", "apng"] {
         let file = dir.join(format!("cycle.{ext}"));
         vt_ok(&[
             "render",
@@ -612,6 +612,24 @@ fn one_cycle_files_repeat_seamlessly() {
             .parse()
             .unwrap();
         assert_eq!(n, length, "{ext}");
+        if ext == "apng" {
+            // Lossless, and marked to repeat forever: its frames are the cycle's own bytes.
+            let raw = std::process::Command::new("ffmpeg")
+                .args(["-v", "error", "-i"])
+                .arg(&file)
+                .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+                .output()
+                .unwrap();
+            let frame = one[0].as_raw().len();
+            assert_eq!(raw.stdout.len(), length * frame);
+            for (i, f) in raw.stdout.chunks(frame).enumerate() {
+                assert!(f == one[i].as_raw().as_slice(), "apng frame {i}");
+            }
+            let bytes = std::fs::read(&file).unwrap();
+            let actl = bytes.windows(4).position(|w| w == b"acTL").expect("acTL");
+            let plays = u32::from_be_bytes(bytes[actl + 8..actl + 12].try_into().unwrap());
+            assert_eq!(plays, 0, "the apng repeats forever");
+        }
     }
     // The mp4 plays on repeat as a looping <video> in Chromium: at 20 fps (one cycle a
     // second) it wraps twice and never ends, with no media error.

@@ -1,6 +1,6 @@
 //! Frame and image writers of every command, all through [`crate::output::Output`]: one ffmpeg
-//! video writer (H.264 mp4, CRF 18 unless [`EncodeParams`] says otherwise, or GIF with a
-//! generated palette), a PNG-frame folder, and
+//! video writer (H.264 mp4, CRF 18 unless [`EncodeParams`] says otherwise; GIF with a
+//! generated palette; lossless animated PNG), a PNG-frame folder, and
 //! single images.
 
 use std::io::Write;
@@ -64,6 +64,11 @@ pub struct VideoWriter {
     size: (u32, u32),
 }
 
+/// The video names vt writes: H.264 `mp4` (lossy, small, every player), `gif` (256 colours a
+/// frame) and `apng` (animated PNG: lossless, large; browsers play it as an image). GIF and APNG
+/// files repeat forever in players; an mp4 repeats where the player is told to loop.
+pub const VIDEO_EXTENSIONS: [&str; 3] = ["mp4", "gif", "apng"];
+
 /// Frames queued for ffmpeg beyond the one being written.
 const QUEUED: usize = 2;
 
@@ -98,7 +103,8 @@ fn last_line(s: &str) -> String {
 }
 
 impl VideoWriter {
-    /// Starts encoding `w x h` frames at `fps` into `target` (`.mp4` or `.gif`), which is checked
+    /// Starts encoding `w x h` frames at `fps` into `target` (`.mp4`, `.gif` or `.apng`: see
+    /// [`VIDEO_EXTENSIONS`]), which is checked
     /// against `inputs` and existing files as every vt output is; mp4 at the default quality.
     pub fn create(target: &Path, inputs: &[&Path], w: u32, h: u32, fps: f64) -> Result<Self> {
         Self::create_with(target, inputs, w, h, fps, &EncodeParams::default())
@@ -114,15 +120,12 @@ impl VideoWriter {
         enc: &EncodeParams,
     ) -> Result<Self> {
         enc.check().map_err(|m| video_err(target, m))?;
-        let gif = match ext_of(target).as_deref() {
-            Some("mp4") => false,
-            Some("gif") => true,
-            _ => {
-                return Err(video_err(
-                    target,
-                    "a video must be named .mp4 or .gif".into(),
-                ))
-            }
+        let ext = ext_of(target).filter(|e| VIDEO_EXTENSIONS.contains(&e.as_str()));
+        let Some(ext) = ext else {
+            return Err(video_err(
+                target,
+                "a video must be named .mp4, .gif or .apng".into(),
+            ));
         };
         if w == 0 || h == 0 || !(fps.is_finite() && fps > 0.0) {
             return Err(video_err(
@@ -135,18 +138,25 @@ impl VideoWriter {
         cmd.args(["-hide_banner", "-v", "error", "-y", "-f", "rawvideo"])
             .args(["-pix_fmt", "rgb24", "-s", &format!("{w}x{h}")])
             .args(["-r", &fps.to_string(), "-i", "-"]);
-        if gif {
-            cmd.args([
-                "-filter_complex",
-                "[0:v]split[a][b];[a]palettegen[p];[b][p]paletteuse",
-                "-f",
-                "gif",
-            ]);
-        } else {
-            cmd.args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264"])
-                .args(["-pix_fmt", "yuv420p", "-crf", &enc.crf.to_string()])
-                .args(output.mp4_marker_args()?)
-                .args(["-movflags", "+faststart", "-f", "mp4"]);
+        match ext.as_str() {
+            // GIF and APNG repeat forever in players (GIF's muxer writes the loop by default).
+            "gif" => {
+                cmd.args([
+                    "-filter_complex",
+                    "[0:v]split[a][b];[a]palettegen[p];[b][p]paletteuse",
+                    "-f",
+                    "gif",
+                ]);
+            }
+            "apng" => {
+                cmd.args(["-c:v", "apng", "-pix_fmt", "rgb24", "-plays", "0", "-f", "apng"]);
+            }
+            _ => {
+                cmd.args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264"])
+                    .args(["-pix_fmt", "yuv420p", "-crf", &enc.crf.to_string()])
+                    .args(output.mp4_marker_args()?)
+                    .args(["-movflags", "+faststart", "-f", "mp4"]);
+            }
         }
         let mut child = cmd
             .arg(output.path())
@@ -325,7 +335,7 @@ fn one_edit_apart(a: &str, b: &str) -> bool {
 
 /// Where rendered frames go: a video through ffmpeg, or a folder of PNG frames.
 pub enum FrameWriter {
-    /// `.mp4` or `.gif`.
+    /// `.mp4`, `.gif` or `.apng`.
     Video(VideoWriter),
     /// A folder of `frame_NNNNN.png`.
     Folder {
@@ -337,7 +347,7 @@ pub enum FrameWriter {
 }
 
 impl FrameWriter {
-    /// Chooses by the name: `.mp4`, `.gif`, or else a PNG folder, whatever dots its name has
+    /// Chooses by the name: `.mp4`, `.gif`, `.apng`, or else a PNG folder, whatever dots its name has
     /// (`run.v2`, `frames.2024`); image and other video extensions are refused, and so are
     /// misspellings of them (one letter added, dropped, changed or swapped: `.mpg4`, `.gfi`),
     /// since a folder named like a file is surely a mistake.
@@ -358,10 +368,9 @@ impl FrameWriter {
             "png", "jpg", "jpeg", "avi", "mov", "mkv", "webm", "m4v", "mpg", "mpeg", "webp",
         ];
         let ext = ext_of(target).filter(|e| {
-            e == "mp4"
-                || e == "gif"
+            VIDEO_EXTENSIONS.contains(&e.as_str())
                 || REFUSED.contains(&e.as_str())
-                || ["mp4", "gif"]
+                || VIDEO_EXTENSIONS
                     .iter()
                     .chain(&REFUSED)
                     .any(|k| one_edit_apart(e, k))
@@ -371,11 +380,11 @@ impl FrameWriter {
                 output: Output::dir(target, OutputKind::Frames, inputs)?,
                 count: 0,
             }),
-            Some("mp4" | "gif") => Ok(FrameWriter::Video(VideoWriter::create_with(
+            Some(e) if VIDEO_EXTENSIONS.contains(&e) => Ok(FrameWriter::Video(VideoWriter::create_with(
                 target, inputs, w, h, fps, enc,
             )?)),
             Some(other) => {
-                let near = ["mp4", "gif"]
+                let near = VIDEO_EXTENSIONS
                     .into_iter()
                     .find(|k| one_edit_apart(other, k))
                     .map(|k| format!(" (did you mean .{k}?)"))
@@ -383,7 +392,7 @@ impl FrameWriter {
                 Err(video_err(
                     target,
                     format!(
-                        "unknown output extension '.{}'{near}: use .mp4, .gif, or a folder name (no extension) for PNG frames",
+                        "unknown output extension '.{}'{near}: use .mp4, .gif, .apng, or a folder name (no extension) for PNG frames",
                         output::shorten(other)
                     ),
                 ))
@@ -489,7 +498,7 @@ mod tests {
         }
         let dir = tempfile::tempdir().unwrap();
         let img = RgbImage::from_fn(33, 17, |x, y| image::Rgb([x as u8 * 7, y as u8 * 13, 99]));
-        for name in ["a.mp4", "a.gif"] {
+        for name in ["a.mp4", "a.gif", "a.apng"] {
             let target = dir.path().join(name);
             for _ in 0..2 {
                 let mut w = VideoWriter::create(&target, &[], 33, 17, 10.0).unwrap();
