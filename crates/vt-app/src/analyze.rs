@@ -356,7 +356,7 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             }
             if let Some(bytes) = v.regions_over_cache {
                 writeln!(f,
-                    "view {p}: no per-region loop: the source frames around its loop, packed, and the view's masks need about {} MiB, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
+                    "view {p}: no per-region loop: the source frames around its loop, packed, their label search and the view's masks need about {} MiB, over the frame cache (--cache-mb); it keeps the thesis's loop (raise --cache-mb to at least {} for per-region loops)",
                     bytes.div_ceil(1 << 20), bytes.div_ceil(1 << 20)
                 )?;
             }

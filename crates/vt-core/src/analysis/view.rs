@@ -424,15 +424,21 @@ pub(super) fn analyze_view(
                 let held: usize = masks.iter().map(|m| m.len().div_ceil(64) * 8).sum();
                 let budget = params.cache_bytes.saturating_sub(held);
                 // A packed window holds the loop and a few frames past it: the labels' pairwise
-                // costs grow with the square of the window's length.
+                // costs grow with the square of the window's length. The label search's own
+                // memory for the frames packed is counted in the budget beside them.
                 let want = span.min(need + PACKED_SLACK);
-                let (packed, last) = read_window(src, first..first + want, n1, budget, &label)?;
+                let dims = (masks[0].width(), masks[0].height());
+                let search = |k: usize| crate::regions::search_bytes(dims, k, rp);
+                let (packed, last) =
+                    read_window(src, first..first + want, n1, budget, &search, &label)?;
                 if packed.len() < need {
                     // Over the budget: what the loop's frames would take at the rate so far
-                    // (the frame left out counted), and the masks beside them.
+                    // (the frame left out counted), their label search, and the masks beside
+                    // them.
                     let rate =
                         (packed.byte_len() as u64 + last as u64).div_ceil(packed.len() as u64 + 1);
-                    regions_over_cache = Some(rate * need as u64 + held as u64);
+                    regions_over_cache =
+                        Some(rate * need as u64 + search(need) as u64 + held as u64);
                     None
                 } else {
                     span = packed.len();
@@ -672,14 +678,15 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     })
 }
 
-/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they take
-/// at most `budget` bytes (the frames past it are left out), and the packed size of the first
-/// frame left out (0 when none was).
+/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they and
+/// `reserve(frames packed)` take at most `budget` bytes (the frames past it are left out), and
+/// the packed size of the first frame left out (0 when none was).
 fn read_window(
     src: &mut dyn FrameSource,
     range: std::ops::Range<usize>,
     n: usize,
     budget: usize,
+    reserve: &dyn Fn(usize) -> usize,
     label: &dyn Fn(&str) -> String,
 ) -> Result<(crate::packed::PackedFrames, usize)> {
     let mut window = crate::packed::PackedFrames::new();
@@ -688,7 +695,7 @@ fn read_window(
         if range.contains(&i) && !full {
             let before = window.byte_len();
             window.push(frame)?;
-            if window.byte_len() > budget {
+            if window.byte_len() + reserve(window.len()) > budget {
                 left_out = window.byte_len() - before;
                 window.truncate(window.len() - 1);
                 full = true;

@@ -36,7 +36,7 @@ use bake::*;
 pub use bake::{compose, correction, single_loop, spreads, AxisBlend, Bake};
 use quality::{mad, median};
 pub use quality::{quality, quality_of, single_frame, single_frames, wraps_of, Quality};
-pub use solve::{reduction, solve, Problem, Strips, Temporal};
+pub use solve::{reduction, search_bytes, solve, Problem, Strips, Temporal};
 
 /// The parameters of per-region loops.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -265,15 +265,21 @@ where
     }
 }
 
-/// Frames reduced for the label search: RGB as `f32`, per-pixel weights (the dynamic region).
+/// Frames reduced for the label search: RGB block means in fixed point, per-pixel weights (the
+/// dynamic region).
 pub struct Reduced {
     /// Width and height.
     pub size: (usize, usize),
-    /// One `3 * w * h` plane per frame.
-    pub frames: Vec<Vec<f32>>,
+    /// One `3 * w * h` plane per frame: each block's mean times [`FIXED`], rounded (exact for
+    /// the whole blocks of the power-of-two scales used, whose pixel counts divide it; half
+    /// the memory of `f32`).
+    pub frames: Vec<Vec<u16>>,
     /// Per-pixel weight.
     pub weight: Vec<f32>,
 }
+
+/// The fixed-point unit of [`Reduced::frames`]: 1/256 of a grey level (255 * 256 fits `u16`).
+pub const FIXED: u32 = 256;
 
 /// Most pixels of the reduced frames the labels are chosen on (320 x 240 at scale 2 holds
 /// 19,200; 768 x 576 is reduced by 4 to 27,648).
@@ -290,25 +296,26 @@ pub fn reduce<F: Frames + ?Sized>(
 ) -> Reduced {
     let (w, h) = frames.dimensions();
     let (rw, rh) = (w.div_ceil(scale) as usize, h.div_ceil(scale) as usize);
-    let reduce_one = |f: &RgbImage| -> Vec<f32> {
-        let mut out = vec![0f32; 3 * rw * rh];
-        let mut count = vec![0f32; rw * rh];
+    let reduce_one = |f: &RgbImage| -> Vec<u16> {
+        let mut sum = vec![0u32; 3 * rw * rh];
+        let mut count = vec![0u32; rw * rh];
         for (x, y, px) in f.enumerate_pixels() {
             let i = (y / scale) as usize * rw + (x / scale) as usize;
             for c in 0..3 {
-                out[3 * i + c] += px[c] as f32;
+                sum[3 * i + c] += px[c] as u32;
             }
-            count[i] += 1.0;
+            count[i] += 1;
         }
-        for (i, n) in count.iter().enumerate() {
-            for c in 0..3 {
-                out[3 * i + c] /= n;
-            }
-        }
-        out
+        sum.iter()
+            .enumerate()
+            .map(|(k, &s)| {
+                let n = count[k / 3] as u64;
+                ((s as u64 * FIXED as u64 + n / 2) / n) as u16
+            })
+            .collect()
     };
     // One frame in RGB at a time per thread.
-    let reduced: Vec<Vec<f32>> = (0..frames.count())
+    let reduced: Vec<Vec<u16>> = (0..frames.count())
         .into_par_iter()
         .map_init(
             || RgbImage::new(w, h),
@@ -340,15 +347,17 @@ pub fn reduce<F: Frames + ?Sized>(
 /// Weighted squared RGB difference of frames `i` and `j` over `pixels`.
 fn diff(r: &Reduced, i: usize, j: usize, pixels: &[usize]) -> f32 {
     let (a, b) = (&r.frames[i], &r.frames[j]);
-    pixels
+    let d = |k: usize| a[k] as f32 - b[k] as f32;
+    // In fixed-point units squared, scaled back once: scaling by a power of two is exact, so
+    // the sum is the one over grey levels bit for bit.
+    let sum: f32 = pixels
         .iter()
         .map(|&k| {
-            let d0 = a[3 * k] - b[3 * k];
-            let d1 = a[3 * k + 1] - b[3 * k + 1];
-            let d2 = a[3 * k + 2] - b[3 * k + 2];
+            let (d0, d1, d2) = (d(3 * k), d(3 * k + 1), d(3 * k + 2));
             r.weight[k] * (d0 * d0 + d1 * d1 + d2 * d2)
         })
-        .sum()
+        .sum();
+    sum * (1.0 / (FIXED * FIXED) as f32)
 }
 
 /// The chosen per-region loop of a view.
