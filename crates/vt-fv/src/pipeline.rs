@@ -318,7 +318,12 @@ pub fn novel_view_in(
     let t = Instant::now();
     let mut rough = render_rough(model, cam, w, h);
     times.push(("rough render", t.elapsed().as_secs_f64()));
-    if let (Some(m), Some(c)) = (silhouettes, &p.clip) {
+    // The clip as the silhouettes allow (exact ones need no closing or slack).
+    let clip = match (silhouettes, &p.clip) {
+        (Some(m), Some(c)) => Some(c.for_silhouettes(cams, m, &model.grid.bounds())),
+        _ => None,
+    };
+    if let (Some(m), Some(c)) = (silhouettes, &clip) {
         let t = Instant::now();
         // The silhouettes closed and grown once for both clips.
         let hull = HullTest::new(cams, m, c.close, c.slack);
@@ -332,7 +337,7 @@ pub fn novel_view_in(
         Method::Rough => (rough.image.clone(), Vec::new(), false),
         Method::Paper => (rough.image.clone(), vec![reference], true),
         Method::Textured => {
-            let grown = match (silhouettes, &p.clip) {
+            let grown = match (silhouettes, &clip) {
                 (Some(m), Some(c)) if p.grow > 0 => {
                     let t = Instant::now();
                     let mut g = rough.clone();

@@ -86,7 +86,17 @@ pub struct ClipParams {
     /// withheld silhouette, 22.06 vs 20.85 over that silhouette united with the image's own
     /// coverage; templeSparseRing 21.68 vs 21.35, 20.29 vs 20.23).
     pub slack: u32,
+    /// Clip with neither closing nor slack where the silhouettes agree exactly (true): when
+    /// every sampled rim ray of every photo meets the visual hull of the raw silhouettes
+    /// ([`silhouette_misses`] at most [`EXACT_MISSES`]), as rendered data with exact cameras
+    /// and alpha does. Lego 8-view: 21.53 -> 21.73 dB whole image, coverage IoU 0.939 -> 0.948;
+    /// the kettle and the temple (7% and 23% of rim rays miss) keep `close` and `slack`.
+    pub exact: bool,
 }
+
+/// The largest share of rim rays missing the raw silhouettes' hull at which
+/// [`ClipParams::exact`] takes the silhouettes as exact.
+pub const EXACT_MISSES: f64 = 0.002;
 
 impl Default for ClipParams {
     fn default() -> Self {
@@ -96,6 +106,31 @@ impl Default for ClipParams {
             step: 0.25,
             close: 4,
             slack: 1,
+            exact: true,
+        }
+    }
+}
+
+impl ClipParams {
+    /// These parameters, or with neither closing nor slack when [`ClipParams::exact`] is set
+    /// and the silhouettes agree exactly (every 16th rim pixel checked).
+    pub fn for_silhouettes(
+        &self,
+        cams: &[Camera],
+        masks: &[Mask],
+        bounds: &crate::hull::Aabb,
+    ) -> ClipParams {
+        if self.exact
+            && (self.close, self.slack) != (0, 0)
+            && silhouette_misses(cams, masks, bounds, 0, 0, 16)[0] <= EXACT_MISSES
+        {
+            ClipParams {
+                close: 0,
+                slack: 0,
+                ..self.clone()
+            }
+        } else {
+            self.clone()
         }
     }
 }
@@ -140,6 +175,89 @@ impl HullTest {
             m.get(u as u32, v as u32)
         })
     }
+}
+
+/// How far the photos' silhouettes disagree with one another: per slack `0..=max` (pixels the
+/// silhouettes, closed by `close`, are grown by), the share of rim pixels (a ring one pixel
+/// inside each photo's outline, every `stride`-th) whose ray meets no point inside every
+/// silhouette within `bounds`. With exact cameras and silhouettes every such ray meets the
+/// visual hull (share 0 at slack 0); calibration or segmentation error leaves a share that
+/// falls as the slack grows past the error.
+pub fn silhouette_misses(
+    cams: &[Camera],
+    masks: &[Mask],
+    bounds: &crate::hull::Aabb,
+    close: u32,
+    max: u32,
+    stride: usize,
+) -> Vec<f64> {
+    use rayon::prelude::*;
+    let diag = (bounds.max - bounds.min).norm();
+    let step = diag / 512.0;
+    // Rim pixels' rays: (camera centre, direction), every `stride`-th.
+    let rays: Vec<(nalgebra::Vector3<f64>, nalgebra::Vector3<f64>)> = cams
+        .iter()
+        .zip(masks)
+        .flat_map(|(cam, m)| {
+            let c = m.dilate(close).erode(close);
+            let (a, b) = (c.erode(1), c.erode(2));
+            let kinv = cam.k.try_inverse().unwrap_or_else(nalgebra::Matrix3::identity);
+            let rt = cam.r.transpose() * kinv;
+            let centre = cam.centre();
+            let mut out = Vec::new();
+            for y in 0..m.height() {
+                for x in 0..m.width() {
+                    if a.get(x, y) && !b.get(x, y) {
+                        out.push((centre, (rt * nalgebra::Vector3::new(x as f64, y as f64, 1.0)).normalize()));
+                    }
+                }
+            }
+            out.into_iter().step_by(stride.max(1))
+        })
+        .collect();
+    (0..=max)
+        .map(|slack| {
+            let hull = HullTest::new(cams, masks, close, slack);
+            let missed = rays
+                .par_iter()
+                .filter(|(o, d)| {
+                    let Some((t0, t1)) = slab(o, d, bounds) else {
+                        return true;
+                    };
+                    let mut t = t0;
+                    while t <= t1 {
+                        if hull.inside(&(o + d * t)) {
+                            return false;
+                        }
+                        t += step;
+                    }
+                    true
+                })
+                .count();
+            missed as f64 / rays.len().max(1) as f64
+        })
+        .collect()
+}
+
+/// Where a ray `o + t d` (t >= 0) crosses a box: its entry and exit, or None.
+fn slab(
+    o: &nalgebra::Vector3<f64>,
+    d: &nalgebra::Vector3<f64>,
+    b: &crate::hull::Aabb,
+) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for k in 0..3 {
+        if d[k].abs() < 1e-12 {
+            if o[k] < b.min[k] || o[k] > b.max[k] {
+                return None;
+            }
+            continue;
+        }
+        let (a, c) = ((b.min[k] - o[k]) / d[k], (b.max[k] - o[k]) / d[k]);
+        t0 = t0.max(a.min(c));
+        t1 = t1.min(a.max(c));
+    }
+    (t0 <= t1).then_some((t0, t1))
 }
 
 /// Trims a render of a voxel model to the visual hull at pixel accuracy (an image-based visual

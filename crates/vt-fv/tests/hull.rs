@@ -159,3 +159,39 @@ fn bad_inputs_are_refused() {
     let e = visual_hull(&d.cameras[..3], &d.masks, &HullParams::default()).unwrap_err();
     assert!(matches!(e, Error::CountMismatch { .. }), "{e}");
 }
+
+#[test]
+fn exact_silhouettes_agree_and_a_miscalibrated_camera_shows() {
+    use vt_fv::render::{silhouette_misses, ClipParams, EXACT_MISSES};
+    let d = small();
+    let bounds = Aabb::new(d.object.bounds().min, d.object.bounds().max);
+    // Ray-cast silhouettes of exact cameras: every rim ray meets the hull.
+    let exact = silhouette_misses(&d.cameras, &d.masks, &bounds, 0, 2, 1);
+    assert!(exact[0] <= EXACT_MISSES, "{exact:?}");
+    let clip = ClipParams::default().for_silhouettes(&d.cameras, &d.masks, &bounds);
+    assert_eq!((clip.close, clip.slack), (0, 0));
+    // Every camera turned by 1.5 pixels' worth, alternately left and right (a calibration's
+    // error): rim rays miss the hull until the slack covers the error; the clip keeps its
+    // closing and slack.
+    let cams: Vec<Camera> = d
+        .cameras
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let turn = if i % 2 == 0 { 1.5 } else { -1.5 } / c.k[(0, 0)];
+            let r = *nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), turn).matrix();
+            Camera::new("turned", c.k, r * c.r, r * c.t).unwrap()
+        })
+        .collect();
+    let off = silhouette_misses(&cams, &d.masks, &bounds, 0, 2, 1);
+    assert!(off[0] > 10.0 * EXACT_MISSES, "{off:?}");
+    assert!(off[0] > off[1] && off[1] >= off[2], "{off:?}");
+    let clip = ClipParams::default().for_silhouettes(&cams, &d.masks, &bounds);
+    assert_eq!(clip, ClipParams::default());
+    // Without the check, the clip is never changed.
+    let never = ClipParams {
+        exact: false,
+        ..Default::default()
+    };
+    assert_eq!(never.for_silhouettes(&d.cameras, &d.masks, &bounds), never);
+}

@@ -6,7 +6,7 @@
 //! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations,
 //! 0: the sweep), `geo` (geometric round's iterations), `geow` (its weight), `conf`
 //! (confirmations), `unseen` (-1: off), `texture`, `grid`, `stereo` (0: off); the clip:
-//! `grow`, `slack`, `close`; the depth clip: `dclip` (0: off), `dmargin`, `dprotect`,
+//! `grow`, `slack`, `close`, `exact` (0: never raw silhouettes); the depth clip: `dclip` (0: off), `dmargin`, `dprotect`,
 //! `dthrough`.
 
 // Each example includes this file and uses part of it.
@@ -50,6 +50,7 @@ pub fn apply_view(k: &str, v: &str, view: &mut ViewParams) -> bool {
         "dprotect" => view.depth_clip.as_mut().expect("dclip").protect = f(),
         "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
         "close" => view.clip.as_mut().expect("clip").close = f() as u32,
+        "exact" => view.clip.as_mut().expect("clip").exact = f() > 0.0,
         _ => return false,
     }
     true

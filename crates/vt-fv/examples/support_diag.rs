@@ -1,0 +1,91 @@
+//! Diagnostic: per test view, the covered pixels of the new view by how many photos' confirmed
+//! depths put its surface point on a surface (within TOL voxels), and the share of each group
+//! inside the test silhouette.
+//! `cargo run --release -p vt-fv --example support_diag -- DATA TESTFILE [TOL]`
+use std::path::Path;
+
+use vt_fv::dataset::{DataOptions, Dataset, ModelParams};
+use vt_fv::pipeline::{novel_view_in, ViewParams};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let dir = Path::new(&args[1]);
+    let tol: f64 = args.get(3).map_or(1.5, |v| v.parse().unwrap());
+    let train = Dataset::load(dir, &DataOptions::default()).unwrap();
+    let test = Dataset::load_set(&dir.join(&args[2]), &DataOptions::default()).unwrap();
+    let (model, _) = train
+        .build_without(None, &ModelParams::default(), &mut |_, _, _| {})
+        .unwrap();
+    let vs = model.grid.voxel_size().min();
+    let view = ViewParams::default();
+    let mut total = [[0usize; 2]; 5];
+    for (i, cam) in test.cams.iter().enumerate() {
+        let (w, h) = test.images[i].dimensions();
+        let v = novel_view_in(
+            &model,
+            &train.cams,
+            &train.images,
+            Some(&train.masks),
+            cam,
+            w,
+            h,
+            &view,
+        )
+        .unwrap();
+        let kinv = cam.k.try_inverse().unwrap();
+        let a = cam.r.transpose() * kinv;
+        let c = cam.centre();
+        let sil = &test.score_masks[i];
+        let mut counts = [[0usize; 2]; 5];
+        if let Ok(d) = std::env::var("SAVE") {
+            // Grey: truth and coverage agree; red: covered, not object; blue: object, uncovered.
+            let img = image::RgbImage::from_fn(w, h, |x, y| {
+                let c = v.rough.coverage.get(x, y);
+                let t = sil.get(x, y);
+                image::Rgb(match (c, t) {
+                    (true, true) => [128, 128, 128],
+                    (true, false) => [255, 0, 0],
+                    (false, true) => [0, 0, 255],
+                    _ => [255, 255, 255],
+                })
+            });
+            img.save(Path::new(&d).join(format!("cov_{i:03}.png"))).unwrap();
+        }
+        for y in 0..h {
+            for x in 0..w {
+                let d = v.rough.depth[(y * w + x) as usize] as f64;
+                if !d.is_finite() {
+                    continue;
+                }
+                let p = c + a * nalgebra::Vector3::new(x as f64, y as f64, 1.0) * d;
+                let mut s = 0;
+                for (pc, map) in train.cams.iter().zip(&model.depths) {
+                    let q = pc.projection() * p.push(1.0);
+                    if q.z <= 0.0 {
+                        continue;
+                    }
+                    let dd = map.nearest(q.x / q.z, q.y / q.z) as f64;
+                    if dd.is_finite() && (dd - q.z).abs() <= tol * vs {
+                        s += 1;
+                    }
+                }
+                let k = s.min(4);
+                counts[k][sil.get(x, y) as usize] += 1;
+            }
+        }
+        let line: Vec<String> = counts
+            .iter()
+            .map(|c| format!("{:>6} {:.2}", c[0] + c[1], c[1] as f64 / (c[0] + c[1]).max(1) as f64))
+            .collect();
+        println!("{:>14}: {}", cam.name, line.join(" | "));
+        for k in 0..5 {
+            total[k][0] += counts[k][0];
+            total[k][1] += counts[k][1];
+        }
+    }
+    let line: Vec<String> = total
+        .iter()
+        .map(|c| format!("{:>6} {:.2}", c[0] + c[1], c[1] as f64 / (c[0] + c[1]).max(1) as f64))
+        .collect();
+    println!("{:>14}: {}", "all", line.join(" | "));
+}
