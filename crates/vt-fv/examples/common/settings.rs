@@ -6,7 +6,7 @@
 //! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations,
 //! 0: the sweep), `geo` (geometric round's iterations), `geow` (its weight), `conf`
 //! (confirmations), `unseen` (-1: off), `texture`, `grid`, `stereo` (0: off); the clip:
-//! `grow`, `slack`, `close`, `exact` (0: never raw silhouettes); the depth clip: `dclip` (0: off), `dmargin`, `dprotect`,
+//! `grow`, `slack`, `close`, `exact` (0: never raw silhouettes), `before`, `behind`; the depth clip: `dclip` (0: off), `dmargin`, `dprotect`,
 //! `dthrough`.
 
 // Each example includes this file and uses part of it.
@@ -51,6 +51,8 @@ pub fn apply_view(k: &str, v: &str, view: &mut ViewParams) -> bool {
         "slack" => view.clip.as_mut().expect("clip").slack = f() as u32,
         "close" => view.clip.as_mut().expect("clip").close = f() as u32,
         "exact" => view.clip.as_mut().expect("clip").exact = f() > 0.0,
+        "before" => view.clip.as_mut().expect("clip").before = f(),
+        "behind" => view.clip.as_mut().expect("clip").behind = f(),
         _ => return false,
     }
     true
