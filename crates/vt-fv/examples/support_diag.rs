@@ -49,7 +49,8 @@ fn main() {
                     _ => [255, 255, 255],
                 })
             });
-            img.save(Path::new(&d).join(format!("cov_{i:03}.png"))).unwrap();
+            img.save(Path::new(&d).join(format!("cov_{i:03}.png")))
+                .unwrap();
         }
         for y in 0..h {
             for x in 0..w {
@@ -75,7 +76,13 @@ fn main() {
         }
         let line: Vec<String> = counts
             .iter()
-            .map(|c| format!("{:>6} {:.2}", c[0] + c[1], c[1] as f64 / (c[0] + c[1]).max(1) as f64))
+            .map(|c| {
+                format!(
+                    "{:>6} {:.2}",
+                    c[0] + c[1],
+                    c[1] as f64 / (c[0] + c[1]).max(1) as f64
+                )
+            })
             .collect();
         println!("{:>14}: {}", cam.name, line.join(" | "));
         for k in 0..5 {
@@ -85,7 +92,13 @@ fn main() {
     }
     let line: Vec<String> = total
         .iter()
-        .map(|c| format!("{:>6} {:.2}", c[0] + c[1], c[1] as f64 / (c[0] + c[1]).max(1) as f64))
+        .map(|c| {
+            format!(
+                "{:>6} {:.2}",
+                c[0] + c[1],
+                c[1] as f64 / (c[0] + c[1]).max(1) as f64
+            )
+        })
         .collect();
     println!("{:>14}: {}", "all", line.join(" | "));
 }

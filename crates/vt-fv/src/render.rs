@@ -201,14 +201,20 @@ pub fn silhouette_misses(
         .flat_map(|(cam, m)| {
             let c = m.dilate(close).erode(close);
             let (a, b) = (c.erode(1), c.erode(2));
-            let kinv = cam.k.try_inverse().unwrap_or_else(nalgebra::Matrix3::identity);
+            let kinv = cam
+                .k
+                .try_inverse()
+                .unwrap_or_else(nalgebra::Matrix3::identity);
             let rt = cam.r.transpose() * kinv;
             let centre = cam.centre();
             let mut out = Vec::new();
             for y in 0..m.height() {
                 for x in 0..m.width() {
                     if a.get(x, y) && !b.get(x, y) {
-                        out.push((centre, (rt * nalgebra::Vector3::new(x as f64, y as f64, 1.0)).normalize()));
+                        out.push((
+                            centre,
+                            (rt * nalgebra::Vector3::new(x as f64, y as f64, 1.0)).normalize(),
+                        ));
                     }
                 }
             }

@@ -149,7 +149,9 @@ impl VideoWriter {
                 ]);
             }
             "apng" => {
-                cmd.args(["-c:v", "apng", "-pix_fmt", "rgb24", "-plays", "0", "-f", "apng"]);
+                cmd.args([
+                    "-c:v", "apng", "-pix_fmt", "rgb24", "-plays", "0", "-f", "apng",
+                ]);
             }
             _ => {
                 cmd.args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264"])
@@ -380,9 +382,9 @@ impl FrameWriter {
                 output: Output::dir(target, OutputKind::Frames, inputs)?,
                 count: 0,
             }),
-            Some(e) if VIDEO_EXTENSIONS.contains(&e) => Ok(FrameWriter::Video(VideoWriter::create_with(
-                target, inputs, w, h, fps, enc,
-            )?)),
+            Some(e) if VIDEO_EXTENSIONS.contains(&e) => Ok(FrameWriter::Video(
+                VideoWriter::create_with(target, inputs, w, h, fps, enc)?,
+            )),
             Some(other) => {
                 let near = VIDEO_EXTENSIONS
                     .into_iter()
