@@ -74,31 +74,23 @@ fn main() {
                 counts[k][sil.get(x, y) as usize] += 1;
             }
         }
-        let line: Vec<String> = counts
-            .iter()
-            .map(|c| {
-                format!(
-                    "{:>6} {:.2}",
-                    c[0] + c[1],
-                    c[1] as f64 / (c[0] + c[1]).max(1) as f64
-                )
-            })
-            .collect();
-        println!("{:>14}: {}", cam.name, line.join(" | "));
+        println!("{:>14}: {}", cam.name, groups(&counts));
         for k in 0..5 {
             total[k][0] += counts[k][0];
             total[k][1] += counts[k][1];
         }
     }
-    let line: Vec<String> = total
+    println!("{:>14}: {}", "all", groups(&total));
+}
+
+/// Each support group's pixel count and its share inside the test silhouette.
+fn groups(counts: &[[usize; 2]; 5]) -> String {
+    let line: Vec<String> = counts
         .iter()
         .map(|c| {
-            format!(
-                "{:>6} {:.2}",
-                c[0] + c[1],
-                c[1] as f64 / (c[0] + c[1]).max(1) as f64
-            )
+            let n = c[0] + c[1];
+            format!("{n:>6} {:.2}", c[1] as f64 / n.max(1) as f64)
         })
         .collect();
-    println!("{:>14}: {}", "all", line.join(" | "));
+    line.join(" | ")
 }

@@ -28,6 +28,23 @@ pub struct Aabb {
 }
 
 impl Aabb {
+    /// Where the ray `o + t d` (`t >= 0`) is inside the box: its entry and exit `t`, or None.
+    pub fn ray_span(&self, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for k in 0..3 {
+            if d[k].abs() < 1e-12 {
+                if o[k] < self.min[k] || o[k] > self.max[k] {
+                    return None;
+                }
+                continue;
+            }
+            let (a, c) = ((self.min[k] - o[k]) / d[k], (self.max[k] - o[k]) / d[k]);
+            t0 = t0.max(a.min(c));
+            t1 = t1.min(a.max(c));
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
     /// A box from its corners.
     pub fn new(min: Vector3<f64>, max: Vector3<f64>) -> Self {
         Self { min, max }

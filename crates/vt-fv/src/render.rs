@@ -227,7 +227,7 @@ pub fn silhouette_misses(
             let missed = rays
                 .par_iter()
                 .filter(|(o, d)| {
-                    let Some((t0, t1)) = slab(o, d, bounds) else {
+                    let Some((t0, t1)) = bounds.ray_span(o, d) else {
                         return true;
                     };
                     let mut t = t0;
@@ -243,27 +243,6 @@ pub fn silhouette_misses(
             missed as f64 / rays.len().max(1) as f64
         })
         .collect()
-}
-
-/// Where a ray `o + t d` (t >= 0) crosses a box: its entry and exit, or None.
-fn slab(
-    o: &nalgebra::Vector3<f64>,
-    d: &nalgebra::Vector3<f64>,
-    b: &crate::hull::Aabb,
-) -> Option<(f64, f64)> {
-    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-    for k in 0..3 {
-        if d[k].abs() < 1e-12 {
-            if o[k] < b.min[k] || o[k] > b.max[k] {
-                return None;
-            }
-            continue;
-        }
-        let (a, c) = ((b.min[k] - o[k]) / d[k], (b.max[k] - o[k]) / d[k]);
-        t0 = t0.max(a.min(c));
-        t1 = t1.min(a.max(c));
-    }
-    (t0 <= t1).then_some((t0, t1))
 }
 
 /// Trims a render of a voxel model to the visual hull at pixel accuracy (an image-based visual

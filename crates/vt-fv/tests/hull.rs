@@ -195,3 +195,25 @@ fn exact_silhouettes_agree_and_a_miscalibrated_camera_shows() {
     };
     assert_eq!(never.for_silhouettes(&d.cameras, &d.masks, &bounds), never);
 }
+
+#[test]
+fn ray_spans_through_a_box() {
+    let b = Aabb::new(Vector3::new(-1.0, -1.0, -1.0), Vector3::new(1.0, 1.0, 1.0));
+    let o = Vector3::new(-5.0, 0.0, 0.0);
+    // Along x through the middle: enters at 4, leaves at 6.
+    let (t0, t1) = b.ray_span(&o, &Vector3::x()).unwrap();
+    assert!((t0 - 4.0).abs() < 1e-12 && (t1 - 6.0).abs() < 1e-12, "{t0} {t1}");
+    // Parallel to a face outside the box, and pointing away: none.
+    assert_eq!(b.ray_span(&Vector3::new(0.0, 2.0, 0.0), &Vector3::x()), None);
+    assert_eq!(b.ray_span(&o, &-Vector3::x()), None);
+    // From inside: from 0 to the exit.
+    let (t0, t1) = b.ray_span(&Vector3::zeros(), &Vector3::new(0.0, 0.0, 2.0)).unwrap();
+    assert!(t0 == 0.0 && (t1 - 0.5).abs() < 1e-12, "{t0} {t1}");
+    // A diagonal ray meets the corner region: entry before exit, both on the box.
+    let d = Vector3::new(1.0, 1.0, 1.0).normalize();
+    let (t0, t1) = b.ray_span(&Vector3::new(-3.0, -3.0, -3.0), &d).unwrap();
+    for t in [t0, t1] {
+        let p = Vector3::new(-3.0, -3.0, -3.0) + d * t;
+        assert!(p.iter().all(|v| v.abs() <= 1.0 + 1e-9), "{p:?}");
+    }
+}
