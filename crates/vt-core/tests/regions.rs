@@ -367,6 +367,17 @@ fn the_analysis_says_when_per_region_loops_do_not_fit_the_cache() {
         streamed_frames, cached_frames,
         "the baked frames, byte for byte"
     );
+    // Room for the packed window but not for the label search beside it: the thesis's loop,
+    // and a budget above the one given.
+    let tight = n * frame * 4 / 5;
+    let (no_room, _) = run(tight);
+    let v = &no_room.views[0];
+    assert!(v.region_loop.is_none());
+    let need = v.regions_over_cache.expect("says what it would need");
+    assert!(
+        need > tight as u64 && need <= (tight + search) as u64 + 1,
+        "{need}"
+    );
     // Two frames' room: no window fits; the thesis's loop, and the budget that would have done.
     let (over, over_frames) = run(2 * frame);
     let v = &over.views[0];

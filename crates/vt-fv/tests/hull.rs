@@ -202,12 +202,20 @@ fn ray_spans_through_a_box() {
     let o = Vector3::new(-5.0, 0.0, 0.0);
     // Along x through the middle: enters at 4, leaves at 6.
     let (t0, t1) = b.ray_span(&o, &Vector3::x()).unwrap();
-    assert!((t0 - 4.0).abs() < 1e-12 && (t1 - 6.0).abs() < 1e-12, "{t0} {t1}");
+    assert!(
+        (t0 - 4.0).abs() < 1e-12 && (t1 - 6.0).abs() < 1e-12,
+        "{t0} {t1}"
+    );
     // Parallel to a face outside the box, and pointing away: none.
-    assert_eq!(b.ray_span(&Vector3::new(0.0, 2.0, 0.0), &Vector3::x()), None);
+    assert_eq!(
+        b.ray_span(&Vector3::new(0.0, 2.0, 0.0), &Vector3::x()),
+        None
+    );
     assert_eq!(b.ray_span(&o, &-Vector3::x()), None);
     // From inside: from 0 to the exit.
-    let (t0, t1) = b.ray_span(&Vector3::zeros(), &Vector3::new(0.0, 0.0, 2.0)).unwrap();
+    let (t0, t1) = b
+        .ray_span(&Vector3::zeros(), &Vector3::new(0.0, 0.0, 2.0))
+        .unwrap();
     assert!(t0 == 0.0 && (t1 - 0.5).abs() < 1e-12, "{t0} {t1}");
     // A diagonal ray meets the corner region: entry before exit, both on the box.
     let d = Vector3::new(1.0, 1.0, 1.0).normalize();

@@ -423,35 +423,39 @@ pub(super) fn analyze_view(
             None => {
                 let held: usize = masks.iter().map(|m| m.len().div_ceil(64) * 8).sum();
                 let budget = params.cache_bytes.saturating_sub(held);
-                // A packed window holds the loop and a few frames past it: the labels' pairwise
-                // costs grow with the square of the window's length. The label search's own
-                // memory for the frames packed is counted in the budget beside them.
-                let want = span.min(need + PACKED_SLACK);
                 let dims = (masks[0].width(), masks[0].height());
-                let search = |k: usize| crate::regions::search_bytes(dims, k, rp);
-                let (packed, last) =
-                    read_window(src, first..first + want, n1, budget, &search, &label)?;
+                // A packed window holds the loop and a few frames past it: the labels' pairwise
+                // costs grow with the square of the window's length. (The label search's own
+                // memory is checked against what the window leaves once the search is asked
+                // for: a loop that already wraps as it steps needs none.)
+                let want = span.min(need + PACKED_SLACK);
+                let (packed, last) = read_window(src, first..first + want, n1, budget, &label)?;
                 if packed.len() < need {
                     // Over the budget: what the loop's frames would take at the rate so far
                     // (the frame left out counted), their label search, and the masks beside
                     // them.
                     let rate =
                         (packed.byte_len() as u64 + last as u64).div_ceil(packed.len() as u64 + 1);
-                    regions_over_cache =
-                        Some(rate * need as u64 + search(need) as u64 + held as u64);
+                    let search = crate::regions::search_bytes(dims, need, rp);
+                    regions_over_cache = Some(rate * need as u64 + search as u64 + held as u64);
                     None
                 } else {
                     span = packed.len();
-                    Some(packed)
+                    // What the budget leaves the label search, and what the view holds
+                    // besides.
+                    let room = budget - packed.byte_len();
+                    let besides = (packed.byte_len() + held) as u64;
+                    Some((packed, room, besides))
                 }
             }
         };
         let window_masks = &masks[first..first + span];
         let window = match (&cache, &packed) {
             (Some(frames), _) => Some(Window::Cached(&frames[first..first + span])),
-            (None, Some(packed)) => Some(Window::Packed(packed)),
+            (None, Some((packed, _, _))) => Some(Window::Packed(packed)),
             (None, None) => None,
         };
+        let room = packed.as_ref().map(|&(_, room, _)| room);
         let made = match &window {
             Some(w) => Some(bake_regions(
                 w,
@@ -460,12 +464,17 @@ pub(super) fn analyze_view(
                 alpha,
                 rp,
                 params.loops.min_length,
+                room,
             )?),
             None => None,
         };
         if let Some(made) = made {
             let secs = t_bake.elapsed().as_secs_f64();
             match made {
+                Baked::OverCache(search) => {
+                    let besides = packed.as_ref().map_or(0, |&(_, _, b)| b);
+                    regions_over_cache = Some(besides + search as u64);
+                }
                 Baked::ThesisSmooth(single) => thesis_smooth = Some(single),
                 Baked::Worse(chosen, quality, single) => {
                     regions_worse = Some(RegionResult {
@@ -627,6 +636,9 @@ enum Baked {
         crate::regions::Quality,
         crate::regions::Quality,
     ),
+    /// Asked for, but the label search (this many bytes) does not fit what the cache's budget
+    /// leaves beside the packed window.
+    OverCache(usize),
     /// Kept: the labels (counted in the window), their quality, the thesis's.
     Kept(
         crate::regions::RegionLoop,
@@ -637,7 +649,8 @@ enum Baked {
 
 /// Chooses and measures the per-region loop of `window` (source frames holding the thesis's
 /// loop `own`, counted from the window's first frame; `masks` theirs) against the thesis's loop
-/// measured alike. The baked frames are made to be measured and dropped: none is held.
+/// measured alike, when the label search fits `room` bytes (None: no bound). The baked frames
+/// are made to be measured and dropped: none is held.
 fn bake_regions<F: crate::regions::Frames + ?Sized>(
     window: &F,
     masks: &[Mask],
@@ -645,6 +658,7 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     alpha: Option<&GrayImage>,
     rp: &crate::regions::RegionParams,
     min_length: usize,
+    room: Option<usize>,
 ) -> Result<Baked> {
     use crate::regions::{quality_of, single_frame, single_loop, wraps_of, Quality};
     let dims = window.dimensions();
@@ -658,6 +672,10 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
         if !Quality::shows(&wraps) {
             return Ok(Baked::ThesisSmooth(wraps));
         }
+    }
+    let search = crate::regions::search_bytes(dims, window.count(), rp);
+    if room.is_some_and(|r| search > r) {
+        return Ok(Baked::OverCache(search));
     }
     let single = quality_of(frame, window, &one, alpha);
     let rl = crate::regions::solve(window, alpha, Some(own.period), min_length, rp)?;
@@ -678,15 +696,14 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     })
 }
 
-/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they and
-/// `reserve(frames packed)` take at most `budget` bytes (the frames past it are left out), and
-/// the packed size of the first frame left out (0 when none was).
+/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they take
+/// at most `budget` bytes (the frames past it are left out), and the packed size of the first
+/// frame left out (0 when none was).
 fn read_window(
     src: &mut dyn FrameSource,
     range: std::ops::Range<usize>,
     n: usize,
     budget: usize,
-    reserve: &dyn Fn(usize) -> usize,
     label: &dyn Fn(&str) -> String,
 ) -> Result<(crate::packed::PackedFrames, usize)> {
     let mut window = crate::packed::PackedFrames::new();
@@ -695,7 +712,7 @@ fn read_window(
         if range.contains(&i) && !full {
             let before = window.byte_len();
             window.push(frame)?;
-            if window.byte_len() + reserve(window.len()) > budget {
+            if window.byte_len() > budget {
                 left_out = window.byte_len() - before;
                 window.truncate(window.len() - 1);
                 full = true;
