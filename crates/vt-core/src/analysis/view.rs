@@ -443,7 +443,7 @@ pub(super) fn analyze_view(
                     span = packed.len();
                     // What the budget leaves the label search, and what the view holds
                     // besides.
-                    let room = budget - packed.byte_len();
+                    let room = budget.saturating_sub(packed.byte_len());
                     let besides = (packed.byte_len() + held) as u64;
                     Some((packed, room, besides))
                 }
