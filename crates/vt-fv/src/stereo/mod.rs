@@ -408,20 +408,10 @@ pub(crate) fn occupied_along<'a>(
 ) -> impl Iterator<Item = (f64, usize)> + 'a {
     let dir = cam.r.transpose() * (kinv * Vector3::new(u, v, 1.0));
     let c = cam.centre();
-    let b = grid.bounds();
-    // Slab intersection with the bounds.
-    let (mut t0, mut t1) = (from.max(0.0), f64::INFINITY);
-    for k in 0..3 {
-        if dir[k].abs() < 1e-12 {
-            if c[k] < b.min[k] || c[k] > b.max[k] {
-                t1 = -1.0;
-            }
-            continue;
-        }
-        let (a, e) = ((b.min[k] - c[k]) / dir[k], (b.max[k] - c[k]) / dir[k]);
-        t0 = t0.max(a.min(e));
-        t1 = t1.min(a.max(e));
-    }
+    let (t0, t1) = grid
+        .bounds()
+        .ray_span(&c, &dir)
+        .map_or((0.0, -1.0), |(a, e)| (a.max(from), e));
     let dt = 0.5 * grid.voxel_size().min() / dir.norm();
     let steps = if t1 >= t0 {
         ((t1 - t0) / dt) as usize + 1
