@@ -312,3 +312,71 @@ pub fn morph_scores(
         },
     ))
 }
+
+/// What a two-view morph with perfect geometry can show at the view between two others on a
+/// rectified horizontal rig (issue #33), from that view's true disparity: each known pixel
+/// sampled (bilinear) in both outer views where the disparity puts it.
+#[derive(Debug, Clone)]
+pub struct DisparityReference {
+    /// Per pixel the sample nearer the truth: a reference for what the two views can show (not
+    /// a strict bound: exposure differences between the views count against it).
+    pub best_of_two: image::RgbImage,
+    /// The two samples blended 50/50: a naive morph with perfect geometry.
+    pub naive: image::RgbImage,
+    /// The pixels both references cover: known disparity, both samples inside their images.
+    pub mask: vt_core::mask::Mask,
+}
+
+/// [`DisparityReference`] of the view `truth` between `a` (left) and `b` (right): a pixel
+/// `(x, y)` with disparity value `v` (0 = unknown) lies at `x + v * scale / 2` in a and at
+/// `x - v * scale / 2` in b (`scale`: the factor from values to pixels of disparity between a and
+/// b). Elsewhere both images are black.
+pub fn disparity_references(
+    a: &image::RgbImage,
+    b: &image::RgbImage,
+    truth: &image::RgbImage,
+    disparity: &image::GrayImage,
+    scale: f64,
+) -> DisparityReference {
+    let (w, h) = truth.dimensions();
+    let sample = |img: &image::RgbImage, x: f64, y: u32| -> Option<[f64; 3]> {
+        if !(0.0..=f64::from(img.width() - 1)).contains(&x) || y >= img.height() {
+            return None;
+        }
+        let x0 = (x.floor() as u32).min(img.width() - 2);
+        let t = x - f64::from(x0);
+        let (p, q) = (img.get_pixel(x0, y).0, img.get_pixel(x0 + 1, y).0);
+        Some([0, 1, 2].map(|k| f64::from(p[k]) * (1.0 - t) + f64::from(q[k]) * t))
+    };
+    let mut best_of_two = image::RgbImage::new(w, h);
+    let mut naive = image::RgbImage::new(w, h);
+    let mut known = vec![false; (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let v = f64::from(disparity.get_pixel(x, y).0[0]);
+            if v == 0.0 {
+                continue;
+            }
+            let half = v * scale / 2.0;
+            let (Some(sa), Some(sb)) = (
+                sample(a, f64::from(x) + half, y),
+                sample(b, f64::from(x) - half, y),
+            ) else {
+                continue;
+            };
+            let t = truth.get_pixel(x, y).0;
+            let err =
+                |s: &[f64; 3]| -> f64 { (0..3).map(|k| (s[k] - f64::from(t[k])).powi(2)).sum() };
+            let best = if err(&sa) <= err(&sb) { sa } else { sb };
+            let px = |s: [f64; 3]| image::Rgb(s.map(|c| c.round().clamp(0.0, 255.0) as u8));
+            best_of_two.put_pixel(x, y, px(best));
+            naive.put_pixel(x, y, px([0, 1, 2].map(|k| (sa[k] + sb[k]) / 2.0)));
+            known[(y * w + x) as usize] = true;
+        }
+    }
+    DisparityReference {
+        best_of_two,
+        naive,
+        mask: vt_core::mask::Mask::from_index_fn(w, h, |i| known[i]),
+    }
+}

@@ -209,11 +209,17 @@ pub fn analyze(
             })
             .collect();
         for p in 0..m - 1 {
-            let mut r = crate::register::register_features(
+            // The plane of the link before, as seen in view p: every link registers one plane.
+            let prior: Option<Vec<Point>> = registration
+                .last()
+                .filter(|r: &&crate::register::PairRegistration| r.epipolar.is_some())
+                .map(|r| r.inliers.iter().map(|(_, b)| *b).collect());
+            let mut r = crate::register::register_features_on(
                 &features[p],
                 &features[p + 1],
                 (width, height),
                 focus[p].as_ref(),
+                prior.as_deref(),
                 &params.register,
                 (p, p + 1),
             )?;
@@ -243,6 +249,17 @@ pub fn analyze(
             ..params.model
         };
         selection = Some(select_model(&refs, &model)?);
+        // A link registered under its epipolar geometry keeps the plane that the rig allows
+        // (and the other links share): a free refit of the model to the inliers would bend it
+        // where they are few. Measured on the Middlebury line scenes, mean dB over three q:
+        // Dolls 36.51 -> 36.85, Moebius 36.40 -> 36.65, Reindeer 30.42 -> 30.40.
+        if let Some(sel) = selection.as_mut() {
+            for (fit, r) in sel.fits.iter_mut().zip(&registration) {
+                if r.epipolar.is_some() {
+                    (fit.homography, fit.rms) = (r.homography, r.rms);
+                }
+            }
+        }
         observer.finish();
         timings.homographies += t0.elapsed();
         pairs
@@ -263,7 +280,8 @@ pub fn analyze(
         let sigma_hat = crate::model::implied_sigma(&sel.fits, k);
         for p in 0..m - 1 {
             let init = sel.fits[p].homography;
-            if !params.refine {
+            // Nor is it refined photometrically: a background with parallax is no plane.
+            if !params.refine || registration.get(p).is_some_and(|r| r.epipolar.is_some()) {
                 used.push(init);
                 refinements.push(None);
                 continue;

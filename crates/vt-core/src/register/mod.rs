@@ -34,6 +34,7 @@ use rayon::prelude::*;
 use crate::align::Grey;
 use crate::{Error, Homography, Mask, Point, Result};
 
+pub mod epipolar;
 mod features;
 mod ransac;
 #[cfg(test)]
@@ -70,6 +71,9 @@ pub struct RegisterParams {
     pub focus_px: u32,
     /// Seed of the random samples (same seed, same result).
     pub seed: u64,
+    /// Where the matches show parallax, fit the plane among those the epipolar geometry allows
+    /// ([`epipolar`]): two camera positions of a rig. Off for frames of one handheld view.
+    pub epipolar: bool,
 }
 
 impl Default for RegisterParams {
@@ -87,6 +91,7 @@ impl Default for RegisterParams {
             min_cells: 6,
             focus_px: 48,
             seed: 0x7652_6567,
+            epipolar: true,
         }
     }
 }
@@ -199,6 +204,10 @@ pub struct PairRegistration {
     /// Matches outside the focus region, and how many of them the plane explains (within the
     /// threshold): (explained, total). (0, 0) when the whole background was used.
     pub rest_inliers: (usize, usize),
+    /// The fundamental matrix (a to b) when the matches show parallax off the plane: the plane
+    /// is then one that the epipolar geometry allows ([`epipolar`]) and the inliers' points in b
+    /// lie on their epipolar lines.
+    pub epipolar: Option<nalgebra::Matrix3<f64>>,
 }
 
 /// Registers background `a` to background `b`: features, matching, RANSAC, verification. `focus`
@@ -234,6 +243,22 @@ pub fn register_features(
     fb: &[Feature],
     size: (u32, u32),
     focus: Option<&Mask>,
+    params: &RegisterParams,
+    pair: (usize, usize),
+) -> Result<PairRegistration> {
+    register_features_on(fa, fb, size, focus, None, params, pair)
+}
+
+/// [`register_features`] with `prior`: points of a on the plane wanted (the previous pair's
+/// plane as seen in a, so that every link of a rig registers the same scene plane). Where the
+/// matches show parallax, the plane is fitted to the matches at those points when at least
+/// `params.min_inliers` lie there; otherwise, and without parallax, `prior` is not used.
+pub fn register_features_on(
+    fa: &[Feature],
+    fb: &[Feature],
+    size: (u32, u32),
+    focus: Option<&Mask>,
+    prior: Option<&[Point]>,
     params: &RegisterParams,
     pair: (usize, usize),
 ) -> Result<PairRegistration> {
@@ -280,14 +305,23 @@ pub fn register_features(
             .collect()
     };
     let (s, d) = (pick(&src), pick(&dst));
-    let Some((h, flags)) = ransac(&s, &d, params.threshold, params.iterations, params.seed) else {
+    let Some((mut h, mut flags)) = ransac(&s, &d, params.threshold, params.iterations, params.seed)
+    else {
         return Err(fail("no consistent homography".into()));
+    };
+    let epipolar = if params.epipolar {
+        rig_plane(&src, &dst, &s, &d, prior, &mut h, &mut flags, params)
+    } else {
+        None
     };
     let inliers: Vec<(Point, Point)> = flags
         .iter()
         .enumerate()
         .filter(|(_, &f)| f)
-        .map(|(i, _)| (s[i], d[i]))
+        .map(|(i, _)| match &epipolar {
+            Some(f) => (s[i], epipolar::onto_line(f, &s[i], &d[i])),
+            None => (s[i], d[i]),
+        })
         .collect();
     let (w, hgt) = size;
     let mut grid = [false; 64];
@@ -328,8 +362,80 @@ pub fn register_features(
         rms,
         plane,
         rest_inliers,
+        epipolar,
     })
 }
+
+/// Where all matches (`src -> dst`) show parallax that the plane `h` (fitted to `s -> d`, inlier
+/// `flags`) does not explain, the plane is fitted again among those the epipolar geometry allows
+/// ([`epipolar::plane_ransac`] on the pairs of `s -> d` that agree with it): `h` and `flags` are
+/// replaced and the fundamental matrix returned. None (nothing changed) for a scene without
+/// parallax, where the fundamental matrix is not determined, or when the constrained plane
+/// finds too few inliers.
+fn rig_plane(
+    src: &[Point],
+    dst: &[Point],
+    s: &[Point],
+    d: &[Point],
+    prior: Option<&[Point]>,
+    h: &mut Homography,
+    flags: &mut Vec<bool>,
+    params: &RegisterParams,
+) -> Option<nalgebra::Matrix3<f64>> {
+    let (f, f_in) = epipolar::fundamental(src, dst, EPIPOLAR_PX, params.iterations, params.seed)?;
+    let m = h.matrix();
+    let t2 = params.threshold * params.threshold;
+    // Parallax the plane's fit cannot explain: matches on their epipolar lines at least twice
+    // the inlier threshold off the plane. Nearer the plane, residuals of corners found on coarse
+    // pyramid levels (a planar scene: graf1 -> graf3) line up with a fundamental matrix that
+    // the plane alone leaves free by chance.
+    let far = 4.0 * t2;
+    let off_plane = (0..src.len())
+        .filter(|&i| f_in[i] && transfer2(&m, &src[i], &dst[i]) > far)
+        .count();
+    if off_plane < params.min_inliers {
+        return None;
+    }
+    let mut agree: Vec<usize> = (0..s.len())
+        .filter(|&i| epipolar::sampson2(&f, &s[i], &d[i]) <= EPIPOLAR_PX * EPIPOLAR_PX)
+        .collect();
+    if let Some(prior) = prior {
+        let near = |p: &Point| {
+            prior
+                .iter()
+                .any(|q| (q.x - p.x).abs() <= PRIOR_PX && (q.y - p.y).abs() <= PRIOR_PX)
+        };
+        let on: Vec<usize> = agree.iter().copied().filter(|&i| near(&s[i])).collect();
+        if on.len() >= params.min_inliers {
+            agree = on;
+        }
+    }
+    let (ss, dd): (Vec<Point>, Vec<Point>) = agree.iter().map(|&i| (s[i], d[i])).unzip();
+    let (h2, fl2) = epipolar::plane_ransac(
+        &f,
+        &ss,
+        &dd,
+        params.threshold,
+        params.iterations,
+        params.seed,
+    )?;
+    if fl2.iter().filter(|&&b| b).count() < params.min_inliers {
+        return None;
+    }
+    let mut flags2 = vec![false; s.len()];
+    for (k, &i) in agree.iter().enumerate() {
+        flags2[i] = fl2[k];
+    }
+    *h = h2;
+    *flags = flags2;
+    Some(f)
+}
+
+/// The largest Sampson distance, px, of a match that agrees with the epipolar geometry.
+const EPIPOLAR_PX: f64 = 1.5;
+
+/// How near (px, each axis) a match's point in a lies to a prior point to count as on its plane.
+const PRIOR_PX: f64 = 1.5;
 
 /// A picture to judge a fit at a glance: `a` and `b` warped into a by `h` (a to b) in a
 /// checkerboard of `cell`-pixel squares (a misfit shows as broken edges at the squares'
@@ -514,11 +620,25 @@ pub fn refine_inliers(
     if refined.len() < params.min_inliers {
         return;
     }
+    // Under the epipolar geometry the refined points move onto their lines, and the plane stays
+    // one it allows.
+    let refined: Vec<(Point, Point)> = match &reg.epipolar {
+        Some(f) => refined
+            .into_iter()
+            .map(|(s, d)| (s, epipolar::onto_line(f, &s, &d)))
+            .collect(),
+        None => refined,
+    };
     let fit = |pairs: &[(Point, Point)]| {
         let (s, d): (Vec<Point>, Vec<Point>) = pairs.iter().copied().unzip();
-        Homography::from_correspondences(&s, &d)
-            .ok()
-            .map(|f| f.homography)
+        match &reg.epipolar {
+            Some(f) => {
+                epipolar::plane_through(f, &s, &d).and_then(|m| Homography::from_matrix(m).ok())
+            }
+            None => Homography::from_correspondences(&s, &d)
+                .ok()
+                .map(|f| f.homography),
+        }
     };
     let Some(h1) = fit(&refined) else {
         return;

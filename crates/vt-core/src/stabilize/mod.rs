@@ -415,6 +415,10 @@ fn track_frame(
     let f = detect(g, params);
     let size = reference.grey.dimensions();
     let found = at.iter().flatten().count();
+    let params = &RegisterParams {
+        epipolar: false,
+        ..*params
+    };
     match register_features(&f, reference.features(params), size, None, params, (k, 0)) {
         Ok(r) => {
             let again = track(Some(&r.homography.inverse()), None);
