@@ -69,10 +69,9 @@ fn middlebury_intermediate_views_follow_the_depth() {
     // disparity; issue #19's setting): Dolls 27.9 -> 37.7, 27.9 -> 36.8, 28.5 -> 37.9; Moebius
     // 24.9 -> 37.6, 24.9 -> 37.3, 25.1 -> 35.8; Reindeer 21.3 -> 30.3, 21.4 -> 30.4, 21.2 -> 30.4.
     // Automatic registration (one plane for every link, among those the rig's epipolar
-    // geometry allows; issue #33): Dolls 29.4 -> 37.4, 29.3 -> 35.8, 29.9 -> 37.4; Moebius 28.4
-    // -> 37.6, 28.3 -> 36.5, 28.6 -> 35.9; Reindeer 23.6 -> 30.6, 23.9 -> 30.2, 23.5 -> 30.4.
-    // Means, automatic against marked: Dolls 36.85 / 37.43, Moebius 36.65 / 36.54, Reindeer
-    // 30.40 / 30.41 (a free homography for each link had 35.79, 35.87, 26.18).
+    // geometry allows; issue #33), mean over the three q, automatic against marked: Dolls 37.09
+    // / 37.43, Moebius 36.88 / 36.54, Reindeer 31.98 / 30.41 (a free homography for each link
+    // had 35.79, 35.87, 26.18).
     for (scene, auto_gain_db) in [("Dolls", 5.5), ("Moebius", 6.0), ("Reindeer", 5.0)] {
         let mut means = Vec::new();
         // Each even view as a folder of 8 copies of its photo (a still "video").
@@ -132,7 +131,7 @@ fn middlebury_intermediate_views_follow_the_depth() {
             means.push(figures.iter().map(|f| f.2).sum::<f64>() / 3.0);
         }
         assert!(
-            means[0] >= means[1] - 1.0,
+            means[0] >= means[1] - 0.5,
             "{scene}: automatic registration {:.2} dB, marked points {:.2} dB (mean over q)",
             means[0],
             means[1]
