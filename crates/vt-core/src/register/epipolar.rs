@@ -81,30 +81,6 @@ pub fn sampson2(f: &Matrix3<f64>, s: &Point, d: &Point) -> f64 {
     e * e / g
 }
 
-fn draw<const K: usize>(rng: &mut crate::rng::Rng, n: usize) -> [usize; K] {
-    let mut idx = [0usize; K];
-    for k in 0..K {
-        loop {
-            let c = rng.range(0, n as i64 - 1) as usize;
-            if !idx[..k].contains(&c) {
-                idx[k] = c;
-                break;
-            }
-        }
-    }
-    idx
-}
-
-/// Adaptive RANSAC iteration count at confidence 0.999 for samples of `k` with inlier share `w`.
-fn needed(w: f64, k: i32) -> usize {
-    let p_fail = 1.0 - w.powi(k);
-    if p_fail <= 0.0 {
-        0
-    } else {
-        (((0.001f64).ln() / p_fail.ln()).ceil() as usize).max(50)
-    }
-}
-
 /// A robust fundamental matrix: RANSAC on eight-point samples (Sampson distance under
 /// `threshold` px), then least squares on the inliers until they stop changing. None with fewer
 /// than 16 inliers.
@@ -144,25 +120,14 @@ pub fn fundamental(
     }
     let (_, mut f) = best?;
     let mut flags = flags_of(&f);
-    for _ in 0..8 {
-        let (s, d): (Vec<Point>, Vec<Point>) = (0..n)
-            .filter(|&i| flags[i])
-            .map(|i| (src[i], dst[i]))
-            .unzip();
-        let Some(f2) = eight_point(&s, &d) else {
-            break;
-        };
-        let fl2 = flags_of(&f2);
-        let count = |v: &[bool]| v.iter().filter(|&&b| b).count();
-        if count(&fl2) < count(&flags) {
-            break;
-        }
-        let same = fl2 == flags;
-        (f, flags) = (f2, fl2);
-        if same {
-            break;
-        }
-    }
+    refit_on_inliers(
+        &src[..n],
+        &dst[..n],
+        &mut f,
+        &mut flags,
+        eight_point,
+        flags_of,
+    );
     (flags.iter().filter(|&&b| b).count() >= 16).then_some((f, flags))
 }
 
@@ -302,25 +267,14 @@ pub fn plane_ransac(
     }
     let (_, mut m) = best?;
     let mut flags = flags_of(&m);
-    for _ in 0..8 {
-        let (s, d): (Vec<Point>, Vec<Point>) = (0..n)
-            .filter(|&i| flags[i])
-            .map(|i| (src[i], dst[i]))
-            .unzip();
-        let Some(m2) = plane_through(f, &s, &d) else {
-            break;
-        };
-        let fl2 = flags_of(&m2);
-        let count = |v: &[bool]| v.iter().filter(|&&b| b).count();
-        if count(&fl2) < count(&flags) {
-            break;
-        }
-        let same = fl2 == flags;
-        (m, flags) = (m2, fl2);
-        if same {
-            break;
-        }
-    }
+    refit_on_inliers(
+        &src[..n],
+        &dst[..n],
+        &mut m,
+        &mut flags,
+        |s, d| plane_through(f, s, d),
+        flags_of,
+    );
     let h = Homography::from_matrix(m).ok()?;
     (flags.iter().filter(|&&b| b).count() >= 4).then_some((h, flags))
 }

@@ -82,20 +82,11 @@ pub fn ransac(
     let t2 = threshold * threshold;
     let mut rng = crate::rng::Rng::new(seed);
     let mut best: Option<(usize, nalgebra::Matrix3<f64>)> = None;
-    let mut needed = iterations;
+    let mut need = iterations;
     let mut it = 0;
-    while it < needed.min(iterations) {
+    while it < need.min(iterations) {
         it += 1;
-        let mut idx = [0usize; 4];
-        for k in 0..4 {
-            loop {
-                let c = rng.range(0, n as i64 - 1) as usize;
-                if !idx[..k].contains(&c) {
-                    idx[k] = c;
-                    break;
-                }
-            }
-        }
+        let idx = draw::<4>(&mut rng, n);
         let Some(m) = four_point(idx.map(|i| &src[i]), idx.map(|i| &dst[i])) else {
             continue;
         };
@@ -106,45 +97,81 @@ pub fn ransac(
             .count();
         if best.as_ref().is_none_or(|(b, _)| count > *b) {
             best = Some((count, m));
-            let w = count as f64 / n as f64;
-            let p_fail = 1.0 - w.powi(4);
-            if p_fail <= 0.0 {
-                needed = 0;
-            } else {
-                let k = (0.001f64).ln() / p_fail.ln();
-                needed = (k.ceil() as usize).max(50);
-            }
+            need = needed(count as f64 / n as f64, 4);
         }
     }
     let (_, mut m) = best?;
     let mut flags = inliers_of(&m, &src[..n], &dst[..n], t2);
-    // Local optimisation: least squares on the inliers until they stop changing.
+    refit_on_inliers(
+        &src[..n],
+        &dst[..n],
+        &mut m,
+        &mut flags,
+        |s, d| {
+            Homography::from_correspondences(s, d)
+                .ok()
+                .map(|f| f.homography.matrix())
+        },
+        |m| inliers_of(m, &src[..n], &dst[..n], t2),
+    );
+    let h = Homography::from_matrix(m).ok()?;
+    (flags.iter().filter(|&&f| f).count() >= 4).then_some((h, flags))
+}
+
+/// `K` distinct indices below `n` (`n >= K`).
+pub(super) fn draw<const K: usize>(rng: &mut crate::rng::Rng, n: usize) -> [usize; K] {
+    let mut idx = [0usize; K];
+    for k in 0..K {
+        loop {
+            let c = rng.range(0, n as i64 - 1) as usize;
+            if !idx[..k].contains(&c) {
+                idx[k] = c;
+                break;
+            }
+        }
+    }
+    idx
+}
+
+/// Adaptive RANSAC iteration count at confidence 0.999 for samples of `k` with inlier share `w`
+/// (at least 50).
+pub(super) fn needed(w: f64, k: i32) -> usize {
+    let p_fail = 1.0 - w.powi(k);
+    if p_fail <= 0.0 {
+        0
+    } else {
+        (((0.001f64).ln() / p_fail.ln()).ceil() as usize).max(50)
+    }
+}
+
+/// Local optimisation of a RANSAC model `m` with inlier `flags`: `fit` on the inliers, the
+/// inliers recomputed by `flags_of`, until they stop changing (8 rounds at most); a refit that
+/// keeps fewer inliers is not taken.
+pub(super) fn refit_on_inliers<M>(
+    src: &[Point],
+    dst: &[Point],
+    m: &mut M,
+    flags: &mut Vec<bool>,
+    fit: impl Fn(&[Point], &[Point]) -> Option<M>,
+    flags_of: impl Fn(&M) -> Vec<bool>,
+) {
+    let count = |v: &[bool]| v.iter().filter(|&&b| b).count();
     for _ in 0..8 {
-        let (s, d): (Vec<Point>, Vec<Point>) = flags
-            .iter()
-            .enumerate()
-            .filter(|(_, &f)| f)
-            .map(|(i, _)| (src[i], dst[i]))
+        let (s, d): (Vec<Point>, Vec<Point>) = (0..src.len())
+            .filter(|&i| flags[i])
+            .map(|i| (src[i], dst[i]))
             .unzip();
-        let Ok(fit) = Homography::from_correspondences(&s, &d) else {
+        let Some(m2) = fit(&s, &d) else {
             break;
         };
-        let m2 = fit.homography.matrix();
-        let f2 = inliers_of(&m2, &src[..n], &dst[..n], t2);
-        let (c1, c2) = (
-            flags.iter().filter(|&&f| f).count(),
-            f2.iter().filter(|&&f| f).count(),
-        );
-        if c2 < c1 {
+        let f2 = flags_of(&m2);
+        if count(&f2) < count(flags) {
             break;
         }
-        let same = f2 == flags;
-        m = m2;
-        flags = f2;
+        let same = f2 == *flags;
+        (*m, *flags) = (m2, f2);
         if same {
             break;
         }
     }
-    let h = Homography::from_matrix(m).ok()?;
-    (flags.iter().filter(|&&f| f).count() >= 4).then_some((h, flags))
 }
