@@ -101,24 +101,18 @@ pub fn fundamental(
             .map(|i| sampson2(f, &src[i], &dst[i]) <= t2)
             .collect()
     };
-    let mut rng = crate::rng::Rng::new(seed);
-    let mut best: Option<(usize, Matrix3<f64>)> = None;
-    let (mut it, mut need) = (0, iterations);
-    while it < need.min(iterations) {
-        it += 1;
-        let idx = draw::<8>(&mut rng, n);
-        let Some(f) = eight_point(&idx.map(|i| src[i]), &idx.map(|i| dst[i])) else {
-            continue;
-        };
-        let count = (0..n)
-            .filter(|&i| sampson2(&f, &src[i], &dst[i]) <= t2)
-            .count();
-        if best.as_ref().is_none_or(|(b, _)| count > *b) {
-            best = Some((count, f));
-            need = needed(count as f64 / n as f64, 8);
-        }
-    }
-    let (_, mut f) = best?;
+    let mut f = best_sample::<8, _>(
+        n,
+        iterations,
+        seed,
+        |idx| eight_point(&idx.map(|i| src[i]), &idx.map(|i| dst[i])),
+        |f| {
+            let count = (0..n)
+                .filter(|&i| sampson2(f, &src[i], &dst[i]) <= t2)
+                .count();
+            (count, count)
+        },
+    )?;
     let mut flags = flags_of(&f);
     refit_on_inliers(
         &src[..n],
@@ -246,26 +240,19 @@ pub fn plane_ransac(
             .collect()
     };
     let cells = Cells::over(&src[..n]);
-    let mut rng = crate::rng::Rng::new(seed);
-    let mut best: Option<(usize, Matrix3<f64>)> = None;
-    let (mut it, mut need) = (0, iterations);
-    while it < need.min(iterations) {
-        it += 1;
-        let idx = draw::<3>(&mut rng, n);
-        let Some(m) = plane_through(f, &idx.map(|i| src[i]), &idx.map(|i| dst[i])) else {
-            continue;
-        };
-        let inl: Vec<usize> = (0..n)
-            .filter(|&i| transfer2(&m, &src[i], &dst[i]) <= t2)
-            .collect();
-        let count = inl.len();
-        let score = cells.covered(inl.iter().map(|&i| &src[i])) * (n + 1) + count;
-        if best.as_ref().is_none_or(|(b, _)| score > *b) {
-            best = Some((score, m));
-            need = needed(count as f64 / n as f64, 3);
-        }
-    }
-    let (_, mut m) = best?;
+    let mut m = best_sample::<3, _>(
+        n,
+        iterations,
+        seed,
+        |idx| plane_through(f, &idx.map(|i| src[i]), &idx.map(|i| dst[i])),
+        |m| {
+            let inl: Vec<usize> = (0..n)
+                .filter(|&i| transfer2(m, &src[i], &dst[i]) <= t2)
+                .collect();
+            let covered = cells.covered(inl.iter().map(|&i| &src[i]));
+            (covered * (n + 1) + inl.len(), inl.len())
+        },
+    )?;
     let mut flags = flags_of(&m);
     refit_on_inliers(
         &src[..n],

@@ -80,27 +80,20 @@ pub fn ransac(
         return None;
     }
     let t2 = threshold * threshold;
-    let mut rng = crate::rng::Rng::new(seed);
-    let mut best: Option<(usize, nalgebra::Matrix3<f64>)> = None;
-    let mut need = iterations;
-    let mut it = 0;
-    while it < need.min(iterations) {
-        it += 1;
-        let idx = draw::<4>(&mut rng, n);
-        let Some(m) = four_point(idx.map(|i| &src[i]), idx.map(|i| &dst[i])) else {
-            continue;
-        };
-        let count = src[..n]
-            .iter()
-            .zip(&dst[..n])
-            .filter(|(s, d)| transfer2(&m, s, d) <= t2)
-            .count();
-        if best.as_ref().is_none_or(|(b, _)| count > *b) {
-            best = Some((count, m));
-            need = needed(count as f64 / n as f64, 4);
-        }
-    }
-    let (_, mut m) = best?;
+    let mut m = best_sample::<4, _>(
+        n,
+        iterations,
+        seed,
+        |idx| four_point(idx.map(|i| &src[i]), idx.map(|i| &dst[i])),
+        |m| {
+            let count = src[..n]
+                .iter()
+                .zip(&dst[..n])
+                .filter(|(s, d)| transfer2(m, s, d) <= t2)
+                .count();
+            (count, count)
+        },
+    )?;
     let mut flags = inliers_of(&m, &src[..n], &dst[..n], t2);
     refit_on_inliers(
         &src[..n],
@@ -118,8 +111,36 @@ pub fn ransac(
     (flags.iter().filter(|&&f| f).count() >= 4).then_some((h, flags))
 }
 
+/// RANSAC's hypotheses: samples of `K` distinct pairs of `n`, each made a model by
+/// `hypothesis` (None: degenerate, skipped) and scored by `score` as (what is maximised, the
+/// inlier count); as many samples as confidence 0.999 needs at the best model's inlier share,
+/// at most `iterations`. The best model, None when no sample gave one.
+pub(super) fn best_sample<const K: usize, M>(
+    n: usize,
+    iterations: usize,
+    seed: u64,
+    hypothesis: impl Fn([usize; K]) -> Option<M>,
+    score: impl Fn(&M) -> (usize, usize),
+) -> Option<M> {
+    let mut rng = crate::rng::Rng::new(seed);
+    let mut best: Option<(usize, M)> = None;
+    let (mut it, mut need) = (0, iterations);
+    while it < need.min(iterations) {
+        it += 1;
+        let Some(m) = hypothesis(draw::<K>(&mut rng, n)) else {
+            continue;
+        };
+        let (value, count) = score(&m);
+        if best.as_ref().is_none_or(|(b, _)| value > *b) {
+            best = Some((value, m));
+            need = needed(count as f64 / n as f64, K as i32);
+        }
+    }
+    best.map(|(_, m)| m)
+}
+
 /// `K` distinct indices below `n` (`n >= K`).
-pub(super) fn draw<const K: usize>(rng: &mut crate::rng::Rng, n: usize) -> [usize; K] {
+fn draw<const K: usize>(rng: &mut crate::rng::Rng, n: usize) -> [usize; K] {
     let mut idx = [0usize; K];
     for k in 0..K {
         loop {
@@ -135,7 +156,7 @@ pub(super) fn draw<const K: usize>(rng: &mut crate::rng::Rng, n: usize) -> [usiz
 
 /// Adaptive RANSAC iteration count at confidence 0.999 for samples of `k` with inlier share `w`
 /// (at least 50).
-pub(super) fn needed(w: f64, k: i32) -> usize {
+fn needed(w: f64, k: i32) -> usize {
     let p_fail = 1.0 - w.powi(k);
     if p_fail <= 0.0 {
         0
