@@ -442,9 +442,14 @@ impl std::fmt::Display for AnalysisSummary<'_> {
             };
             writeln!(
                 f,
-                "registered {p}->{}: background plane {}, {} inliers of {} matches in {} of 64 cells, residual {:.2} px{rest}{object}; see {}",
+                "registered {p}->{}: background plane {}{}, {} inliers of {} matches in {} of 64 cells, residual {:.2} px{rest}{object}; see {}",
                 p + 1,
                 r.plane,
+                if r.epipolar.is_some() {
+                    " (parallax: a plane the views' epipolar geometry allows, shared by the links)"
+                } else {
+                    ""
+                },
                 r.inliers.len(),
                 r.matches,
                 r.cells,

@@ -280,6 +280,10 @@ pub struct RegistrationEntry {
     /// whether it was used.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub object_plane: Option<vt_core::analysis::ObjectPlane>,
+    /// The fundamental matrix (a to b, rows) when the matches showed parallax and the plane is
+    /// one that the epipolar geometry allows ([`vt_core::register::epipolar`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub epipolar: Option<[[f64; 3]; 3]>,
 }
 
 impl RegistrationEntry {
@@ -302,6 +306,9 @@ impl RegistrationEntry {
             rms: r.rms,
             rest: [r.rest_inliers.0, r.rest_inliers.1],
             picture: fit_name(p),
+            epipolar: r
+                .epipolar
+                .map(|f| std::array::from_fn(|i| std::array::from_fn(|j| f[(i, j)]))),
         }
     }
 }
