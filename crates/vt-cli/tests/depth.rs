@@ -69,7 +69,7 @@ fn middlebury_intermediate_views_follow_the_depth() {
     // disparity; issue #19's setting): Dolls 27.9 -> 37.7, 27.9 -> 36.8, 28.5 -> 38.3; Moebius
     // 23.6 -> 37.3, 23.5 -> 37.4, 23.7 -> 35.4; Reindeer 21.4 -> 30.6, 21.5 -> 30.7, 21.3 -> 30.7.
     // Automatic registration (one plane for every link, among those the rig's epipolar
-    // geometry allows; issue #33), mean over the three q, automatic against marked: Dolls 37.29
+    // geometry allows; issue #33), mean over the three q, automatic against marked: Dolls 37.27
     // / 37.60, Moebius 37.08 / 36.70, Reindeer 32.19 / 30.68 (a free homography for each link
     // had 35.79, 35.87, 26.18).
     for (scene, auto_gain_db) in [("Dolls", 5.5), ("Moebius", 6.0), ("Reindeer", 5.0)] {

@@ -10,19 +10,8 @@
 //! few, across the parallax: an intermediate view then shears (issue #33).
 
 use super::*;
+use crate::homography::normalizer;
 use nalgebra::{Matrix3, Vector3};
-
-/// The similarity that moves `pts`' centroid to the origin and their mean distance to √2
-/// (Hartley's normalisation).
-fn normaliser(pts: &[Point]) -> Matrix3<f64> {
-    let n = pts.len().max(1) as f64;
-    let (cx, cy) = pts
-        .iter()
-        .fold((0.0, 0.0), |(x, y), p| (x + p.x / n, y + p.y / n));
-    let d = pts.iter().map(|p| (p.x - cx).hypot(p.y - cy)).sum::<f64>() / n;
-    let s = std::f64::consts::SQRT_2 / d.max(1e-12);
-    Matrix3::new(s, 0.0, -s * cx, 0.0, s, -s * cy, 0.0, 0.0, 1.0)
-}
 
 fn hom(m: &Matrix3<f64>, p: &Point) -> Vector3<f64> {
     m * Vector3::new(p.x, p.y, 1.0)
@@ -35,7 +24,7 @@ pub fn eight_point(src: &[Point], dst: &[Point]) -> Option<Matrix3<f64>> {
     if n < 8 {
         return None;
     }
-    let (ts, td) = (normaliser(&src[..n]), normaliser(&dst[..n]));
+    let (ts, td) = (normalizer(&src[..n]), normalizer(&dst[..n]));
     let mut ata = SMatrix::<f64, 9, 9>::zeros();
     for (s, d) in src.iter().zip(dst).take(n) {
         let (a, b) = (hom(&ts, s), hom(&td, d));
@@ -107,9 +96,7 @@ pub fn fundamental(
         seed,
         |idx| eight_point(&idx.map(|i| src[i]), &idx.map(|i| dst[i])),
         |f| {
-            let count = (0..n)
-                .filter(|&i| sampson2(f, &src[i], &dst[i]) <= t2)
-                .count();
+            let count = inliers(&flags_of(f)).count();
             (count, count)
         },
     )?;
@@ -122,7 +109,7 @@ pub fn fundamental(
         eight_point,
         flags_of,
     );
-    (flags.iter().filter(|&&b| b).count() >= 16).then_some((f, flags))
+    (inliers(&flags).count() >= 16).then_some((f, flags))
 }
 
 /// The epipole in the second image: `e_b` with `F^T e_b = 0`, unit length.
@@ -150,7 +137,7 @@ pub fn plane_through(f: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Option<M
     if n < 3 {
         return None;
     }
-    let (ts, td) = (normaliser(&src[..n]), normaliser(&dst[..n]));
+    let (ts, td) = (normalizer(&src[..n]), normalizer(&dst[..n]));
     let (ts_inv, td_inv) = (ts.try_inverse()?, td.try_inverse()?);
     let fnm = td_inv.transpose() * f * ts_inv;
     let e = epipole_b(&fnm);
@@ -246,11 +233,10 @@ pub fn plane_ransac(
         seed,
         |idx| plane_through(f, &idx.map(|i| src[i]), &idx.map(|i| dst[i])),
         |m| {
-            let inl: Vec<usize> = (0..n)
-                .filter(|&i| transfer2(m, &src[i], &dst[i]) <= t2)
-                .collect();
-            let covered = cells.covered(inl.iter().map(|&i| &src[i]));
-            (covered * (n + 1) + inl.len(), inl.len())
+            let flags = flags_of(m);
+            let count = inliers(&flags).count();
+            let covered = cells.covered(inliers(&flags).map(|i| &src[i]));
+            (covered * (n + 1) + count, count)
         },
     )?;
     let mut flags = flags_of(&m);
@@ -263,7 +249,7 @@ pub fn plane_ransac(
         flags_of,
     );
     let h = Homography::from_matrix(m).ok()?;
-    (flags.iter().filter(|&&b| b).count() >= 4).then_some((h, flags))
+    (inliers(&flags).count() >= 4).then_some((h, flags))
 }
 
 #[cfg(test)]

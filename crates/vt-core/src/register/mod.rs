@@ -413,12 +413,12 @@ fn rig_plane(
     let (ss, dd): (Vec<Point>, Vec<Point>) = agree.iter().map(|&i| (s[i], d[i])).unzip();
     let (h2, fl2) =
         epipolar::plane_ransac(&f, &ss, &dd, RIG_PLANE_PX, params.iterations, params.seed)?;
-    if fl2.iter().filter(|&&b| b).count() < params.min_inliers {
+    if inliers(&fl2).count() < params.min_inliers {
         return None;
     }
     let mut flags2 = vec![false; s.len()];
-    for (k, &i) in agree.iter().enumerate() {
-        flags2[i] = fl2[k];
+    for k in inliers(&fl2) {
+        flags2[agree[k]] = true;
     }
     *h = h2;
     *flags = flags2;

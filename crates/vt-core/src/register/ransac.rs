@@ -86,11 +86,7 @@ pub fn ransac(
         seed,
         |idx| four_point(idx.map(|i| &src[i]), idx.map(|i| &dst[i])),
         |m| {
-            let count = src[..n]
-                .iter()
-                .zip(&dst[..n])
-                .filter(|(s, d)| transfer2(m, s, d) <= t2)
-                .count();
+            let count = inliers(&inliers_of(m, &src[..n], &dst[..n], t2)).count();
             (count, count)
         },
     )?;
@@ -108,7 +104,7 @@ pub fn ransac(
         |m| inliers_of(m, &src[..n], &dst[..n], t2),
     );
     let h = Homography::from_matrix(m).ok()?;
-    (flags.iter().filter(|&&f| f).count() >= 4).then_some((h, flags))
+    (inliers(&flags).count() >= 4).then_some((h, flags))
 }
 
 /// RANSAC's hypotheses: samples of `K` distinct pairs of `n`, each made a model by
@@ -137,6 +133,11 @@ pub(super) fn best_sample<const K: usize, M>(
         }
     }
     best.map(|(_, m)| m)
+}
+
+/// The indices of the set `flags`.
+pub(super) fn inliers(flags: &[bool]) -> impl Iterator<Item = usize> + '_ {
+    flags.iter().enumerate().filter(|(_, &f)| f).map(|(i, _)| i)
 }
 
 /// `K` distinct indices below `n` (`n >= K`).
@@ -176,12 +177,9 @@ pub(super) fn refit_on_inliers<M>(
     fit: impl Fn(&[Point], &[Point]) -> Option<M>,
     flags_of: impl Fn(&M) -> Vec<bool>,
 ) {
-    let count = |v: &[bool]| v.iter().filter(|&&b| b).count();
+    let count = |v: &[bool]| inliers(v).count();
     for _ in 0..8 {
-        let (s, d): (Vec<Point>, Vec<Point>) = (0..src.len())
-            .filter(|&i| flags[i])
-            .map(|i| (src[i], dst[i]))
-            .unzip();
+        let (s, d): (Vec<Point>, Vec<Point>) = inliers(flags).map(|i| (src[i], dst[i])).unzip();
         let Some(m2) = fit(&s, &d) else {
             break;
         };
