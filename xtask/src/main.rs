@@ -98,6 +98,18 @@ fn main() -> Result<()> {
                     "hd-memory",
                 ]);
                 run(hd)?;
+                // `vt analyze` against its floor (decode + the store's encode), issue #34.
+                let mut floor = cargo();
+                floor.args([
+                    "run",
+                    "--release",
+                    "--quiet",
+                    "-p",
+                    "vt-bench",
+                    "--bin",
+                    "analyze-floor",
+                ]);
+                run(floor)?;
                 let mut b = cargo();
                 b.args(["bench", "-p", "vt-core"]);
                 run(b)?;

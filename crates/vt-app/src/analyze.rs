@@ -243,10 +243,6 @@ impl Observer for Stores<'_> {
     }
 }
 
-/// Most ordinary steps per view rendered to measure its seams (and a quarter as many switches
-/// per direction).
-pub const SEAM_SAMPLES: usize = 32;
-
 /// Measures the scene in `dir` ([`vt_core::seam::measure_seams`] on frames its renderer makes
 /// with default settings) and records the seams in `scene`: each view's `loop_seam`, each link's
 /// `seam` (the mean of its two directions, 0 when neither has a transition) and `seam_score`
@@ -257,7 +253,7 @@ pub fn record_seams(dir: &Path, scene: &mut SceneFile) -> Result<()> {
         &loaded.render,
         &loaded.objects,
         vt_core::render::RenderParams::default(),
-        SEAM_SAMPLES,
+        vt_core::seam::SeamSampling::default(),
     )?;
     let mut all = Vec::new();
     for (p, v) in seams.iter().enumerate() {

@@ -359,7 +359,9 @@ impl BlendBand<'_, '_> {
 /// (mask-weighted); a pixel belongs to the object where the bilinear mask coverage is >= 0.5
 /// (nearest: where the nearest source pixel is object). Where the view's dynamic-region alpha
 /// (sampled at the nearest source pixel) is set, it scales the opacity: the region's feathered
-/// edge blends the source frame into the background instead of cutting it.
+/// edge blends the source frame into the background instead of cutting it. Only rows whose
+/// index is a multiple of `rows` are written (1: all; see [`super::Renderer::sample_rows`]).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn composite(
     patch: &ObjectPatch,
     h: &Homography,
@@ -367,6 +369,7 @@ pub(super) fn composite(
     gain: [f32; 3],
     alpha: f32,
     dynamic: Option<&image::GrayImage>,
+    rows: usize,
     out: &mut RgbImage,
 ) {
     if patch.width == 0 || patch.height == 0 {
@@ -413,9 +416,10 @@ pub(super) fn composite(
         patch.x0 + patch.width <= d.width() && patch.y0 + patch.height <= d.height()
     });
     if let (Some(shift), true) = (integer_shift(inv), inside) {
-        composite_shifted(patch, shift, gain, alpha, dynamic, region, out);
+        composite_shifted(patch, shift, gain, alpha, dynamic, region, rows, out);
         return;
     }
+    let every = rows.max(1);
     let rows = &mut out.as_mut()[region.1 as usize * row_len..region.3 as usize * row_len];
     let ctx = CompositeCtx {
         patch,
@@ -434,6 +438,7 @@ pub(super) fn composite(
     // the SIMD dispatch (floor and rounding inline instead of library calls).
     rows.par_chunks_mut(row_len)
         .enumerate()
+        .filter(|(r, _)| (region.1 as usize + r).is_multiple_of(every))
         .for_each(|(r, raw)| {
             crate::simd::dispatch(CompositeRow {
                 ctx: &ctx,
@@ -465,6 +470,7 @@ fn integer_shift(inv: &nalgebra::Matrix3<f64>) -> Option<(i64, i64)> {
 /// pixel), so the general path's colour is that pixel's own and its coverage its mask bit.
 /// The same arithmetic on the same values, in the same order, as [`CompositeRow`]: the same
 /// bytes, without the per-pixel projection and tap tests; only the box's pixels are visited.
+#[allow(clippy::too_many_arguments)]
 fn composite_shifted(
     patch: &ObjectPatch,
     (tx, ty): (i64, i64),
@@ -472,6 +478,7 @@ fn composite_shifted(
     alpha: f32,
     dynamic: Option<&image::GrayImage>,
     region: (u32, u32, u32, u32),
+    rows: usize,
     out: &mut RgbImage,
 ) {
     let (px0, py0) = (patch.x0 as i64, patch.y0 as i64);
@@ -486,9 +493,11 @@ fn composite_shifted(
     }
     let (xa, xb, ya, yb) = (xa as usize, xb as usize, ya as usize, yb as usize);
     let row_len = out.width() as usize * 3;
+    let every = rows.max(1);
     let rows = &mut out.as_mut()[ya * row_len..yb * row_len];
     rows.par_chunks_mut(row_len)
         .enumerate()
+        .filter(|(r, _)| (ya + r).is_multiple_of(every))
         .for_each(|(r, raw)| {
             let y = (ya + r) as i64;
             let (sy, lx0) = (y + ty, xa as i64 + tx - px0);
@@ -629,96 +638,118 @@ impl crate::simd::Kernel for CompositeRow<'_, '_> {
     fn run(self) {
         let CompositeRow { ctx, y, raw } = self;
         let CompositeCtx {
-            patch,
             inv,
-            interp,
-            gain,
-            alpha,
-            dynamic,
             x0,
             y0,
             pw,
             ph,
             region,
+            ..
         } = *ctx;
-        let sample = |x: i64, y: i64| ctx.sample(x, y);
         let yf = y as f64;
-        for x in region.0..region.2 {
-            let xf = x as f64;
-            let w = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
-            if w == 0.0 {
-                continue;
+        // Runs of CHUNK pixels: first every pixel's source point (a loop the compiler
+        // vectorises, divisions included), then the taps of those that land by the box. A zero
+        // `w` divides to an infinity or NaN, which the finiteness test drops, as the per-pixel
+        // test did.
+        let (mut sxs, mut sys, mut lands) = ([0f64; CHUNK], [0f64; CHUNK], [false; CHUNK]);
+        let (lo_x, lo_y, hi_x, hi_y) = (x0 - 1.0, y0 - 1.0, x0 + pw as f64, y0 + ph as f64);
+        for start in (region.0..region.2).step_by(CHUNK) {
+            for i in 0..CHUNK {
+                let xf = (start as usize + i) as f64;
+                let w = inv[(2, 0)] * xf + inv[(2, 1)] * yf + inv[(2, 2)];
+                let sx = (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / w;
+                let sy = (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / w;
+                sxs[i] = sx;
+                sys[i] = sy;
+                lands[i] = sx.is_finite()
+                    && sy.is_finite()
+                    && sx >= lo_x
+                    && sy >= lo_y
+                    && sx <= hi_x
+                    && sy <= hi_y;
             }
-            let sx = (inv[(0, 0)] * xf + inv[(0, 1)] * yf + inv[(0, 2)]) / w;
-            let sy = (inv[(1, 0)] * xf + inv[(1, 1)] * yf + inv[(1, 2)]) / w;
-            if !(sx.is_finite() && sy.is_finite())
-                || sx < x0 - 1.0
-                || sy < y0 - 1.0
-                || sx > x0 + pw as f64
-                || sy > y0 + ph as f64
-            {
-                continue;
-            }
-            let mut colour = [0f32; 3];
-            match interp {
-                Interpolation::Nearest => {
-                    let Some(i) = sample(sx.round_ties_even() as i64, sy.round_ties_even() as i64)
-                    else {
-                        continue;
-                    };
-                    for c in 0..3 {
-                        colour[c] = patch.rgb[i * 3 + c] as f32;
-                    }
+            let n = CHUNK.min((region.2 - start) as usize);
+            for i in 0..n {
+                if !lands[i] {
+                    continue;
                 }
-                Interpolation::Bilinear | Interpolation::BilinearFixed => {
-                    let (fx0, fy0) = (sx.floor(), sy.floor());
-                    let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
-                    let (ix, iy) = (fx0 as i64, fy0 as i64);
-                    let taps = [
-                        (ix, iy, (1.0 - fx) * (1.0 - fy)),
-                        (ix + 1, iy, fx * (1.0 - fy)),
-                        (ix, iy + 1, (1.0 - fx) * fy),
-                        (ix + 1, iy + 1, fx * fy),
-                    ];
-                    let mut cover = 0f32;
-                    for &(tx, ty, wt) in &taps {
-                        if let Some(i) = sample(tx, ty) {
-                            cover += wt;
-                            for c in 0..3 {
-                                colour[c] += wt * patch.rgb[i * 3 + c] as f32;
-                            }
-                        }
-                    }
-                    if cover < 0.5 {
-                        continue;
-                    }
-                    for v in &mut colour {
-                        *v /= cover;
-                    }
-                }
-            }
-            let o = x as usize * 3;
-            let alpha = match dynamic {
-                Some(d) => {
-                    let (dw, dh) = (d.width() as i64, d.height() as i64);
-                    let (ax, ay) = (
-                        (sx.round_ties_even() as i64).clamp(0, dw - 1),
-                        (sy.round_ties_even() as i64).clamp(0, dh - 1),
-                    );
-                    let a = d.as_raw()[(ay * dw + ax) as usize];
-                    if a > 0 {
-                        alpha * a as f32 / 255.0
-                    } else {
-                        alpha
-                    }
-                }
-                None => alpha,
-            };
-            for c in 0..3 {
-                let v = colour[c] / gain[c];
-                let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
-                raw[o + c] = round_u8(blended);
+                let (x, sx, sy) = (start + i as u32, sxs[i], sys[i]);
+                composite_pixel(ctx, x, sx, sy, raw);
             }
         }
+    }
+}
+
+/// One pixel of [`CompositeRow`]: output column `x` of the row `raw`, whose source point
+/// `(sx, sy)` lies by the box.
+#[inline(always)]
+fn composite_pixel(ctx: &CompositeCtx, x: u32, sx: f64, sy: f64, raw: &mut [u8]) {
+    let CompositeCtx {
+        patch,
+        interp,
+        gain,
+        alpha,
+        dynamic,
+        ..
+    } = *ctx;
+    let sample = |x: i64, y: i64| ctx.sample(x, y);
+    let mut colour = [0f32; 3];
+    match interp {
+        Interpolation::Nearest => {
+            let Some(i) = sample(sx.round_ties_even() as i64, sy.round_ties_even() as i64) else {
+                return;
+            };
+            for c in 0..3 {
+                colour[c] = patch.rgb[i * 3 + c] as f32;
+            }
+        }
+        Interpolation::Bilinear | Interpolation::BilinearFixed => {
+            let (fx0, fy0) = (sx.floor(), sy.floor());
+            let (fx, fy) = ((sx - fx0) as f32, (sy - fy0) as f32);
+            let (ix, iy) = (fx0 as i64, fy0 as i64);
+            let taps = [
+                (ix, iy, (1.0 - fx) * (1.0 - fy)),
+                (ix + 1, iy, fx * (1.0 - fy)),
+                (ix, iy + 1, (1.0 - fx) * fy),
+                (ix + 1, iy + 1, fx * fy),
+            ];
+            let mut cover = 0f32;
+            for &(tx, ty, wt) in &taps {
+                if let Some(i) = sample(tx, ty) {
+                    cover += wt;
+                    for c in 0..3 {
+                        colour[c] += wt * patch.rgb[i * 3 + c] as f32;
+                    }
+                }
+            }
+            if cover < 0.5 {
+                return;
+            }
+            for v in &mut colour {
+                *v /= cover;
+            }
+        }
+    }
+    let o = x as usize * 3;
+    let alpha = match dynamic {
+        Some(d) => {
+            let (dw, dh) = (d.width() as i64, d.height() as i64);
+            let (ax, ay) = (
+                (sx.round_ties_even() as i64).clamp(0, dw - 1),
+                (sy.round_ties_even() as i64).clamp(0, dh - 1),
+            );
+            let a = d.as_raw()[(ay * dw + ax) as usize];
+            if a > 0 {
+                alpha * a as f32 / 255.0
+            } else {
+                alpha
+            }
+        }
+        None => alpha,
+    };
+    for c in 0..3 {
+        let v = colour[c] / gain[c];
+        let blended = alpha * v + (1.0 - alpha) * raw[o + c] as f32;
+        raw[o + c] = round_u8(blended);
     }
 }

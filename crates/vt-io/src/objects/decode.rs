@@ -61,17 +61,33 @@ impl Drop for Decoding {
     }
 }
 
-/// The decoding thread's own state: the decoder and where it stands.
+/// One decoder and where it stands.
+#[derive(Default)]
+struct Cursor {
+    decoder: Option<openh264::decoder::Decoder>,
+    /// The frame the decoder would output next if fed the next access unit (its references are
+    /// those of the frame before); None when it holds nothing usable.
+    next: Option<usize>,
+    /// When it last decoded (the worker's count of runs).
+    used: u64,
+}
+
+/// Decoders a store keeps: a player reads two runs of frames of one view at once during a
+/// switch fade at a fractional viewpoint (the view's own frames, and the ones it fills in for
+/// its neighbour with), and each run goes on from its own decoder instead of restarting its group
+/// whenever the other was read.
+const CURSORS: usize = 2;
+
+/// The decoding thread's own state: its decoders and where they stand.
 pub(super) struct Worker {
     bytes: std::sync::Arc<Bytes>,
     index: std::sync::Arc<Index>,
     shared: std::sync::Arc<Shared>,
     gop: usize,
     size: (usize, usize),
-    decoder: Option<openh264::decoder::Decoder>,
-    /// The frame the decoder would output next if fed the next access unit (its references are
-    /// those of the frame before); None when it holds nothing usable.
-    next: Option<usize>,
+    cursors: [Cursor; CURSORS],
+    /// Runs of [`Worker::decode_to`] so far.
+    runs: u64,
     unit: Vec<u8>,
 }
 
@@ -103,8 +119,8 @@ impl Worker {
             shared,
             gop,
             size,
-            decoder: None,
-            next: None,
+            cursors: Default::default(),
+            runs: 0,
             unit: Vec::new(),
         }
     }
@@ -132,30 +148,40 @@ impl Worker {
         }
     }
 
-    /// Decodes frame `f` into the cache: from its group's start, or on from where the decoder
-    /// stands when that is in the group before `f`. Stops early when a caller comes to wait for
-    /// a frame this run will not reach.
+    /// Decodes frame `f` into the cache: on from where a decoder stands when that is in `f`'s
+    /// group at or before `f`, else from the group's start with the decoder used least recently.
+    /// Stops early when a caller comes to wait for a frame this run will not reach.
     fn decode_to(&mut self, f: usize) {
         let group_start = f - f % self.gop;
-        let from = match self.next {
-            Some(n) if (group_start..=f).contains(&n) && self.decoder.is_some() => n,
-            _ => group_start,
+        let going = self.cursors.iter().position(|c| {
+            c.decoder.is_some() && c.next.is_some_and(|n| (group_start..=f).contains(&n))
+        });
+        let (k, from) = match going {
+            Some(k) => (k, self.cursors[k].next.expect("checked")),
+            None => {
+                let k = (0..CURSORS)
+                    .min_by_key(|&k| self.cursors[k].used)
+                    .expect("cursors");
+                (k, group_start)
+            }
         };
-        self.next = None;
+        self.runs += 1;
+        self.cursors[k].used = self.runs;
+        self.cursors[k].next = None;
         for g in from..=f {
             let mut buf = {
                 let mut q = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
                 q.spare.pop().unwrap_or_default()
             };
-            if let Err(what) = self.decode_one(g, &mut buf) {
-                self.decoder = None;
+            if let Err(what) = self.decode_one(k, g, &mut buf) {
+                self.cursors[k].decoder = None;
                 let mut q = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
                 q.failed = Some((g, what));
                 drop(q);
                 self.shared.changed.notify_all();
                 return;
             }
-            self.next = Some(g + 1);
+            self.cursors[k].next = Some(g + 1);
             let mut q = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
             q.cache.retain(|(h, _)| *h != g);
             q.cache.push_back((g, std::sync::Arc::new(buf)));
@@ -182,14 +208,20 @@ impl Worker {
         }
     }
 
-    /// Decodes record `g`'s access unit into `out`: its planes without the strides' padding.
-    fn decode_one(&mut self, g: usize, out: &mut Vec<u8>) -> std::result::Result<(), &'static str> {
+    /// Decodes record `g`'s access unit with decoder `k` into `out`: its planes without the
+    /// strides' padding.
+    fn decode_one(
+        &mut self,
+        k: usize,
+        g: usize,
+        out: &mut Vec<u8>,
+    ) -> std::result::Result<(), &'static str> {
         let range = self.index.parts_v2(g).1;
         let mut unit = std::mem::take(&mut self.unit);
         let bytes = self.bytes.clone();
         let result = bytes
             .with(range.start, range.len(), &mut unit, |unit| {
-                self.decode_unit(unit, out)
+                self.decode_unit(k, unit, out)
             })
             .map_err(|_| "frame")
             .and_then(|r| r);
@@ -199,13 +231,15 @@ impl Worker {
 
     fn decode_unit(
         &mut self,
+        k: usize,
         unit: &[u8],
         out: &mut Vec<u8>,
     ) -> std::result::Result<(), &'static str> {
-        if self.decoder.is_none() {
-            self.decoder = Some(openh264::decoder::Decoder::new().map_err(|_| "frame")?);
+        let decoder = &mut self.cursors[k].decoder;
+        if decoder.is_none() {
+            *decoder = Some(openh264::decoder::Decoder::new().map_err(|_| "frame")?);
         }
-        let dec = self.decoder.as_mut().expect("set above");
+        let dec = decoder.as_mut().expect("set above");
         let yuv = match dec.decode(unit) {
             Ok(Some(yuv)) => yuv,
             _ => return Err("picture"),
