@@ -87,8 +87,10 @@ pub struct AnalyzeArgs {
     /// photometric error and agrees with the points): on or off.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     refine: String,
-    /// How the moving-object stores keep the pixels: an H.264 quantiser 0-51 (lower keeps more,
-    /// larger files) or lossless (raw RGB, tens of times the video's size).
+    /// How the moving-object stores keep the pixels: a PSNR target such as 40db (each view's
+    /// store at the coarsest H.264 quantiser predicted to keep its frames that close to the
+    /// analysed ones, chosen from its first 8 frames), a fixed quantiser 12-51 (lower keeps
+    /// more, larger files) or lossless (raw RGB, tens of times the video's size).
     #[arg(long, default_value_t = vt_io::objects::StoreQuality::default())]
     store_quality: vt_io::objects::StoreQuality,
     /// Loops per view: regions (each tile its own start and period, baked offline into one

@@ -21,7 +21,7 @@
 //! Only the box is stored, so a frame costs what moves in it, not the frame size.
 //!
 //! Version 2 stores the same masks, deflated, and the whole frame as H.264 (constrained
-//! baseline, no B-frames, 4:2:0, one fixed quantiser), with an IDR frame every [`GOP`] frames
+//! baseline, no B-frames, 4:2:0, one fixed quantiser per store), with an IDR frame every [`GOP`] frames
 //! so that every group decodes on its own: a jump or a loop wrap decodes at most one group.
 //! The whole frame rather than the box, because inter coding needs pictures of one size; the
 //! pixels outside the masks are mostly still background, which costs next to nothing.
@@ -58,7 +58,7 @@ use decode::*;
 use encode::*;
 pub use store::ObjectStore;
 use store::*;
-pub use writer::{H264Encoder, ObjectWriter, StoreWriter};
+pub use writer::{H264Encoder, ObjectWriter, StoreWriter, MAX_TARGET_QP, PROBE_QP};
 
 const MAGIC: &[u8; 8] = b"VTOBJ1\0\0";
 const MAGIC_V2: &[u8; 8] = b"VTOBJ2\0\0";
@@ -71,16 +71,14 @@ const RECORD_HEAD_V2: usize = 20;
 /// Frames per group of pictures in version 2: the most frames one access decodes.
 pub const GOP: u32 = 8;
 
-/// The default quantiser of version 2 (see [`StoreQuality`]).
-/// openh264's finest quantiser in its quality mode (it raises lower ones to this).
+/// openh264's finest quantiser in its quality mode (it raises lower ones to this), and so
+/// version 2's. Per quantiser on real footage (x264, whole frames, `examples/store_rate`; bytes
+/// against the video's, mean PSNR against the decoded frames): tree.avi (320x240): 12: 2.02x,
+/// 43.7 dB; 16: 1.57x, 40.4; 20: 1.14x, 37.1; tree.avi upscaled to 1080p (H.264, 20.9 MB): 12:
+/// 4.58x, 45.6 dB; 16: 3.14x, 43.3; 20: 2.09x, 41.1. The default, [`StoreQuality::Target`],
+/// chooses per store.
 pub const MIN_QP: u8 = 12;
 
-/// The default quantiser of version 2 (see [`StoreQuality`]): the finest. On tree.avi (444
-/// frames, 320x240, 1.25 MB) a scene is 2.12x the video's bytes and its renders 43.7 dB (mean;
-/// worst frame 43.5) from the lossless store's (12.3x); quantiser 16: 1.68x, 40.3 dB (40.0);
-/// 20: 1.25x, 37.0 dB; 24: 0.86x, 33.8 dB (openh264; x264 at 12 on its first 96 frames: 43.52
-/// dB and 2.52 MB against openh264's 43.57 dB and 2.49 MB, tests/store_quality.rs).
-pub const DEFAULT_QP: u8 = MIN_QP;
 
 /// How a store keeps the object pixels (`vt analyze --store-quality`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,11 +90,29 @@ pub enum StoreQuality {
         /// The quantiser, [`MIN_QP`] to 51.
         qp: u8,
     },
+    /// Version 2 at a quality target: each store at the largest fixed quantiser that keeps its
+    /// frames at least `db` PSNR against the analysed frames under the masks (what renders
+    /// show), chosen from its first group ([`GOP`] frames) stored at [`PROBE_QP`] in memory.
+    /// A source with little detail (a compressed, upscaled video) gets a coarse quantiser and
+    /// costs few bits; fine detail gets a fine one.
+    Target {
+        /// The PSNR to keep, dB ([`MIN_TARGET_DB`] to [`MAX_TARGET_DB`]).
+        db: u8,
+    },
 }
+
+/// The lowest quality target, dB.
+pub const MIN_TARGET_DB: u8 = 30;
+/// The highest quality target, dB.
+pub const MAX_TARGET_DB: u8 = 50;
+/// The default quality target, dB ([`StoreQuality::default`]).
+pub const DEFAULT_TARGET_DB: u8 = 40;
 
 impl Default for StoreQuality {
     fn default() -> Self {
-        Self::H264 { qp: DEFAULT_QP }
+        Self::Target {
+            db: DEFAULT_TARGET_DB,
+        }
     }
 }
 
@@ -107,11 +123,19 @@ impl std::str::FromStr for StoreQuality {
         if s == "lossless" {
             return Ok(Self::Lossless);
         }
+        if let Some(db) = s.strip_suffix("db") {
+            return match db.parse::<u8>() {
+                Ok(db) if (MIN_TARGET_DB..=MAX_TARGET_DB).contains(&db) => Ok(Self::Target { db }),
+                _ => Err(format!(
+                    "'{s}': expected a PSNR target of {MIN_TARGET_DB}db to {MAX_TARGET_DB}db"
+                )),
+            };
+        }
         match s.parse::<u8>() {
             Ok(qp) if (MIN_QP..=51).contains(&qp) => Ok(Self::H264 { qp }),
             _ => Err(format!(
-                "'{s}': expected lossless or an H.264 quantiser {MIN_QP} to 51 (lower keeps \
-                 more; default {DEFAULT_QP})"
+                "'{s}': expected lossless, a PSNR target such as {DEFAULT_TARGET_DB}db (the \
+                 default) or an H.264 quantiser {MIN_QP} to 51 (lower keeps more)"
             )),
         }
     }
@@ -122,6 +146,7 @@ impl std::fmt::Display for StoreQuality {
         match self {
             Self::Lossless => write!(f, "lossless"),
             Self::H264 { qp } => write!(f, "{qp}"),
+            Self::Target { db } => write!(f, "{db}db"),
         }
     }
 }

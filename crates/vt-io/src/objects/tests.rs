@@ -108,7 +108,15 @@ fn both_versions_keep_the_masks_lossless_keeps_the_pixels() {
         let path = dir.path().join(format!("o_{quality}.bin"));
         write(&path, &frames, quality);
         let store = ObjectStore::load(&path).unwrap();
-        assert_eq!(store.quality(), quality);
+        match quality {
+            // A quality target's store records the quantiser it chose.
+            StoreQuality::Target { .. } => assert!(
+                matches!(store.quality(), StoreQuality::H264 { qp } if (MIN_QP..=MAX_TARGET_QP).contains(&qp)),
+                "{:?}",
+                store.quality()
+            ),
+            q => assert_eq!(store.quality(), q),
+        }
         assert_eq!((store.len(), store.size()), (21, (67, 41)));
         let mut patch = vt_core::render::ObjectPatch::default();
         let (mut se, mut count) = (0.0f64, 0usize);
@@ -452,4 +460,35 @@ fn a_view_started_again_is_written_anew() {
     stores.finish().unwrap();
     let store = ObjectStore::load(&dir.path().join(crate::scene::objects_name(0))).unwrap();
     assert_eq!(store.len(), 5);
+}
+
+#[test]
+fn a_quality_target_takes_the_largest_quantiser_predicted_to_keep_it() {
+    use super::writer::qp_for;
+    // Measured at the probe's quantiser: a step above loses 1 dB, a step below gains 0.45.
+    assert_eq!(qp_for(42.9, 40.5), PROBE_QP + 2);
+    assert_eq!(qp_for(40.5, 40.5), PROBE_QP);
+    assert_eq!(qp_for(40.4, 40.5), PROBE_QP - 1);
+    // Beyond either end: the finest quantiser, or the coarsest a target may take.
+    assert_eq!(qp_for(20.0, 40.5), MIN_QP);
+    assert_eq!(qp_for(99.0, 40.5), MAX_TARGET_QP);
+}
+
+#[test]
+fn a_target_store_records_its_quantiser_and_reads_back_every_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    // Fewer frames than a group (chosen at finish), exactly a group, and more.
+    for n in [3, GOP as usize, 2 * GOP as usize + 3] {
+        let frames = moving_frames(40, 24, n);
+        let path = dir.path().join(format!("t{n}.bin"));
+        write(&path, &frames, StoreQuality::default());
+        let store = ObjectStore::load(&path).unwrap();
+        assert_eq!(store.len(), n);
+        assert!(matches!(store.quality(), StoreQuality::H264 { .. }));
+        let mut patch = vt_core::render::ObjectPatch::default();
+        for (i, (m, _)) in frames.iter().enumerate() {
+            assert_eq!(&store.mask(i), m, "frame {i} of {n}");
+            store.decode_into(i, &mut patch).unwrap();
+        }
+    }
 }

@@ -2,10 +2,48 @@
 
 use super::*;
 
+/// Where a store's bytes go: its file, or memory (a probe's trial store).
+enum Sink {
+    File(std::fs::File),
+    Memory(std::io::Cursor<Vec<u8>>),
+}
+
+impl Write for Sink {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            Sink::File(f) => f.write(buf),
+            Sink::Memory(m) => m.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            Sink::File(f) => f.flush(),
+            Sink::Memory(m) => m.flush(),
+        }
+    }
+}
+
+impl std::io::Seek for Sink {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        match self {
+            Sink::File(f) => f.seek(to),
+            Sink::Memory(m) => m.seek(to),
+        }
+    }
+}
+
+/// The first group of a store at a quality target, held until its quantiser is chosen.
+struct Probe {
+    db: u8,
+    encoder: H264Encoder,
+    frames: Vec<(Mask, RgbImage)>,
+}
+
 /// Writes a store frame by frame.
 pub struct ObjectWriter {
     path: PathBuf,
-    out: BufWriter<std::fs::File>,
+    out: BufWriter<Sink>,
     width: u32,
     height: u32,
     offsets: Vec<u64>,
@@ -21,6 +59,8 @@ pub struct ObjectWriter {
     waiting: std::collections::VecDeque<Vec<u8>>,
     /// Frames handed to the encoder.
     sent: usize,
+    /// A quality target's first group, until its quantiser is chosen.
+    probe: Option<Probe>,
 }
 
 /// Which program encodes version 2's pictures.
@@ -71,41 +111,23 @@ impl ObjectWriter {
                 message: format!("object store of {width}x{height} (1 to {side} per side)"),
             });
         }
-        let encoding = match quality {
-            StoreQuality::Lossless => None,
+        let (encoding, probe) = match quality {
+            StoreQuality::Lossless => (None, None),
             StoreQuality::H264 { qp } => {
-                let qp = qp.clamp(MIN_QP, 51);
-                let x264 = match encoder {
-                    H264Encoder::Auto => x264_available(),
-                    H264Encoder::X264 => true,
-                    H264Encoder::OpenH264 => false,
-                };
-                let bad = |e: String| Error::Scene {
-                    path: path.to_path_buf(),
-                    message: format!("H.264 encoder for {width}x{height}: {e}"),
-                };
-                Some(if x264 {
-                    let (pw, ph) = padded_size(width, height);
-                    H264Writer::X264(
-                        X264::new(qp, pw, ph).map_err(|e| bad(format!("ffmpeg: {e}")))?,
-                    )
-                } else {
-                    H264Writer::OpenH264(Box::new(
-                        Encoding::new(qp).map_err(|e| bad(e.to_string()))?,
-                    ))
-                })
+                (Some(open_encoder(path, width, height, qp, encoder)?), None)
             }
+            StoreQuality::Target { db } => (
+                None,
+                Some(Probe {
+                    db,
+                    encoder,
+                    frames: Vec::new(),
+                }),
+            ),
         };
         let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut out = BufWriter::new(file);
-        let mut head = Vec::with_capacity(HEADER_V2);
-        head.extend_from_slice(if encoding.is_some() { MAGIC_V2 } else { MAGIC });
-        head.extend_from_slice(&width.to_le_bytes());
-        head.extend_from_slice(&height.to_le_bytes());
-        if let StoreQuality::H264 { qp } = quality {
-            head.extend_from_slice(&GOP.to_le_bytes());
-            head.extend_from_slice(&u32::from(qp).to_le_bytes());
-        }
+        let mut out = BufWriter::new(Sink::File(file));
+        let head = header(width, height, quality);
         out.write_all(&head).map_err(|e| Error::io(path, e))?;
         Ok(Self {
             path: path.to_path_buf(),
@@ -119,7 +141,59 @@ impl ObjectWriter {
             encoding,
             waiting: Default::default(),
             sent: 0,
+            probe,
         })
+    }
+
+    /// A store at the fixed quantiser `qp` in memory, encoded by `encoder`: a probe's trial.
+    fn in_memory(width: u32, height: u32, qp: u8, encoder: H264Encoder) -> Result<Self> {
+        let path = PathBuf::from("(probe)");
+        let quality = StoreQuality::H264 { qp };
+        let head = header(width, height, quality);
+        let mut out = BufWriter::new(Sink::Memory(std::io::Cursor::new(Vec::new())));
+        out.write_all(&head).map_err(|e| Error::io(&path, e))?;
+        Ok(Self {
+            encoding: Some(open_encoder(&path, width, height, qp, encoder)?),
+            path,
+            out,
+            width,
+            height,
+            offsets: Vec::new(),
+            pos: head.len() as u64,
+            rec: Vec::new(),
+            box_words: Vec::new(),
+            waiting: Default::default(),
+            sent: 0,
+            probe: None,
+        })
+    }
+
+    /// Chooses the quantiser of a quality target's store from its first group (all of it, or
+    /// what came before [`ObjectWriter::finish`]), starts its encoder, records the quantiser in
+    /// the header and encodes the group.
+    fn settle(&mut self) -> Result<()> {
+        let Some(probe) = self.probe.take() else {
+            return Ok(());
+        };
+        let qp = target_qp(self.width, self.height, &probe, probe.db)?;
+        self.encoding = Some(open_encoder(
+            &self.path,
+            self.width,
+            self.height,
+            qp,
+            probe.encoder,
+        )?);
+        use std::io::Seek;
+        let io = |e| Error::io(&self.path, e);
+        self.out.seek(std::io::SeekFrom::Start(20)).map_err(io)?;
+        self.out
+            .write_all(&u32::from(qp).to_le_bytes())
+            .map_err(io)?;
+        self.out.seek(std::io::SeekFrom::End(0)).map_err(io)?;
+        for (mask, raw) in &probe.frames {
+            self.push_h264(mask, raw)?;
+        }
+        Ok(())
     }
 
     /// Appends the next frame: the pixels of `raw` under `mask`.
@@ -131,6 +205,13 @@ impl ObjectWriter {
                 path: self.path.clone(),
                 message: "object frame of the wrong size".into(),
             });
+        }
+        if let Some(probe) = self.probe.as_mut() {
+            probe.frames.push((mask.clone(), raw.clone()));
+            if probe.frames.len() == GOP as usize {
+                self.settle()?;
+            }
+            return Ok(());
         }
         if self.encoding.is_some() {
             return self.push_h264(mask, raw);
@@ -262,7 +343,7 @@ impl ObjectWriter {
 
     /// Frames pushed so far.
     pub fn len(&self) -> usize {
-        self.offsets.len() + self.waiting.len()
+        self.offsets.len() + self.waiting.len() + self.probe.as_ref().map_or(0, |p| p.frames.len())
     }
 
     /// True before the first push.
@@ -272,6 +353,23 @@ impl ObjectWriter {
 
     /// Writes the offset table and trailer and closes the file.
     pub fn finish(mut self) -> Result<()> {
+        self.close()
+    }
+
+    /// [`ObjectWriter::finish`] of an in-memory store: its bytes.
+    fn finish_bytes(mut self) -> Result<Vec<u8>> {
+        self.close()?;
+        match self.out.into_inner() {
+            Ok(Sink::Memory(m)) => Ok(m.into_inner()),
+            _ => Err(Error::Scene {
+                path: self.path.clone(),
+                message: "not a store in memory".into(),
+            }),
+        }
+    }
+
+    fn close(&mut self) -> Result<()> {
+        self.settle()?;
         if let Some(H264Writer::X264(x)) = self.encoding.as_mut() {
             let units = x.units(true).map_err(|e| Error::Scene {
                 path: self.path.clone(),
@@ -363,4 +461,126 @@ impl vt_core::analysis::Observer for StoreWriter {
         let (_, w) = self.writer.as_mut().expect("set above");
         w.push(mask, raw).map_err(to_core)
     }
+}
+
+/// A store's header: magic and size, and for version 2 the group length and quantiser (a
+/// quality target's is the probe's until [`ObjectWriter::settle`] records its own).
+fn header(width: u32, height: u32, quality: StoreQuality) -> Vec<u8> {
+    let mut head = Vec::with_capacity(HEADER_V2);
+    let qp = match quality {
+        StoreQuality::Lossless => None,
+        StoreQuality::H264 { qp } => Some(qp.clamp(MIN_QP, 51)),
+        StoreQuality::Target { .. } => Some(PROBE_QP),
+    };
+    head.extend_from_slice(if qp.is_some() { MAGIC_V2 } else { MAGIC });
+    head.extend_from_slice(&width.to_le_bytes());
+    head.extend_from_slice(&height.to_le_bytes());
+    if let Some(qp) = qp {
+        head.extend_from_slice(&GOP.to_le_bytes());
+        head.extend_from_slice(&u32::from(qp).to_le_bytes());
+    }
+    head
+}
+
+/// Version 2's encoder for `width x height` pictures at quantiser `qp` (clamped to
+/// [`MIN_QP`]..=51), made by `encoder`.
+fn open_encoder(
+    path: &Path,
+    width: u32,
+    height: u32,
+    qp: u8,
+    encoder: H264Encoder,
+) -> Result<H264Writer> {
+    let qp = qp.clamp(MIN_QP, 51);
+    let x264 = match encoder {
+        H264Encoder::Auto => x264_available(),
+        H264Encoder::X264 => true,
+        H264Encoder::OpenH264 => false,
+    };
+    let bad = |e: String| Error::Scene {
+        path: path.to_path_buf(),
+        message: format!("H.264 encoder for {width}x{height}: {e}"),
+    };
+    Ok(if x264 {
+        let (pw, ph) = padded_size(width, height);
+        H264Writer::X264(X264::new(qp, pw, ph).map_err(|e| bad(format!("ffmpeg: {e}")))?)
+    } else {
+        H264Writer::OpenH264(Box::new(Encoding::new(qp).map_err(|e| bad(e.to_string()))?))
+    })
+}
+
+/// The quantiser a quality target's store probes its first group at.
+pub const PROBE_QP: u8 = 16;
+
+/// The largest quantiser [`StoreQuality::Target`] may choose.
+pub const MAX_TARGET_QP: u8 = 32;
+
+/// PSNR (dB) a group loses per quantiser step above [`PROBE_QP`], and gains per step below it,
+/// as the prediction assumes: the steepest loss and the gentlest gain measured on real footage
+/// (tree.avi at 320x240 and upscaled to 768x576, 720p and 1080p, `examples/store_rate`: 0.47
+/// to 1.0 dB a step), so the quantiser chosen keeps at least the predicted PSNR.
+const LOSS_PER_QP: f64 = 1.0;
+const GAIN_PER_QP: f64 = 0.45;
+
+/// Headroom over the target (dB): a clip's frames spread about 0.5 dB around its mean.
+const TARGET_MARGIN: f64 = 0.5;
+
+/// PSNR of the probe's frames stored at [`PROBE_QP`] (in memory, by the store's own encoder)
+/// against themselves, over the pixels under their masks (all pixels where every mask is
+/// empty), from the summed squared error: what the renderer shows of them.
+fn probe_psnr(width: u32, height: u32, probe: &Probe) -> Result<f64> {
+    let frames = &probe.frames;
+    let mut writer = ObjectWriter::in_memory(width, height, PROBE_QP, probe.encoder)?;
+    let none = frames.iter().all(|(m, _)| m.bounding_box().is_none());
+    let full = Mask::from_fn(width, height, |_, _| true);
+    for (mask, raw) in frames {
+        writer.push(if none { &full } else { mask }, raw)?;
+    }
+    let store = ObjectStore::from_bytes(writer.finish_bytes()?, Path::new("(probe)"))?;
+    let mut patch = vt_core::render::ObjectPatch::default();
+    let (mut se, mut n) = (0f64, 0u64);
+    for (i, (_, raw)) in frames.iter().enumerate() {
+        store.decode_into(i, &mut patch)?;
+        let (bw, src) = (patch.width as usize, raw.as_raw());
+        for (k, &m) in patch.mask.iter().enumerate() {
+            if m == 0 {
+                continue;
+            }
+            let (x, y) = (patch.x0 as usize + k % bw, patch.y0 as usize + k / bw);
+            let at = 3 * (y * width as usize + x);
+            for c in 0..3 {
+                let d = patch.rgb[3 * k + c] as f64 - src[at + c] as f64;
+                se += d * d;
+            }
+            n += 3;
+        }
+    }
+    let mse = se / n.max(1) as f64;
+    Ok(10.0 * (255.0 * 255.0 / mse.max(1e-6)).log10())
+}
+
+/// The largest quantiser whose predicted PSNR over the probe's frames (measured at [`PROBE_QP`], then
+/// [`LOSS_PER_QP`] lost a step above it and [`GAIN_PER_QP`] gained a step below) is at least
+/// `db` and [`TARGET_MARGIN`]; [`MIN_QP`] when none is, [`MAX_TARGET_QP`] at most.
+fn target_qp(width: u32, height: u32, probe: &Probe, db: u8) -> Result<u8> {
+    if probe.frames.is_empty() {
+        return Ok(PROBE_QP);
+    }
+    let measured = probe_psnr(width, height, probe)?;
+    Ok(qp_for(measured, db as f64 + TARGET_MARGIN))
+}
+
+/// [`target_qp`]'s choice from the PSNR measured at [`PROBE_QP`].
+pub(super) fn qp_for(measured: f64, want: f64) -> u8 {
+    let predicted = |qp: u8| {
+        if qp >= PROBE_QP {
+            measured - LOSS_PER_QP * (qp - PROBE_QP) as f64
+        } else {
+            measured + GAIN_PER_QP * (PROBE_QP - qp) as f64
+        }
+    };
+    (MIN_QP..=MAX_TARGET_QP)
+        .rev()
+        .find(|&qp| predicted(qp) >= want)
+        .unwrap_or(MIN_QP)
 }
