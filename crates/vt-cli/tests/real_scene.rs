@@ -239,8 +239,10 @@ fn tree_single_view_keeps_the_motion() {
         );
     }
     assert!(kept >= 0.9, "motion kept {kept}");
+    // Within the store's error: the default keeps its frames at 40 dB PSNR or more (an RMS error
+    // of 2.55 grey levels) under the masks; measured 1.59 (1.2 at the finest quantiser).
     assert!(
-        worst <= 1.5,
+        worst <= 2.0,
         "rendered frame {worst} grey levels from its source frame"
     );
     assert!(
@@ -529,8 +531,9 @@ fn real_scene_with_marking_noise() {
     // Issue #10's target. Measured 35.26-36.46 dB from the lossless object store: the refined
     // points still carry about 2 / sqrt(5) px of marking error into x(q); where the shown view
     // does not see, the other view's matching frame fills in (34.46 dB worst without). The
-    // default H.264 store (issue #21) costs 0.27 dB at the worst q: 34.99-36.07 dB.
-    assert!(min_psnr >= 34.9, "PSNR at fractional q: {psnrs:?}");
+    // default H.264 store (issue #21) costs 0.27 dB at the worst q at its finest quantiser
+    // (34.99-36.07 dB), and 0.6 at the 40 dB quality target (issue #34): 34.67-35.66 dB.
+    assert!(min_psnr >= 34.5, "PSNR at fractional q: {psnrs:?}");
 
     // Switch where it matches: along a slow sweep, the seams of the switches the player makes,
     // with eq. (6) as is and with bad switches postponed.
@@ -585,9 +588,10 @@ fn real_scene_exact_points_renders_the_ideal_view() {
         eprintln!("real 5-view scene, exact points: PSNR at fractional q {psnrs:.2?}");
     }
     // Exact points fit an affine map to 0.3-0.4 px, so GRIC picks affine; the backgrounds then
-    // ask for the homography (5% lower photometric error), which lifts 33.6-34.4 dB to 35.3+.
+    // ask for the homography (5% lower photometric error), which lifts 33.6-34.4 dB to 35.3+
+    // (the store at its finest quantiser; at the default 40 dB target, 34.73-35.76).
     assert!(
-        psnrs.iter().all(|&p| p >= 35.0),
+        psnrs.iter().all(|&p| p >= 34.6),
         "PSNR at fractional q: {psnrs:?}"
     );
     assert!(transitions_within_one(&scene, &real.truth) >= 0.95);
