@@ -77,6 +77,9 @@ pub struct Analyzed {
     pub seams_secs: f64,
     /// Seconds of the whole use case.
     pub total_secs: f64,
+    /// Per view, what the object store's quality target chose (None: lossless or a fixed
+    /// quantiser).
+    pub stores: Vec<Option<vt_io::objects::TargetChoice>>,
 }
 
 /// Analyses `job.views` into the scene `job.out`: parameters, views, sizes and points are
@@ -203,6 +206,7 @@ pub fn analyze_into(
         analysis_secs,
         seams_secs,
         total_secs: started.elapsed().as_secs_f64(),
+        stores: observer.stores.choices().to_vec(),
     })
 }
 
@@ -288,6 +292,8 @@ pub struct AnalysisSummary<'a> {
     pub total_secs: f64,
     /// Of which measuring the seams on rendered frames.
     pub seams_secs: f64,
+    /// Per view, what the object store's quality target chose ([`Analyzed::stores`]).
+    pub stores: &'a [Option<vt_io::objects::TargetChoice>],
 }
 
 impl std::fmt::Display for AnalysisSummary<'_> {
@@ -469,6 +475,43 @@ impl std::fmt::Display for AnalysisSummary<'_> {
                     "background {p}->{}: parallax off the plane {:.1} px (90th percentile of the matches); {how}",
                     p + 1,
                     fig.residual_px
+                )?;
+            }
+        }
+        if let Some(target) = self.stores.iter().flatten().next().map(|c| c.target_db) {
+            let list = |v: Vec<String>| v.join(" ");
+            let qps = list(
+                self.stores
+                    .iter()
+                    .map(|c| c.map_or("-".into(), |c| c.qp.to_string()))
+                    .collect(),
+            );
+            let dbs = list(
+                self.stores
+                    .iter()
+                    .map(|c| c.map_or("-".into(), |c| format!("{:.1}", c.predicted_db)))
+                    .collect(),
+            );
+            let short: Vec<String> = self
+                .stores
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.is_some_and(|c| c.predicted_db < c.target_db as f64))
+                .map(|(p, _)| p.to_string())
+                .collect();
+            write!(
+                f,
+                "object stores: H.264 at quantisers {qps}, the coarsest predicted to keep \
+                 {target} dB under the masks (predicted {dbs} dB)"
+            )?;
+            if short.is_empty() {
+                writeln!(f)?;
+            } else {
+                writeln!(
+                    f,
+                    "; view {} falls short even at the finest quantiser (--store-quality \
+                     lossless keeps every pixel)",
+                    short.join(", ")
                 )?;
             }
         }

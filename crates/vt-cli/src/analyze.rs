@@ -221,6 +221,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             scene: &done.scene,
             total_secs: done.total_secs,
             seams_secs: done.seams_secs,
+            stores: &done.stores,
         }
     );
     println!("scene: {}", args.out.display());

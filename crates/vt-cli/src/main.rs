@@ -180,6 +180,7 @@ fn demo(out: PathBuf, frames: usize) -> anyhow::Result<()> {
             scene: &a.scene,
             total_secs: a.total_secs,
             seams_secs: a.seams_secs,
+            stores: &a.stores,
         }
     );
     println!("scene: {}", done.scene.display());

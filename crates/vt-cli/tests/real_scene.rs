@@ -383,6 +383,12 @@ fn real_scene_registered_without_points() {
     }
     assert!(corner <= 0.5, "corner error {corner} px");
     assert!(within >= 0.95, "transitions within +-1 frame: {within}");
+    // The summary says which quantiser each view's store took for the 40 dB target.
+    assert!(
+        stdout.contains("object stores: H.264 at quantisers")
+            && stdout.contains("the coarsest predicted to keep 40 dB"),
+        "{stdout}"
+    );
     // The summary says how each link was registered and where to look.
     for p in 0..3 {
         let line = format!("registered {p}->{}", p + 1);

@@ -48,6 +48,17 @@ pub fn analyze_frames(
     params: &AnalyzeParams,
     dir: &Path,
 ) -> Result<vt_app::analyze::Analyzed> {
+    analyze_frames_with(frames, points, params, dir, Default::default())
+}
+
+/// [`analyze_frames`] with the object stores at `store`.
+pub fn analyze_frames_with(
+    frames: &[Vec<RgbImage>],
+    points: &[Vec<Point>],
+    params: &AnalyzeParams,
+    dir: &Path,
+    store: vt_io::objects::StoreQuality,
+) -> Result<vt_app::analyze::Analyzed> {
     std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
     let mut sources: Vec<MemorySource> = frames
         .iter()
@@ -66,7 +77,7 @@ pub fn analyze_frames(
         &mut refs,
         points,
         params,
-        Default::default(),
+        store,
         None,
         &mut vt_app::Silent,
     )?)

@@ -58,7 +58,9 @@ use decode::*;
 use encode::*;
 pub use store::ObjectStore;
 use store::*;
-pub use writer::{H264Encoder, ObjectWriter, StoreWriter, MAX_TARGET_QP, PROBE_QP};
+pub use writer::{
+    H264Encoder, ObjectWriter, StoreWriter, TargetChoice, MAX_TARGET_QP, PROBE_QP,
+};
 
 const MAGIC: &[u8; 8] = b"VTOBJ1\0\0";
 const MAGIC_V2: &[u8; 8] = b"VTOBJ2\0\0";

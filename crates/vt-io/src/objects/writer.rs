@@ -33,6 +33,18 @@ impl std::io::Seek for Sink {
     }
 }
 
+/// What a quality target chose for a store ([`StoreQuality::Target`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetChoice {
+    /// The target, dB.
+    pub target_db: u8,
+    /// The quantiser chosen.
+    pub qp: u8,
+    /// The PSNR predicted at it under the masks, dB (below the target where even the finest
+    /// quantiser is predicted to fall short).
+    pub predicted_db: f64,
+}
+
 /// The first group of a store at a quality target, held until its quantiser is chosen.
 struct Probe {
     db: u8,
@@ -61,6 +73,8 @@ pub struct ObjectWriter {
     sent: usize,
     /// A quality target's first group, until its quantiser is chosen.
     probe: Option<Probe>,
+    /// What the quality target chose, once it has.
+    choice: Option<TargetChoice>,
 }
 
 /// Which program encodes version 2's pictures.
@@ -142,6 +156,7 @@ impl ObjectWriter {
             waiting: Default::default(),
             sent: 0,
             probe,
+            choice: None,
         })
     }
 
@@ -165,6 +180,7 @@ impl ObjectWriter {
             waiting: Default::default(),
             sent: 0,
             probe: None,
+            choice: None,
         })
     }
 
@@ -175,7 +191,9 @@ impl ObjectWriter {
         let Some(probe) = self.probe.take() else {
             return Ok(());
         };
-        let qp = target_qp(self.width, self.height, &probe, probe.db)?;
+        let choice = target_qp(self.width, self.height, &probe)?;
+        self.choice = Some(choice);
+        let qp = choice.qp;
         self.encoding = Some(open_encoder(
             &self.path,
             self.width,
@@ -194,6 +212,13 @@ impl ObjectWriter {
             self.push_h264(mask, raw)?;
         }
         Ok(())
+    }
+
+    /// What the quality target chose (choosing it now from the frames so far when its first
+    /// group is not complete); None for a lossless or fixed-quantiser store.
+    pub fn target_choice(&mut self) -> Result<Option<TargetChoice>> {
+        self.settle()?;
+        Ok(self.choice)
     }
 
     /// Appends the next frame: the pixels of `raw` under `mask`.
@@ -406,6 +431,10 @@ pub struct StoreWriter {
     dir: PathBuf,
     quality: StoreQuality,
     writer: Option<(usize, ObjectWriter)>,
+    /// Per view, what its quality target chose (views finished so far).
+    choices: Vec<Option<TargetChoice>>,
+    /// The choice of the view being written, from a store of it dropped when it started again.
+    carried: Option<TargetChoice>,
 }
 
 impl StoreWriter {
@@ -420,14 +449,27 @@ impl StoreWriter {
             dir: dir.into(),
             quality,
             writer: None,
+            choices: Vec::new(),
+            carried: None,
         }
+    }
+
+    /// Per view, what its quality target chose (None for a lossless or fixed-quantiser
+    /// store), for the views whose stores are closed.
+    pub fn choices(&self) -> &[Option<TargetChoice>] {
+        &self.choices
     }
 
     /// Closes the last store.
     pub fn finish(&mut self) -> vt_core::Result<()> {
-        if let Some((p, w)) = self.writer.take() {
-            w.finish()
-                .map_err(|e| vt_core::Error::external(format!("view {p}"), e))?;
+        if let Some((p, mut w)) = self.writer.take() {
+            let to_core = |e| vt_core::Error::external(format!("view {p}"), e);
+            let choice = w.target_choice().map_err(to_core)?.or(self.carried.take());
+            w.finish().map_err(to_core)?;
+            if self.choices.len() <= p {
+                self.choices.resize(p + 1, None);
+            }
+            self.choices[p] = choice;
         }
         Ok(())
     }
@@ -446,15 +488,22 @@ impl vt_core::analysis::Observer for StoreWriter {
         // handheld view found later restarts every view through the still camera, or a
         // per-region loop's baked frames replace the view's). The unfinished store is dropped
         // and its file made anew.
+        // A quality target's choice carries over to the new store (the same footage, steadied
+        // or baked): its probe is not run again.
         if frame == 0 && self.writer.as_ref().is_some_and(|(p, _)| *p == view) {
-            self.writer = None;
+            let dropped = self.writer.take().and_then(|(_, w)| w.choice);
+            self.carried = dropped.or(self.carried);
         }
         if self.writer.as_ref().is_none_or(|(p, _)| *p != view) {
             self.finish()?;
             let path = self.dir.join(crate::scene::objects_name(view));
+            let quality = match self.carried {
+                Some(c) => StoreQuality::H264 { qp: c.qp },
+                None => self.quality,
+            };
             self.writer = Some((
                 view,
-                ObjectWriter::create_with(&path, raw.width(), raw.height(), self.quality)
+                ObjectWriter::create_with(&path, raw.width(), raw.height(), quality)
                     .map_err(to_core)?,
             ));
         }
@@ -559,28 +608,38 @@ fn probe_psnr(width: u32, height: u32, probe: &Probe) -> Result<f64> {
     Ok(10.0 * (255.0 * 255.0 / mse.max(1e-6)).log10())
 }
 
-/// The largest quantiser whose predicted PSNR over the probe's frames (measured at [`PROBE_QP`], then
-/// [`LOSS_PER_QP`] lost a step above it and [`GAIN_PER_QP`] gained a step below) is at least
-/// `db` and [`TARGET_MARGIN`]; [`MIN_QP`] when none is, [`MAX_TARGET_QP`] at most.
-fn target_qp(width: u32, height: u32, probe: &Probe, db: u8) -> Result<u8> {
-    if probe.frames.is_empty() {
-        return Ok(PROBE_QP);
+/// The largest quantiser whose predicted PSNR over the probe's frames (measured at
+/// [`PROBE_QP`], then [`LOSS_PER_QP`] lost a step above it and [`GAIN_PER_QP`] gained a step
+/// below) is at least the target and [`TARGET_MARGIN`]; [`MIN_QP`] when none is,
+/// [`MAX_TARGET_QP`] at most.
+fn target_qp(width: u32, height: u32, probe: &Probe) -> Result<TargetChoice> {
+    let want = probe.db as f64 + TARGET_MARGIN;
+    let measured = if probe.frames.is_empty() {
+        want
+    } else {
+        probe_psnr(width, height, probe)?
+    };
+    let qp = qp_for(measured, want);
+    Ok(TargetChoice {
+        target_db: probe.db,
+        qp,
+        predicted_db: predicted(measured, qp),
+    })
+}
+
+/// The PSNR predicted at `qp` from `measured` at [`PROBE_QP`].
+fn predicted(measured: f64, qp: u8) -> f64 {
+    if qp >= PROBE_QP {
+        measured - LOSS_PER_QP * (qp - PROBE_QP) as f64
+    } else {
+        measured + GAIN_PER_QP * (PROBE_QP - qp) as f64
     }
-    let measured = probe_psnr(width, height, probe)?;
-    Ok(qp_for(measured, db as f64 + TARGET_MARGIN))
 }
 
 /// [`target_qp`]'s choice from the PSNR measured at [`PROBE_QP`].
 pub(super) fn qp_for(measured: f64, want: f64) -> u8 {
-    let predicted = |qp: u8| {
-        if qp >= PROBE_QP {
-            measured - LOSS_PER_QP * (qp - PROBE_QP) as f64
-        } else {
-            measured + GAIN_PER_QP * (PROBE_QP - qp) as f64
-        }
-    };
     (MIN_QP..=MAX_TARGET_QP)
         .rev()
-        .find(|&qp| predicted(qp) >= want)
+        .find(|&qp| predicted(measured, qp) >= want)
         .unwrap_or(MIN_QP)
 }

@@ -27,6 +27,7 @@ pub fn knobs() -> Vec<Knob> {
         Knob::new("Noise-model masks", noise_masks),
         Knob::new("Loops on footage that never repeats", loop_options),
         Knob::new("Switch fade between views", switch_fade),
+        Knob::new("Object store quality", store_quality),
     ]
 }
 
@@ -670,6 +671,124 @@ fn switch_fade(ctx: &mut Ctx) -> Result<Vec<Curve>> {
         ),
         Axis::new("render (ms per frame, sweep)", Better::Lower),
         Axis::new("switch seam (x the steps replaced)", Better::Lower),
+        pts,
+    )])
+}
+
+/// The object store's quality: each setting's scene against the lossless store's, the same
+/// analysis (loops and tables do not depend on the store), rendered at the same frames.
+fn store_quality(ctx: &mut Ctx) -> Result<Vec<Curve>> {
+    use vt_io::objects::StoreQuality;
+    let r = real(ctx)?;
+    let mut params = AnalyzeParams::default();
+    params.loops.min_length = r.frames[0].len() / 3;
+    let store_bytes = |dir: &std::path::Path| -> u64 {
+        (0..r.frames.len())
+            .map(|p| {
+                std::fs::metadata(dir.join(vt_io::scene::objects_name(p))).map_or(0, |m| m.len())
+            })
+            .sum()
+    };
+    // Frames of every view at its own viewpoint and at the ties, spread over the loops.
+    let renders = |scene: &vt_io::scene::LoadedScene| -> Result<Vec<image::RgbImage>> {
+        let mut renderer = vt_core::render::Renderer::new(
+            scene.render.clone(),
+            vt_core::render::RenderParams::default(),
+        )?;
+        let (w, h) = renderer.size();
+        let mut out = Vec::new();
+        for (p, v) in scene.render.views.iter().enumerate() {
+            for q in [p as f64, p as f64 + 0.5] {
+                if q > scene.render.q_max() {
+                    continue;
+                }
+                for k in 0..4 {
+                    let f = v.loop_start + 1 + k * (v.loop_end - v.loop_start).max(1) / 4;
+                    let mut img = image::RgbImage::new(w, h);
+                    renderer.render_plain_into(&scene.objects, q, p, f, &mut img)?;
+                    out.push(img);
+                }
+            }
+        }
+        Ok(out)
+    };
+    let build = |ctx: &mut Ctx,
+                 quality: StoreQuality|
+     -> Result<(f64, u64, Vec<image::RgbImage>, String)> {
+        let dir = ctx.work.path().join(format!("real-store-{quality}"));
+        std::fs::remove_dir_all(&dir).ok();
+        let t = std::time::Instant::now();
+        crate::report::data::analyze_frames_with(&r.frames, &[], &params, &dir, quality)?;
+        let secs = t.elapsed().as_secs_f64();
+        let scene = vt_io::scene::LoadedScene::open(&dir)?;
+        let chosen: Vec<String> = scene
+            .objects
+            .stores
+            .iter()
+            .map(|s| s.quality().to_string())
+            .collect();
+        let frames = renders(&scene)?;
+        let bytes = store_bytes(&dir);
+        drop(scene);
+        std::fs::remove_dir_all(&dir).ok();
+        Ok((secs, bytes, frames, chosen.join(" ")))
+    };
+    let (_, lossless_bytes, reference, _) = build(ctx, StoreQuality::Lossless)?;
+    let mut pts = Vec::new();
+    let settings: Vec<StoreQuality> = ctx
+        .pick(
+            vec!["12", "20", "35db", "40db", "45db"],
+            vec![
+                "12", "14", "16", "18", "20", "24", "35db", "38db", "40db", "42db", "45db",
+            ],
+        )
+        .into_iter()
+        .map(|q| q.parse().expect("a store quality"))
+        .collect();
+    for quality in settings {
+        let (secs, bytes, frames, chosen) = build(ctx, quality)?;
+        let mut worst = f64::INFINITY;
+        let mut se = 0.0;
+        for (a, b) in frames.iter().zip(&reference) {
+            let p = vt_core::metrics::psnr(a, b, None)?;
+            worst = worst.min(p);
+            se += 10f64.powf(-p / 10.0);
+        }
+        let mean = -10.0 * (se / frames.len().max(1) as f64).log10();
+        let label = match quality {
+            StoreQuality::Target { .. } => format!("{quality} (quantisers {chosen})"),
+            q => format!("quantiser {q}"),
+        };
+        pts.push(
+            Setting::new(
+                label,
+                bytes as f64 / 1e6,
+                mean,
+                quality == StoreQuality::default(),
+            )
+            .with("worst rendered frame (dB)", worst)
+            .with(
+                "bytes against the lossless store's",
+                bytes as f64 / lossless_bytes.max(1) as f64,
+            )
+            .with("analysis, store included (s)", secs),
+        );
+    }
+    Ok(vec![Curve::new(
+        "a-store-quality",
+        "Object store quality",
+        format!(
+            "How the moving-object stores keep the pixels, on {SCENE}, registered \
+             automatically: x: the stores' bytes (MB); y: PSNR of rendered frames (every view at \
+             its own viewpoint and at the ties, four frames along each loop) against the same \
+             frames rendered from the lossless store, from the mean squared error. A fixed \
+             quantiser keeps every frame at one quantiser; a target (the default, {}) \
+             stores each view's first 8 frames at quantiser 16 in memory and takes the \
+             coarsest quantiser predicted to keep that PSNR under the masks.",
+            StoreQuality::default()
+        ),
+        Axis::new("object stores (MB)", Better::Lower),
+        Axis::new("renders against the lossless store's (dB)", Better::Higher),
         pts,
     )])
 }
