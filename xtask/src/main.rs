@@ -83,33 +83,24 @@ fn main() -> Result<()> {
                 .args(rest);
             run(c)?;
             if !rest.iter().any(|a| a == "--quick") {
-                // `vt analyze`'s memory on 1080p clips, as a user runs it.
                 let mut v = cargo();
                 v.args(["build", "--release", "--quiet", "-p", "vt-cli"]);
                 run(v)?;
-                let mut hd = cargo();
-                hd.args([
-                    "run",
-                    "--release",
-                    "--quiet",
-                    "-p",
-                    "vt-bench",
-                    "--bin",
-                    "hd-memory",
-                ]);
-                run(hd)?;
-                // `vt analyze` against its floor (decode + the store's encode), issue #34.
-                let mut floor = cargo();
-                floor.args([
-                    "run",
-                    "--release",
-                    "--quiet",
-                    "-p",
-                    "vt-bench",
-                    "--bin",
-                    "analyze-floor",
-                ]);
-                run(floor)?;
+                // `vt analyze`'s memory on 1080p clips, and its time against its floor
+                // (decode + the store's encode, issue #34), as a user runs it.
+                for bin in ["hd-memory", "analyze-floor"] {
+                    let mut c = cargo();
+                    c.args([
+                        "run",
+                        "--release",
+                        "--quiet",
+                        "-p",
+                        "vt-bench",
+                        "--bin",
+                        bin,
+                    ]);
+                    run(c)?;
+                }
                 let mut b = cargo();
                 b.args(["bench", "-p", "vt-core"]);
                 run(b)?;

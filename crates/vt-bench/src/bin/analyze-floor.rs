@@ -1,7 +1,9 @@
 //! `analyze-floor` (run by `cargo xtask bench`): `vt analyze` at defaults against its floor,
 //! side by side, on the inputs of issue #34: ffmpeg decoding the same files and encoding them
-//! with the object store's x264 settings (ultrafast, constrained baseline, qp 12, an IDR every
-//! 8 frames, one thread), which `vt analyze` must do at least. Whole processes, timed in
+//! with the object store's x264 settings (`vt_io::objects::x264_args`: ultrafast, constrained
+//! baseline, an IDR every 8 frames, one thread) at the finest quantiser, 12, as the issue
+//! defines it (the stores' default quality target takes 15-18 on these inputs, which encodes
+//! a little faster), which `vt analyze` must do at least. Whole processes, timed in
 //! alternating pairs (floor, then vt), medians; with vt's own stage times (seams), the scene's
 //! bytes on disk against the source's, and the peak memory.
 //!
@@ -23,49 +25,9 @@ struct Input {
     videos: Vec<PathBuf>,
 }
 
-fn clip(
-    dir: &Path,
-    tree: &Path,
-    name: &str,
-    frames: usize,
-    size: &str,
-    codec: &[&str],
-) -> Result<PathBuf> {
-    let path = dir.join(name);
-    if path.exists() {
-        return Ok(path);
-    }
-    let vf = format!(
-        "select=lt(n\\,54),setpts=N/25/TB,loop=loop=-1:size=54:start=0,scale={size}:flags=bicubic"
-    );
-    let tmp = dir.join(format!("part-{name}"));
-    let ok = Command::new("ffmpeg")
-        .args(["-v", "error", "-y", "-i"])
-        .arg(tree)
-        .args(["-vf", &vf, "-frames:v", &frames.to_string(), "-r", "25"])
-        .args(codec)
-        .args(["-pix_fmt", "yuv420p"])
-        .arg(&tmp)
-        .status()
-        .context("ffmpeg (apt-get install ffmpeg)")?
-        .success();
-    if !ok {
-        bail!("ffmpeg failed making {name}");
-    }
-    std::fs::rename(&tmp, &path)?;
-    Ok(path)
-}
-
-/// Peak resident memory (VmHWM) of process `pid` in KiB, while it runs.
-fn hwm_kib(pid: u32) -> Option<u64> {
-    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    s.lines()
-        .find(|l| l.starts_with("VmHWM:"))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()
-}
+#[path = "../clips.rs"]
+mod clips;
+use clips::{hwm_kib, tree_clip};
 
 /// Runs `cmd` to the end: wall seconds, peak memory (MiB) and stdout.
 fn timed(mut cmd: Command) -> Result<(f64, f64, String)> {
@@ -103,27 +65,7 @@ fn floor(videos: &[PathBuf]) -> Result<f64> {
         let mut c = Command::new("ffmpeg");
         c.args(["-v", "error", "-nostdin", "-i"])
             .arg(v)
-            .args(["-an", "-c:v", "libx264", "-preset", "ultrafast"])
-            .args([
-                "-profile:v",
-                "baseline",
-                "-pix_fmt",
-                "yuv420p",
-                "-threads",
-                "1",
-            ])
-            .args([
-                "-qp",
-                "12",
-                "-g",
-                "8",
-                "-keyint_min",
-                "8",
-                "-sc_threshold",
-                "0",
-                "-bf",
-                "0",
-            ])
+            .args(vt_io::objects::x264_args(vt_io::objects::MIN_QP))
             .args(["-f", "h264", "-y", "/dev/null"]);
         total += timed(c)?.0;
     }
@@ -199,34 +141,37 @@ fn main() -> Result<()> {
     let inputs = [
         Input {
             name: "1280x720 MPEG-4, 260 frames".into(),
-            videos: vec![clip(
+            videos: vec![tree_clip(
                 &dir,
                 &tree,
                 "tree-720p-260.avi",
                 260,
                 "1280:720",
+                "",
                 &mpeg4,
             )?],
         },
         Input {
             name: "768x576 MPEG-4, 800 frames".into(),
-            videos: vec![clip(
+            videos: vec![tree_clip(
                 &dir,
                 &tree,
                 "tree-576p-800.avi",
                 800,
                 "768:576",
+                "",
                 &mpeg4,
             )?],
         },
         Input {
             name: "1920x1080 H.264, 260 frames".into(),
-            videos: vec![clip(
+            videos: vec![tree_clip(
                 &dir,
                 &tree,
                 "tree-1080p-260.mp4",
                 260,
                 "1920:1080",
+                "",
                 &h264,
             )?],
         },

@@ -12,50 +12,24 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 
-/// Peak resident memory (VmHWM) of process `pid` in KiB, while it runs.
-fn hwm_kib(pid: u32) -> Option<u64> {
-    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    s.lines()
-        .find(|l| l.starts_with("VmHWM:"))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()
-}
+#[path = "../clips.rs"]
+mod clips;
+use clips::{hwm_kib, tree_clip};
 
 fn clip(dir: &Path, tree: &Path, frames: usize, drift: bool) -> Result<PathBuf> {
     let name = format!(
         "tree-1080p-{frames}{}.mp4",
         if drift { "-drift" } else { "" }
     );
-    let path = dir.join(&name);
-    if path.exists() {
-        return Ok(path);
-    }
-    let mut vf = "select=lt(n\\,54),setpts=N/25/TB,loop=loop=-1:size=54:start=0,\
-                  scale=1920:1080:flags=bicubic"
-        .to_string();
-    if drift {
-        vf.push_str(",eq=brightness='0.0008*n-0.12':eval=frame");
-    }
-    let tmp = path.with_extension("part.mp4");
-    let ok = Command::new("ffmpeg")
-        .args(["-v", "error", "-y", "-i"])
-        .arg(tree)
-        .args(["-vf", &vf, "-frames:v", &frames.to_string(), "-r", "25"])
-        .args(["-c:v", "libx264", "-crf", "18", "-preset", "veryfast"])
-        .args(["-pix_fmt", "yuv420p"])
-        .arg(&tmp)
-        .status()
-        .context("ffmpeg (apt-get install ffmpeg)")?
-        .success();
-    if !ok {
-        bail!("ffmpeg failed making {name}");
-    }
-    std::fs::rename(&tmp, &path)?;
-    Ok(path)
+    let extra = if drift {
+        "eq=brightness='0.0008*n-0.12':eval=frame"
+    } else {
+        ""
+    };
+    let h264 = ["-c:v", "libx264", "-crf", "18", "-preset", "veryfast"];
+    tree_clip(dir, tree, &name, frames, "1920:1080", extra, &h264)
 }
 
 fn main() -> Result<()> {

@@ -195,6 +195,39 @@ pub(super) fn split_units(
     true
 }
 
+/// ffmpeg's output options for the stores' x264 encoding at quantiser `qp`, as the encoder
+/// uses them (and `vt-bench`'s floor, the same encoding of a whole video).
+pub fn x264_args(qp: u8) -> Vec<String> {
+    let gop = GOP.to_string();
+    [
+        "-an",
+        "-c:v",
+        "libx264",
+        "-preset",
+        "ultrafast",
+        "-profile:v",
+        "baseline",
+        "-pix_fmt",
+        "yuv420p",
+        "-threads",
+        "1",
+        "-qp",
+        &qp.to_string(),
+        "-g",
+        &gop,
+        "-keyint_min",
+        &gop,
+        "-sc_threshold",
+        "0",
+        "-bf",
+        "0",
+        "-x264-params",
+        "aud=1:repeat-headers=1:scenecut=0:ipratio=1",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
 impl X264 {
     pub(super) fn new(qp: u8, width: usize, height: usize) -> std::io::Result<Self> {
         use std::process::{Command, Stdio};
@@ -203,28 +236,7 @@ impl X264 {
                 "-v", "error", "-nostdin", "-f", "rawvideo", "-pix_fmt", "yuv420p",
             ])
             .args(["-s", &format!("{width}x{height}"), "-r", "25", "-i", "-"])
-            .args(["-an", "-c:v", "libx264", "-preset", "ultrafast"])
-            .args([
-                "-profile:v",
-                "baseline",
-                "-pix_fmt",
-                "yuv420p",
-                "-threads",
-                "1",
-            ])
-            .args(["-qp", &qp.to_string(), "-g", &GOP.to_string()])
-            .args([
-                "-keyint_min",
-                &GOP.to_string(),
-                "-sc_threshold",
-                "0",
-                "-bf",
-                "0",
-            ])
-            .args([
-                "-x264-params",
-                "aud=1:repeat-headers=1:scenecut=0:ipratio=1",
-            ])
+            .args(x264_args(qp))
             .args(["-f", "h264", "-"])
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())

@@ -56,6 +56,7 @@ mod writer;
 
 use decode::*;
 use encode::*;
+pub use encode::x264_args;
 pub use store::ObjectStore;
 use store::*;
 pub use writer::{

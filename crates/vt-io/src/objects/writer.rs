@@ -140,11 +140,39 @@ impl ObjectWriter {
             ),
         };
         let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut out = BufWriter::new(Sink::File(file));
+        Self::start(
+            path.to_path_buf(),
+            Sink::File(file),
+            (width, height),
+            quality,
+            encoding,
+            probe,
+        )
+    }
+
+    /// A store at the fixed quantiser `qp` in memory, encoded by `encoder`: a probe's trial.
+    fn in_memory(width: u32, height: u32, qp: u8, encoder: H264Encoder) -> Result<Self> {
+        let path = PathBuf::from("(probe)");
+        let encoding = Some(open_encoder(&path, width, height, qp, encoder)?);
+        let memory = Sink::Memory(std::io::Cursor::new(Vec::new()));
+        let quality = StoreQuality::H264 { qp };
+        Self::start(path, memory, (width, height), quality, encoding, None)
+    }
+
+    /// A writer into `sink`, its header written.
+    fn start(
+        path: PathBuf,
+        sink: Sink,
+        (width, height): (u32, u32),
+        quality: StoreQuality,
+        encoding: Option<H264Writer>,
+        probe: Option<Probe>,
+    ) -> Result<Self> {
         let head = header(width, height, quality);
-        out.write_all(&head).map_err(|e| Error::io(path, e))?;
+        let mut out = BufWriter::new(sink);
+        out.write_all(&head).map_err(|e| Error::io(&path, e))?;
         Ok(Self {
-            path: path.to_path_buf(),
+            path,
             out,
             width,
             height,
@@ -156,30 +184,6 @@ impl ObjectWriter {
             waiting: Default::default(),
             sent: 0,
             probe,
-            choice: None,
-        })
-    }
-
-    /// A store at the fixed quantiser `qp` in memory, encoded by `encoder`: a probe's trial.
-    fn in_memory(width: u32, height: u32, qp: u8, encoder: H264Encoder) -> Result<Self> {
-        let path = PathBuf::from("(probe)");
-        let quality = StoreQuality::H264 { qp };
-        let head = header(width, height, quality);
-        let mut out = BufWriter::new(Sink::Memory(std::io::Cursor::new(Vec::new())));
-        out.write_all(&head).map_err(|e| Error::io(&path, e))?;
-        Ok(Self {
-            encoding: Some(open_encoder(&path, width, height, qp, encoder)?),
-            path,
-            out,
-            width,
-            height,
-            offsets: Vec::new(),
-            pos: head.len() as u64,
-            rec: Vec::new(),
-            box_words: Vec::new(),
-            waiting: Default::default(),
-            sent: 0,
-            probe: None,
             choice: None,
         })
     }
