@@ -15,7 +15,6 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 
@@ -27,36 +26,7 @@ struct Input {
 
 #[path = "../clips.rs"]
 mod clips;
-use clips::{hwm_kib, tree_clip};
-
-/// Runs `cmd` to the end: wall seconds, peak memory (MiB) and stdout.
-fn timed(mut cmd: Command) -> Result<(f64, f64, String)> {
-    let t = Instant::now();
-    let mut child = cmd.stdout(Stdio::piped()).stderr(Stdio::null()).spawn()?;
-    let pid = child.id();
-    let mut out = String::new();
-    let mut stdout = child.stdout.take().expect("piped");
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        std::io::Read::read_to_string(&mut stdout, &mut s).map(|_| s)
-    });
-    let mut peak = 0;
-    let status = loop {
-        peak = peak.max(hwm_kib(pid).unwrap_or(0));
-        if let Some(s) = child.try_wait()? {
-            break s;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    };
-    let secs = t.elapsed().as_secs_f64();
-    if let Ok(Ok(s)) = reader.join() {
-        out = s;
-    }
-    if !status.success() {
-        bail!("{cmd:?} failed");
-    }
-    Ok((secs, peak as f64 / 1024.0, out))
-}
+use clips::{timed, tree_clip};
 
 /// The floor: each video decoded and encoded with the store's x264 settings, one after another.
 fn floor(videos: &[PathBuf]) -> Result<f64> {

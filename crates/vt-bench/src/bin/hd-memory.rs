@@ -9,14 +9,13 @@
 //! (`cargo build --release -p vt-cli`). The goal: at most 400 MiB at both lengths.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
 
 use anyhow::{bail, Result};
 
 #[path = "../clips.rs"]
 mod clips;
-use clips::{hwm_kib, tree_clip};
+use clips::{timed, tree_clip};
 
 fn clip(dir: &Path, tree: &Path, frames: usize, drift: bool) -> Result<PathBuf> {
     let name = format!(
@@ -55,30 +54,9 @@ fn main() -> Result<()> {
             if out.exists() {
                 std::fs::remove_dir_all(&out)?;
             }
-            let t = Instant::now();
-            let mut child = Command::new(&vt)
-                .arg("analyze")
-                .arg(&input)
-                .arg("--out")
-                .arg(&out)
-                .stdout(Stdio::piped())
-                .stderr(Stdio::null())
-                .spawn()?;
-            let pid = child.id();
-            let mut peak = 0;
-            let status = loop {
-                peak = peak.max(hwm_kib(pid).unwrap_or(0));
-                if let Some(s) = child.try_wait()? {
-                    break s;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            };
-            let secs = t.elapsed().as_secs_f64();
-            let mut summary = String::new();
-            std::io::Read::read_to_string(child.stdout.as_mut().expect("piped"), &mut summary)?;
-            if !status.success() {
-                bail!("vt analyze {} failed", input.display());
-            }
+            let mut c = Command::new(&vt);
+            c.arg("analyze").arg(&input).arg("--out").arg(&out);
+            let (secs, peak, summary) = timed(c)?;
             let verdict = summary
                 .lines()
                 .find(|l| l.contains("per-region loop"))
@@ -90,7 +68,7 @@ fn main() -> Result<()> {
             println!(
                 "| {} | {frames} | {:.0} | {secs:.1} | {verdict} |",
                 if drift { "brightening" } else { "exact repeat" },
-                peak as f64 / 1024.0
+                peak
             );
             std::fs::remove_dir_all(&out).ok();
         }
