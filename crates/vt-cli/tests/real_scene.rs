@@ -438,8 +438,16 @@ fn seams_on_sampled_rows_match_every_row(scene: &LoadedScene) {
         ..SeamSampling::default()
     });
     for (p, (a, b)) in sampled.iter().zip(&every_row).enumerate() {
-        assert_eq!(a.wrap, Some(scene.file.views[p].loop_seam), "recorded: view {p}");
-        for (x, y) in [(a.wrap, b.wrap), (a.to_next, b.to_next), (a.to_prev, b.to_prev)] {
+        assert_eq!(
+            a.wrap,
+            Some(scene.file.views[p].loop_seam),
+            "recorded: view {p}"
+        );
+        for (x, y) in [
+            (a.wrap, b.wrap),
+            (a.to_next, b.to_next),
+            (a.to_prev, b.to_prev),
+        ] {
             match (x, y) {
                 (Some(x), Some(y)) => assert!((x - y).abs() <= 0.03, "view {p}: {a:?} {b:?}"),
                 (x, y) => assert_eq!(x.is_some(), y.is_some(), "view {p}"),

@@ -55,13 +55,11 @@ mod tests;
 mod writer;
 
 use decode::*;
-use encode::*;
 pub use encode::x264_args;
+use encode::*;
 pub use store::ObjectStore;
 use store::*;
-pub use writer::{
-    H264Encoder, ObjectWriter, StoreWriter, TargetChoice, MAX_TARGET_QP, PROBE_QP,
-};
+pub use writer::{H264Encoder, ObjectWriter, StoreWriter, TargetChoice, MAX_TARGET_QP, PROBE_QP};
 
 const MAGIC: &[u8; 8] = b"VTOBJ1\0\0";
 const MAGIC_V2: &[u8; 8] = b"VTOBJ2\0\0";
@@ -81,7 +79,6 @@ pub const GOP: u32 = 8;
 /// 4.58x, 45.6 dB; 16: 3.14x, 43.3; 20: 2.09x, 41.1. The default, [`StoreQuality::Target`],
 /// chooses per store.
 pub const MIN_QP: u8 = 12;
-
 
 /// How a store keeps the object pixels (`vt analyze --store-quality`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
