@@ -340,8 +340,8 @@ impl SeamSampling {
 
 /// Per view, the seam scores of its loop wrap and its switches, measured on frames the renderer
 /// makes with `params` (crossfade and dissolve off, the switch fade on, as switches play), as
-/// much of them as `sampling` says: its ordinary steps and a quarter as many switches per view
-/// and direction (a switch renders its fade twice over: as shown and as replaced), on its rows.
+/// much of them as `sampling` says: its ordinary steps per view, its switches per view and
+/// direction (a switch renders its fade twice over: as shown and as replaced), on its rows.
 pub fn measure_seams(
     scene: &Arc<RenderScene>,
     objects: &dyn ObjectFrames,
