@@ -1,6 +1,6 @@
 //! A scene as a static web page that plays it in any browser (`vt export`, [`vt_web`]).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use vt_core::render::RenderParams;
 use vt_io::scene::LoadedScene;
@@ -31,20 +31,24 @@ pub struct Exported {
     pub scene_bytes: u64,
 }
 
+/// A page's title: the scene folder's name.
+pub(crate) fn title(scene: &Path) -> String {
+    scene
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_else(|| "scene".into())
+}
+
 /// Writes the page for `job.scene` into `job.out`; options are checked before any work.
 pub fn export(job: &ExportJob, progress: &mut dyn Progress) -> Result<Exported> {
     job.media.check()?;
     job.params.check()?;
     let scene = LoadedScene::open(&job.scene)?;
-    let title = job
-        .scene
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "scene".into());
     let opts = vt_web::ExportOptions {
         params: job.params,
         media: job.media,
-        title,
+        title: title(&job.scene),
+        ..vt_web::ExportOptions::default()
     };
     progress.start("export", None);
     let mut report = |done: usize, total: usize| progress.at(done as u64, Some(total as u64));

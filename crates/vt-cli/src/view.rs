@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::Args;
 
 use crate::flags::flagged;
+use crate::progress::Bars;
 use crate::render::RenderOptions;
 
 #[derive(Args)]
@@ -23,8 +24,8 @@ pub struct ViewArgs {
     /// Starting viewpoint.
     #[arg(long, default_value_t = 0.0)]
     q: f64,
-    /// JPEG quality (1-100).
-    #[arg(long, default_value_t = 85)]
+    /// JPEG quality of the page's moving-object frames and of the fallback stream (1-100).
+    #[arg(long, default_value_t = vt_web::DEFAULT_QUALITY)]
     quality: u8,
     #[command(flatten)]
     options: RenderOptions,
@@ -38,7 +39,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
         quality: args.quality,
         params: args.options.params(),
     };
-    let viewer = vt_app::view::open(&args.scene, &job).map_err(flagged)?;
+    let viewer = vt_app::view::open(&args.scene, &job, &mut Bars::default()).map_err(flagged)?;
     println!(
         "vt view: serving {} at http://127.0.0.1:{}/ (Ctrl-C to stop)",
         args.scene.display(),

@@ -716,8 +716,18 @@ fn viewer_survives_hostile_http() {
         "{r}"
     );
     assert!(get(port, "/etc/passwd").starts_with("HTTP/1.1 404"));
+    // The page's files come from memory, by exact name only.
+    assert!(get(port, "/data/player.js").starts_with("HTTP/1.1 200"));
+    for path in [
+        "/data/",
+        "/data/../index.html",
+        "/data/%2e%2e/Cargo.toml",
+        "/data/scene.js/",
+    ] {
+        assert!(get(port, path).starts_with("HTTP/1.1 404"), "{path}");
+    }
     assert!(get(port, "/control?speed=8").starts_with("HTTP/1.1 200"));
-    // The video keeps playing: the frame counter grows.
+    // The renderer still works: it renders when a frame is asked for (it idles otherwise).
     let frames = |r: String| -> u64 {
         let body = r.split("\r\n\r\n").nth(1).unwrap_or("").to_string();
         serde_json::from_str::<serde_json::Value>(&body).unwrap()["frames"]
@@ -725,7 +735,12 @@ fn viewer_survives_hostile_http() {
             .unwrap()
     };
     let f0 = frames(get(port, "/state"));
-    std::thread::sleep(Duration::from_millis(700));
+    let frame = get(port, "/frame.jpg");
+    assert!(
+        frame.starts_with("HTTP/1.1 200") && frame.contains("image/jpeg"),
+        "{}",
+        &frame[..frame.len().min(200)]
+    );
     let f1 = frames(get(port, "/state"));
     assert!(f1 > f0, "the renderer stopped: frames {f0} -> {f1}");
     // New streams are answered while the idle connections are held, also 30 at once.

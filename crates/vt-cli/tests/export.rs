@@ -6,6 +6,9 @@
 //! ten of its frames with the frames `vt render`'s library path (`LoadedScene::play`) draws for
 //! the same path, including a fractional q, a loop wrap and a view switch.
 //!
+//! `vt view` serves the same page from memory on loopback, and is checked the same way; its CPU
+//! renderer (the fallback for browsers without WebGL2, viewer.rs) must stay idle meanwhile.
+//!
 //! Scenes: the demo's (`vt demo`: 3 views, dynamic region, background morph) and the 5-view scene
 //! made from testdata/tree.avi (`vt synth real` + `vt analyze`, as in real_scene.rs). Figures are
 //! printed with `VT_TEST_VERBOSE=1`. Without `chromium` the test says "skipped".
@@ -14,7 +17,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::cdp::{chromium_webgl, Page};
+use common::cdp::{chromium_webgl, vt_server, Page};
 use common::*;
 use image::RgbImage;
 use vt_core::render::{RenderParams, Step};
@@ -194,8 +197,12 @@ fn decode_b64(s: &str) -> Vec<u8> {
 
 /// Opens the export's index.html from disk and waits until it has loaded its assets.
 fn open_export(ws: &str, dir: &Path) -> Page {
-    let url = format!("file://{}", dir.join("index.html").display());
-    let mut page = Page::open_sized(ws, &url, Some((900, 760)));
+    open_page(ws, &format!("file://{}", dir.join("index.html").display()))
+}
+
+/// Opens the page at `url` and waits until it has loaded its assets.
+fn open_page(ws: &str, url: &str) -> Page {
+    let mut page = Page::open_sized(ws, url, Some((900, 760)));
     page.wait_until(
         "window.vt !== undefined && (window.vt.loaded || window.vt.error !== null)",
         "the page to load",
@@ -390,4 +397,30 @@ fn export_plays_from_disk_and_matches_vt() {
         &["inside the scene folder"],
     );
     assert!(!inside.exists());
+}
+
+#[test]
+fn view_serves_the_page_and_matches_vt() {
+    let tmp = tempfile::tempdir().unwrap();
+    let profile = tmp.path().join("profile");
+    let Some(browser) = chromium_webgl(&profile) else {
+        eprintln!("skipped: chromium is not installed");
+        return;
+    };
+    let scene_dir = demo_scene(tmp.path());
+    let (_server, url) = vt_server(&["view", s(&scene_dir), "--port", "0", "--q", "1.5"]);
+    let mut page = open_page(&browser.ws, &url);
+    let path = page.eval("location.pathname");
+    assert_eq!(path.as_str(), Some("/"), "the WebGL page, not the fallback");
+    // It opens at --q.
+    let q = state(&mut page)["q"].as_f64().unwrap();
+    assert!((q - 1.5).abs() < 1e-9, "opened at q {q}");
+    let views = LoadedScene::open(&scene_dir).unwrap().render.views.len();
+    check_controls(&mut page, views);
+    let psnrs = check_frames(&mut page, &scene_dir, RenderParams::default(), 90);
+    eprintln!("vt view: PSNR {psnrs:.1?} dB against vt's frames");
+    assert!(psnrs.iter().all(|&p| p >= 40.0), "PSNR {psnrs:?}");
+    // The server rendered nothing: the browser did.
+    let served = page.eval("fetch('/state').then((r) => r.json())");
+    assert_eq!(served["frames"].as_u64(), Some(0), "/state {served}");
 }

@@ -1,13 +1,15 @@
-//! End-to-end test of `vt view` in a real browser: Debian's Chromium, headless, driven over the
-//! Chrome DevTools Protocol. It moves the slider and the arrow keys and checks that the status
-//! line reports the new viewpoint and that the picture changes (with playback paused, so only
-//! the viewpoint can change it).
+//! End-to-end test of `vt view`'s fallback in a real browser: Debian's Chromium, headless with
+//! WebGL off (`--disable-3d-apis`), driven over the Chrome DevTools Protocol. The WebGL page `vt view`
+//! serves (export.rs tests it with WebGL) sends such a browser to the CPU-rendered MJPEG page;
+//! the test checks it went there, moves the slider and the arrow keys and checks that the
+//! status line reports the new viewpoint and that the picture changes (with playback paused, so
+//! only the viewpoint can change it).
 
 mod common;
 
 use std::time::{Duration, Instant};
 
-use common::cdp::{chromium, vt_server, Page};
+use common::cdp::{chromium_without_webgl, vt_server, Page};
 use common::*;
 
 fn status(page: &mut Page) -> String {
@@ -38,7 +40,7 @@ fn picture(page: &mut Page) -> String {
 }
 
 #[test]
-fn browser_moves_the_viewpoint_and_the_picture_follows() {
+fn a_browser_without_webgl_gets_the_stream_and_the_picture_follows() {
     let tmp = tempfile::tempdir().unwrap();
     let syn = synth(
         tmp.path(),
@@ -51,10 +53,17 @@ fn browser_moves_the_viewpoint_and_the_picture_follows() {
     analyze(&syn, &scene, &["--min-length", "20"]);
 
     let (_server, url) = vt_server(&["view", s(&scene), "--port", "0"]);
-    let browser = chromium(&tmp.path().join("chromium-profile"))
+    let browser = chromium_without_webgl(&tmp.path().join("chromium-profile"))
         .expect("chromium is installed by scripts/test-all (apt-get install chromium)");
 
     let mut page = Page::open(&browser.ws, &url);
+    wait_for(
+        &mut page,
+        "location.pathname === '/mjpeg'",
+        "the page to send a browser without WebGL2 to the stream",
+    );
+    let webgl = page.eval("!!document.createElement('canvas').getContext('webgl2')");
+    assert_eq!(webgl.as_bool(), Some(false), "this browser has WebGL2");
     wait_for(
         &mut page,
         "document.getElementById('status').textContent.startsWith('q 0.00')",

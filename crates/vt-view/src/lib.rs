@@ -1,16 +1,19 @@
 //! vt-view: System A in the browser, on 127.0.0.1. `vt view` and `vt mark` are thin front ends
 //! over it.
 //!
-//! - The live viewer ([`Viewer`]): the Rust side renders (eq. 3-6, as `vt render`) and streams
-//!   JPEG frames as MJPEG (`multipart/x-mixed-replace`), which every browser shows in a plain
-//!   `<img>` with no script; the page sends the viewpoint and speed to `/control` and polls
-//!   `/state` for the status line. Exactly five routes: `/`, `/stream.mjpg`, `/frame.jpg`,
-//!   `/state`, `/control`; everything else is 404.
+//! - The live viewer ([`Viewer`]) serves the WebGL2 page `vt export` writes (vt-web's player,
+//!   its files held in memory: `/` and `/data/*`), which renders in the browser. A browser
+//!   without WebGL2 is sent by that page to `/mjpeg`, the fallback: there the Rust side renders
+//!   (eq. 3-6, as `vt render`) and streams JPEG frames as MJPEG (`multipart/x-mixed-replace`,
+//!   `/stream.mjpg`, or one frame at `/frame.jpg`), shown in a plain `<img>`; that page sends the
+//!   viewpoint and speed to `/control` and polls `/state`. The CPU renders only while a stream
+//!   or frame is asked for. Exactly these routes: `/`, `/data/NAME` (the page's files),
+//!   `/mjpeg`, `/stream.mjpg`, `/frame.jpg`, `/state`, `/control`; everything else is 404.
 //! - The marking page ([`mark`]): the points that register the views, shown on the views'
 //!   backgrounds, moved, added and removed in the browser, with the fit of every neighbour pair
 //!   recomputed after each change, and saved as a points file.
 //!
-//! Both bind 127.0.0.1 only and serve no files. The HTTP layer is std's `TcpListener` with
+//! Both bind 127.0.0.1 only and serve no files from disk. The HTTP layer is std's `TcpListener` with
 //! `httparse` for the request line and headers, so nothing is ever allocated on a client's word:
 //! a request head is at most [`MAX_HEAD`] bytes, the viewer refuses request bodies unread (413;
 //! the marking page takes bodies up to [`mark::MAX_BODY`]), each connection has its own thread
@@ -25,6 +28,7 @@ pub mod mark;
 pub use error::{Error, Result};
 pub use http::{IDLE_TIMEOUT, MAX_CONNECTIONS, MAX_HEAD, WRITE_TIMEOUT};
 
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::net::{TcpListener, TcpStream};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
@@ -77,6 +81,22 @@ struct Shared {
     control: Mutex<Control>,
     latest: Mutex<Latest>,
     fresh: Condvar,
+    /// When a client last asked for a rendered frame (a stream's part, `/frame.jpg`): the render
+    /// thread idles [`IDLE_AFTER`] after it.
+    asked: Mutex<Option<Instant>>,
+}
+
+/// The CPU renderer stops this long after the last client asked for a frame.
+const IDLE_AFTER: Duration = Duration::from_secs(1);
+
+impl Shared {
+    fn ask(&self) {
+        *lock(&self.asked) = Some(Instant::now());
+    }
+
+    fn wanted(&self) -> bool {
+        lock(&self.asked).is_some_and(|t| t.elapsed() < IDLE_AFTER)
+    }
 }
 
 /// Fastest frame rate the viewer streams at speed 1.
@@ -106,12 +126,14 @@ pub struct Viewer {
     shared: Arc<Shared>,
     page: Arc<String>,
     q_max: f64,
+    files: Arc<BTreeMap<String, Arc<Vec<u8>>>>,
 }
 
 impl Viewer {
-    /// Checks the parameters, starts the render thread and binds 127.0.0.1:`port`. `name` is the
-    /// scene's name as the page shows it.
-    pub fn bind(scene: LoadedScene, name: &str, params: &ViewerParams) -> Result<Self> {
+    /// Checks the parameters, starts the render thread (idle until a client asks for a frame)
+    /// and binds 127.0.0.1:`port`. `name` is the scene's name as the fallback page shows it.
+    /// The WebGL page is served once [`Viewer::with_page`] hands it over.
+    pub fn bind(scene: Arc<LoadedScene>, name: &str, params: &ViewerParams) -> Result<Self> {
         let num = vt_io::output::num;
         let bad = |name, value, why: String| Err(Error::Param { name, value, why });
         if !(params.fps.is_finite() && params.fps > 0.0 && params.fps <= MAX_FPS) {
@@ -139,6 +161,7 @@ impl Viewer {
             }),
             latest: Mutex::new(Latest::default()),
             fresh: Condvar::new(),
+            asked: Mutex::new(None),
         });
         {
             let shared = shared.clone();
@@ -172,7 +195,15 @@ impl Viewer {
             shared,
             page,
             q_max,
+            files: Arc::default(),
         })
+    }
+
+    /// The page served at `/`: its files by path (`index.html`, `data/player.js`, ...), as
+    /// `vt_web::page` builds them. Without one, `/` is the fallback page.
+    pub fn with_page(mut self, files: BTreeMap<String, Vec<u8>>) -> Self {
+        self.files = Arc::new(files.into_iter().map(|(k, v)| (k, Arc::new(v))).collect());
+        self
     }
 
     /// The port it listens on.
@@ -187,6 +218,7 @@ impl Viewer {
             shared,
             page,
             q_max,
+            files,
             ..
         } = self;
         let limits = http::Limits {
@@ -200,27 +232,49 @@ impl Viewer {
                 shared,
                 page,
                 q_max,
+                files,
             }),
         );
     }
 }
 
-/// The viewer's five routes.
+/// The viewer's routes.
 struct ViewHandler {
     shared: Arc<Shared>,
+    /// The fallback page.
     page: Arc<String>,
     q_max: f64,
+    /// The WebGL page's files.
+    files: Arc<BTreeMap<String, Arc<Vec<u8>>>>,
+}
+
+impl ViewHandler {
+    /// One of the WebGL page's files.
+    fn file(&self, name: &str) -> Option<Reply> {
+        let bytes = self.files.get(name)?.clone();
+        let kind = match name.rsplit_once('.').map(|(_, e)| e) {
+            Some("html") => "text/html; charset=utf-8",
+            Some("js") => "text/javascript; charset=utf-8",
+            _ => "application/octet-stream",
+        };
+        Some(Reply::new(200, kind, Body::Shared(bytes)))
+    }
 }
 
 impl http::Handler for ViewHandler {
     fn handle(&self, req: &http::Request, conn: &mut TcpStream) -> Reply {
         let shared = &self.shared;
-        match req.path.as_str() {
-            "/" => Reply::new(
+        let fallback = || {
+            Reply::new(
                 200,
                 "text/html; charset=utf-8",
                 Body::Text(self.page.clone()),
-            ),
+            )
+        };
+        match req.path.as_str() {
+            "/" => self.file("index.html").unwrap_or_else(fallback),
+            "/mjpeg" => fallback(),
+            p if p.starts_with("/data/") => self.file(&p[1..]).unwrap_or_else(Reply::not_found),
             "/state" => Reply::json(200, &lock(&shared.latest).status),
             "/control" => match parse_control(&req.query, self.q_max) {
                 Ok((q, speed)) => {
@@ -236,11 +290,7 @@ impl http::Handler for ViewHandler {
                 }
                 Err(e) => Reply::text(400, e),
             },
-            "/frame.jpg" => Reply::new(
-                200,
-                "image/jpeg",
-                Body::Shared(lock(&shared.latest).jpeg.clone()),
-            ),
+            "/frame.jpg" => Reply::new(200, "image/jpeg", Body::Shared(fresh_frame(shared))),
             "/stream.mjpg" => {
                 // Written straight to the socket and flushed per frame: a buffered body would
                 // hold back the last frame while playback is paused.
@@ -301,6 +351,13 @@ fn render_loop(
     let mut times: std::collections::VecDeque<Instant> = std::collections::VecDeque::new();
     let mut count = 0u64;
     loop {
+        if !shared.wanted() {
+            // Nobody watches the stream: the WebGL page renders in the browser. The next client
+            // gets a frame at once.
+            last = None;
+            std::thread::sleep(Duration::from_millis(20));
+            continue;
+        }
         let Control { q, speed } = *lock(&shared.control);
         let now = Instant::now();
         let playing = speed > 0.0;
@@ -377,6 +434,24 @@ fn render_loop(
     }
 }
 
+/// A frame rendered after this request (the renderer may have been idle), or after a second
+/// the latest there is.
+fn fresh_frame(shared: &Shared) -> Arc<Vec<u8>> {
+    shared.ask();
+    let mut l = lock(&shared.latest);
+    let seen = l.seq;
+    let deadline = Instant::now() + Duration::from_secs(1);
+    while (l.seq == seen || l.jpeg.is_empty()) && Instant::now() < deadline {
+        let left = deadline.saturating_duration_since(Instant::now());
+        l = shared
+            .fresh
+            .wait_timeout(l, left.max(Duration::from_millis(1)))
+            .unwrap_or_else(|e| e.into_inner())
+            .0;
+    }
+    l.jpeg.clone()
+}
+
 /// Serves one MJPEG client until it disconnects: every new frame becomes one part, each part ends
 /// with the next boundary, and while nothing new is rendered (paused) the current frame is
 /// repeated every 200 ms, because browsers display a part only when the following one arrives.
@@ -392,6 +467,7 @@ fn stream_mjpeg(shared: &Shared, out: &mut TcpStream) {
     }
     let mut seen = 0u64;
     loop {
+        shared.ask();
         // A new frame, or after 200 ms the current one again: browsers show a multipart part
         // only once the next one starts, so a paused picture must still be followed.
         let jpeg = {

@@ -30,6 +30,7 @@
 //! the table): tree.avi 5 views 45.5-47.9 dB at 1.02x its scene; a fixed CRF 12 with bilinear
 //! chroma was 41.3-43.8 dB at 0.72x, JPEG quality 92 43.4-46.0 dB at 2.6x.
 
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -166,6 +167,49 @@ pub struct ExportOptions {
     pub media: Media,
     /// The page's title (the scene's name).
     pub title: String,
+    /// Frames per second at speed 1, in (0, [`MAX_FPS`]] (None: the scene's source rate).
+    pub fps: Option<f64>,
+    /// The viewpoint the page opens at (None: the middle of the views).
+    pub start_q: Option<f64>,
+    /// Where the page sends a browser that cannot play it (no WebGL2, or no WebCodecs for
+    /// H.264 frames), relative to the page: `vt view`'s CPU-rendered stream. None: the page says
+    /// what is missing.
+    pub fallback: Option<String>,
+}
+
+/// Fastest frame rate a page plays at speed 1.
+pub const MAX_FPS: f64 = 240.0;
+
+impl ExportOptions {
+    /// Checks every setting against `scene` (the media's range, the frame rate, the starting
+    /// viewpoint, the renderer's own limits on crossfade and dissolve).
+    pub fn check(&self, scene: &LoadedScene) -> Result<()> {
+        self.media.check()?;
+        let bad = |name, value: f64, why: String| {
+            Err(Error::InvalidParameter {
+                name,
+                value: vt_io::output::num(value),
+                why,
+            })
+        };
+        if let Some(fps) = self.fps {
+            if !(fps.is_finite() && fps > 0.0 && fps <= MAX_FPS) {
+                return bad("fps", fps, format!("must be in (0, {MAX_FPS}]"));
+            }
+        }
+        if let Some(q) = self.start_q {
+            if scene.render.check_q(q).is_err() {
+                let (q_max, n) = (scene.render.q_max(), scene.render.views.len());
+                return bad(
+                    "q",
+                    q,
+                    format!("is outside [0, {q_max}] (the scene has {n} views)"),
+                );
+            }
+        }
+        vt_core::render::Renderer::new(scene.render.clone(), self.params)?;
+        Ok(())
+    }
 }
 
 impl Default for ExportOptions {
@@ -174,6 +218,9 @@ impl Default for ExportOptions {
             params: RenderParams::default(),
             media: Media::default(),
             title: "scene".into(),
+            fps: None,
+            start_q: None,
+            fallback: None,
         }
     }
 }
@@ -206,7 +253,7 @@ pub fn export(
     opts: &ExportOptions,
     progress: Progress<'_>,
 ) -> Result<ExportSummary> {
-    opts.media.check()?;
+    opts.check(scene)?;
     // Inside the scene the export would change the folder it reads (and its size).
     let parent = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -221,13 +268,63 @@ pub fn export(
             });
         }
     }
-    // The renderer's own checks of the parameters (crossfade and dissolve limits).
-    vt_core::render::Renderer::new(scene.render.clone(), opts.params)?;
     let output = Output::dir(out, OutputKind::WebExport, &[scene_dir])?;
     let root = output.path().to_path_buf();
-    let data = root.join("data");
-    std::fs::create_dir(&data).map_err(|e| vt_io::Error::io(&data, e))?;
-    let mut written = Written::default();
+    std::fs::create_dir(root.join("data")).map_err(|e| vt_io::Error::io(root.join("data"), e))?;
+    let summary = write_page(scene, opts, &mut Folder(root), progress)?;
+    output.commit()?;
+    Ok(summary)
+}
+
+/// The page for `scene` in memory, each file under its path in the page (`index.html`,
+/// `data/scene.js`, ...): what `vt view` serves on loopback, the same files [`export`] writes.
+pub fn page(
+    scene: &LoadedScene,
+    opts: &ExportOptions,
+    progress: Progress<'_>,
+) -> Result<(BTreeMap<String, Vec<u8>>, ExportSummary)> {
+    let mut files = BTreeMap::new();
+    let summary = write_page(scene, opts, &mut files, progress)?;
+    Ok((files, summary))
+}
+
+/// Where a page's files go: a folder ([`export`]) or memory ([`page`]).
+trait Sink {
+    /// Stores one file under its path in the page (`/`-separated).
+    fn put(&mut self, name: &str, bytes: Vec<u8>) -> Result<()>;
+}
+
+/// The folder being exported.
+struct Folder(PathBuf);
+
+impl Sink for Folder {
+    fn put(&mut self, name: &str, bytes: Vec<u8>) -> Result<()> {
+        let path = self.0.join(name);
+        std::fs::write(&path, bytes).map_err(|e| vt_io::Error::io(&path, e).into())
+    }
+}
+
+impl Sink for BTreeMap<String, Vec<u8>> {
+    fn put(&mut self, name: &str, bytes: Vec<u8>) -> Result<()> {
+        self.insert(name.to_string(), bytes);
+        Ok(())
+    }
+}
+
+/// Every file of the page for `scene` into `sink`.
+fn write_page(
+    scene: &LoadedScene,
+    opts: &ExportOptions,
+    sink: &mut dyn Sink,
+    progress: Progress<'_>,
+) -> Result<ExportSummary> {
+    opts.check(scene)?;
+    let mut written = Written {
+        sink,
+        bytes: 0,
+        files: 0,
+        object_bytes: 0,
+    };
     let render = &scene.render;
     let m = render.views.len();
     let (w, h) = (scene.file.width, scene.file.height);
@@ -240,14 +337,12 @@ pub fn export(
     for (p, view) in render.views.iter().enumerate() {
         let png = encode_png_rgb(&view.background, &format!("background of view {p}"))?;
         written.script(
-            &data,
             &format!("background_{p:03}.js"),
             &format!("vtPayload('background',{p},'{}');", base64(&png)),
         )?;
         if let Some(d) = &view.dynamic {
             let png = encode_png_gray(d, &format!("dynamic region of view {p}"))?;
             written.script(
-                &data,
                 &format!("dynamic_{p:03}.js"),
                 &format!("vtPayload('dynamic',{p},'{}');", base64(&png)),
             )?;
@@ -269,7 +364,7 @@ pub fn export(
             }
         };
         written.object_bytes += text.len() as u64;
-        written.script(&data, &format!("objects_{p:03}.js"), &text)?;
+        written.script(&format!("objects_{p:03}.js"), &text)?;
     }
 
     // Parallax fields of the morphed pairs.
@@ -285,7 +380,6 @@ pub fn export(
                     }
                 }
                 written.script(
-                    &data,
                     &format!("parallax_{p:03}.js"),
                     &format!("vtPayload('parallax',{p},'{}');", base64(&deflate(&raw))),
                 )?;
@@ -326,7 +420,10 @@ pub fn export(
         "title": opts.title,
         "width": w,
         "height": h,
-        "fps": scene.source_fps(120.0),
+        "fps": opts.fps.unwrap_or_else(|| scene.source_fps(120.0)),
+        "start_q": opts.start_q,
+        "fallback": opts.fallback,
+        "media": match opts.media { Media::H264 { .. } => "h264", Media::Jpeg { .. } => "jpeg" },
         "views": views,
         "parallax": parallax,
         "q_steps": Q_STEPS,
@@ -352,7 +449,6 @@ pub fn export(
         grid_bytes.extend_from_slice(&v.to_le_bytes());
     }
     written.script(
-        &data,
         "scene.js",
         &format!(
             "var vtScene={};vtScene.hinv='{}';",
@@ -364,14 +460,9 @@ pub fn export(
         "vert": VERTEX, "common": COMMON, "blend": BLEND, "morph": MORPH, "composite": COMPOSITE,
         "mix": MIX, "present": PRESENT,
     });
-    written.script(
-        &data,
-        "player.js",
-        &format!("var vtShaders={shaders};\n{PLAYER}"),
-    )?;
+    written.script("player.js", &format!("var vtShaders={shaders};\n{PLAYER}"))?;
     let page = PAGE.replace("__TITLE__", &html_escape(&opts.title));
-    written.file(&root.join("index.html"), page.as_bytes())?;
-    output.commit()?;
+    written.file("index.html", page.into_bytes())?;
     Ok(ExportSummary {
         bytes: written.bytes,
         files: written.files,
@@ -743,23 +834,23 @@ fn html_escape(s: &str) -> String {
 }
 
 /// Files written so far and their bytes.
-#[derive(Default)]
-struct Written {
+struct Written<'a> {
+    sink: &'a mut dyn Sink,
     bytes: u64,
     files: usize,
     object_bytes: u64,
 }
 
-impl Written {
-    fn file(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
-        std::fs::write(path, bytes).map_err(|e| vt_io::Error::io(path, e))?;
+impl Written<'_> {
+    fn file(&mut self, name: &str, bytes: Vec<u8>) -> Result<()> {
         self.bytes += bytes.len() as u64;
         self.files += 1;
-        Ok(())
+        self.sink.put(name, bytes)
     }
 
-    fn script(&mut self, dir: &Path, name: &str, text: &str) -> Result<()> {
-        self.file(&dir.join(name), text.as_bytes())
+    /// A script under `data/`.
+    fn script(&mut self, name: &str, text: &str) -> Result<()> {
+        self.file(&format!("data/{name}"), text.as_bytes().to_vec())
     }
 }
 

@@ -101,6 +101,15 @@
   canvas.width = W;
   canvas.height = H;
   const gl = canvas.getContext('webgl2', { antialias: false, depth: false, preserveDrawingBuffer: true });
+  // What this browser lacks to play the page: served by `vt view`, the page then opens the
+  // server's CPU-rendered stream instead (S.fallback); from disk it says what is missing.
+  const missing = !gl ? 'WebGL2' : S.media === 'h264' && typeof VideoDecoder === 'undefined' ? 'WebCodecs' : null;
+  if (missing && S.fallback) {
+    status.textContent = `this browser has no ${missing}: opening the CPU-rendered stream`;
+    window.vt = { error: null, fallback: missing };
+    location.replace(S.fallback);
+    return;
+  }
   if (!gl) {
     status.textContent = 'this browser has no WebGL2';
     window.vt = { error: 'no WebGL2' };
@@ -582,7 +591,7 @@
     document.getElementById('qval').textContent = live.q.toFixed(2);
     live.dirty = true;
   }
-  setQ(Number((qMax / 2).toFixed(2)));
+  setQ(S.start_q ?? Number((qMax / 2).toFixed(2)));
   qInput.addEventListener('input', () => setQ(parseFloat(qInput.value)));
   speedInput.addEventListener('input', () => {
     live.speed = parseFloat(speedInput.value);

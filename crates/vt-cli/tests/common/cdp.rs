@@ -53,6 +53,20 @@ pub fn chromium(profile: &Path) -> Option<Chromium> {
     chromium_with(profile, &["--headless", "--disable-gpu", "--disable-quic"])
 }
 
+/// Headless Chromium without WebGL (`--disable-3d-apis`): a browser the WebGL page cannot
+/// serve.
+pub fn chromium_without_webgl(profile: &Path) -> Option<Chromium> {
+    chromium_with(
+        profile,
+        &[
+            "--headless",
+            "--disable-gpu",
+            "--disable-3d-apis",
+            "--disable-quic",
+        ],
+    )
+}
+
 /// Headless Chromium with software WebGL2 (SwiftShader), for pages that draw with WebGL.
 pub fn chromium_webgl(profile: &Path) -> Option<Chromium> {
     chromium_with(
