@@ -268,6 +268,9 @@ impl<'a> Memo<'a> {
     /// Frames kept: a switch's fade reads at most six distinct frames a step (the shown frame,
     /// the old view's, and their neighbours'), and the next step's are new.
     const FRAMES: usize = 8;
+    /// Bytes kept at most (fewer frames when they are large: at 1080p a whole-frame patch is
+    /// 8 MB, and the analysis's peak memory is measured at the seams).
+    const BYTES: usize = 24 << 20;
 
     fn new(objects: &'a dyn ObjectFrames) -> Self {
         Self {
@@ -285,11 +288,16 @@ impl ObjectFrames for Memo<'_> {
             return Ok(());
         }
         self.objects.decode_into(view, frame, patch)?;
-        let mut slot = if kept.len() == Self::FRAMES {
-            kept.pop_front().expect("full").1
-        } else {
-            ObjectPatch::default()
-        };
+        let size = |p: &ObjectPatch| p.rgb.len() + p.mask.len();
+        let mut held: usize = kept.iter().map(|(_, p)| size(p)).sum();
+        let mut slot = ObjectPatch::default();
+        while !kept.is_empty() && (kept.len() == Self::FRAMES || held + size(patch) > Self::BYTES) {
+            slot = kept.pop_front().expect("not empty").1;
+            held -= size(&slot);
+        }
+        if size(patch) > Self::BYTES {
+            return Ok(());
+        }
         slot.clone_from(patch);
         kept.push_back(((view, frame), slot));
         Ok(())

@@ -35,6 +35,8 @@ pub(super) struct Queue {
     pub(super) failed: Option<(usize, &'static str)>,
     /// Set when the store is dropped, or by the thread when it ends.
     pub(super) stop: bool,
+    /// Decoders started so far.
+    pub(super) decoders: usize,
 }
 
 impl Queue {
@@ -75,7 +77,8 @@ struct Cursor {
 /// Decoders a store keeps: a player reads two runs of frames of one view at once during a
 /// switch fade at a fractional viewpoint (the view's own frames, and the ones it fills in for
 /// its neighbour with), and each run goes on from its own decoder instead of restarting its group
-/// whenever the other was read.
+/// whenever the other was read. The second starts only when runs are seen to interleave (a run
+/// comes back to where the other took its decoder from): at 1080p a decoder holds about 25 MB.
 const CURSORS: usize = 2;
 
 /// The decoding thread's own state: its decoders and where they stand.
@@ -86,6 +89,8 @@ pub(super) struct Worker {
     gop: usize,
     size: (usize, usize),
     cursors: [Cursor; CURSORS],
+    /// Where the last restarted decoder stood before (the frame it would have output next).
+    abandoned: Option<usize>,
     /// Runs of [`Worker::decode_to`] so far.
     runs: u64,
     unit: Vec<u8>,
@@ -120,6 +125,7 @@ impl Worker {
             gop,
             size,
             cursors: Default::default(),
+            abandoned: None,
             runs: 0,
             unit: Vec::new(),
         }
@@ -149,7 +155,9 @@ impl Worker {
     }
 
     /// Decodes frame `f` into the cache: on from where a decoder stands when that is in `f`'s
-    /// group at or before `f`, else from the group's start with the decoder used least recently.
+    /// group at or before `f`, else from the group's start with the started decoder used least
+    /// recently, or a new one when `f` lies past where the last restart took a decoder from in
+    /// its group (two runs interleave).
     /// Stops early when a caller comes to wait for a frame this run will not reach.
     fn decode_to(&mut self, f: usize) {
         let group_start = f - f % self.gop;
@@ -159,9 +167,16 @@ impl Worker {
         let (k, from) = match going {
             Some(k) => (k, self.cursors[k].next.expect("checked")),
             None => {
+                let interleaved = self
+                    .abandoned
+                    .is_some_and(|n| (group_start..=f).contains(&n));
+                let started = |k: &usize| self.cursors[*k].decoder.is_some();
+                let any_started = (0..CURSORS).any(|k| started(&k));
                 let k = (0..CURSORS)
+                    .filter(|k| interleaved || !any_started || started(k))
                     .min_by_key(|&k| self.cursors[k].used)
                     .expect("cursors");
+                self.abandoned = self.cursors[k].next;
                 (k, group_start)
             }
         };
@@ -238,6 +253,8 @@ impl Worker {
         let decoder = &mut self.cursors[k].decoder;
         if decoder.is_none() {
             *decoder = Some(openh264::decoder::Decoder::new().map_err(|_| "frame")?);
+            let mut q = self.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+            q.decoders += 1;
         }
         let dec = decoder.as_mut().expect("set above");
         let yuv = match dec.decode(unit) {

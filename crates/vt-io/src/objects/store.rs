@@ -480,6 +480,15 @@ impl ObjectStore {
 
     /// Asks the decoding thread for frame `i` (and the one after it), starting the thread on
     /// the first call.
+    /// Decoders the store's thread has started (a second only for interleaved runs).
+    #[cfg(test)]
+    pub(super) fn decoders_started(&self) -> usize {
+        self.codec.as_ref().map_or(0, |c| {
+            let q = c.shared.queue.lock().unwrap_or_else(|e| e.into_inner());
+            q.decoders
+        })
+    }
+
     fn request<'a>(&'a self, codec: &'a Decoding, i: usize) -> Result<Pending<'a>> {
         let mut worker = codec.worker.lock().unwrap_or_else(|e| e.into_inner());
         if worker.is_none() {

@@ -277,6 +277,41 @@ fn random_access_with(encoder: H264Encoder) {
 }
 
 #[test]
+fn a_second_decoder_starts_only_for_interleaved_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = moving_frames(48, 32, 40);
+    let path = dir.path().join("o.bin");
+    let mut writer = ObjectWriter::create_with_encoder(
+        &path,
+        48,
+        32,
+        StoreQuality::default(),
+        H264Encoder::OpenH264,
+    )
+    .unwrap();
+    for (m, raw) in &frames {
+        writer.push(m, raw).unwrap();
+    }
+    writer.finish().unwrap();
+    let read = |order: &[usize]| {
+        let store = ObjectStore::load(&path).unwrap();
+        let mut patch = vt_core::render::ObjectPatch::default();
+        for &i in order {
+            store.decode_into(i, &mut patch).unwrap();
+        }
+        store.decoders_started()
+    };
+    // In order, and forward jumps across groups (seams sampled along a loop): one decoder.
+    assert_eq!(read(&(0..40).collect::<Vec<_>>()), 1);
+    assert_eq!(read(&[1, 2, 10, 11, 20, 21, 33, 34, 5, 6]), 1);
+    // Two runs in two groups, read in turn (a switch fade's two runs of one view): the second
+    // run gets its own decoder instead of restarting its group at every frame.
+    let g = GOP as usize;
+    let turns: Vec<usize> = (1..g).flat_map(|k| [k, g + k]).collect();
+    assert_eq!(read(&turns), 2);
+}
+
+#[test]
 fn yuv_conversion_is_the_full_range_matrix() {
     // Every level within one of the exact matrix, rounded (corners of the cube included).
     let (w, h) = (10usize, 6usize);
