@@ -18,6 +18,8 @@ pub struct ExportJob {
     pub media: vt_web::Media,
     /// The render parameters the page plays with.
     pub params: RenderParams,
+    /// GPU memory the page's object frames may hold, MB.
+    pub gpu_mb: u32,
 }
 
 /// What [`export`] wrote.
@@ -48,6 +50,7 @@ pub fn export(job: &ExportJob, progress: &mut dyn Progress) -> Result<Exported> 
         params: job.params,
         media: job.media,
         title: title(&job.scene),
+        gpu_mb: job.gpu_mb,
         ..vt_web::ExportOptions::default()
     };
     progress.start("export", None);

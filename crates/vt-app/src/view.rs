@@ -22,6 +22,8 @@ pub struct ViewJob {
     pub quality: u8,
     /// The renderer's options.
     pub params: RenderParams,
+    /// GPU memory the page's object frames may hold, MB.
+    pub gpu_mb: u32,
 }
 
 /// Loads the scene at `scene`, binds the viewer (parameters checked by vt-view, which names
@@ -52,6 +54,7 @@ pub fn open(scene: &Path, job: &ViewJob, progress: &mut dyn Progress) -> Result<
         fps: Some(fps),
         start_q: Some(job.q),
         fallback: Some("mjpeg".into()),
+        gpu_mb: job.gpu_mb,
     };
     progress.start("page", None);
     let mut report = |done: usize, total: usize| progress.at(done as u64, Some(total as u64));

@@ -29,6 +29,10 @@ pub struct ExportArgs {
     /// JPEG quality with --media jpeg, 1-100.
     #[arg(long, default_value_t = vt_web::DEFAULT_QUALITY)]
     quality: u8,
+    /// GPU memory the page may hold decoded moving-object frames in, MB: frames are decoded
+    /// around what is shown and the least recently used dropped beyond this.
+    #[arg(long, default_value_t = vt_web::DEFAULT_GPU_MB)]
+    gpu_mb: u32,
     #[command(flatten)]
     options: RenderOptions,
 }
@@ -45,6 +49,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         out: args.out,
         media,
         params: args.options.params(),
+        gpu_mb: args.gpu_mb,
     };
     let done = vt_app::export::export(&job, &mut Bars::default()).map_err(flagged)?;
     let (summary, scene_bytes) = (&done.summary, done.scene_bytes);

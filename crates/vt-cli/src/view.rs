@@ -27,6 +27,10 @@ pub struct ViewArgs {
     /// JPEG quality of the page's moving-object frames and of the fallback stream (1-100).
     #[arg(long, default_value_t = vt_web::DEFAULT_QUALITY)]
     quality: u8,
+    /// GPU memory the page may hold decoded moving-object frames in, MB: frames are decoded
+    /// around what is shown and the least recently used dropped beyond this.
+    #[arg(long, default_value_t = vt_web::DEFAULT_GPU_MB)]
+    gpu_mb: u32,
     #[command(flatten)]
     options: RenderOptions,
 }
@@ -38,6 +42,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
         q: args.q,
         quality: args.quality,
         params: args.options.params(),
+        gpu_mb: args.gpu_mb,
     };
     let viewer = vt_app::view::open(&args.scene, &job, &mut Bars::default()).map_err(flagged)?;
     println!(

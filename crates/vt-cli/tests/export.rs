@@ -332,13 +332,22 @@ fn export_plays_from_disk_and_matches_vt() {
         dissolve: 2,
         ..RenderParams::default()
     };
-    let cases: [(&str, PathBuf, usize, &[&str], RenderParams); 4] = [
+    let tree = tree_scene(tmp.path());
+    let cases: [(&str, PathBuf, usize, &[&str], RenderParams); 5] = [
         ("demo", demo.clone(), 90, &[], RenderParams::default()),
         (
             "tree.avi 5 views",
-            tree_scene(tmp.path()),
+            tree.clone(),
             110,
             &[],
+            RenderParams::default(),
+        ),
+        (
+            // Frames dropped and decoded again all the time.
+            "tree.avi 5 views, 1 MB of GPU frames",
+            tree,
+            110,
+            &["--gpu-mb", "1"],
             RenderParams::default(),
         ),
         (
@@ -373,11 +382,25 @@ fn export_plays_from_disk_and_matches_vt() {
         }
         let psnrs = check_frames(&mut page, &scene_dir, params, n);
         let fps = page.eval("window.vt.bench(30)").as_f64().unwrap_or(0.0);
+        let st = state(&mut page);
+        let (peak, budget) = (
+            st["gpuPeak"].as_f64().unwrap(),
+            st["gpuBudget"].as_f64().unwrap(),
+        );
         eprintln!(
-            "{name}: export {:.2} MB, scene {:.2} MB; PSNR {:.1?} dB; {fps:.1} fps (software WebGL)",
+            "{name}: export {:.2} MB, scene {:.2} MB; PSNR {:.1?} dB; {fps:.1} fps (software WebGL); \
+             first frame {:.0} ms after opening; GPU frames at most {:.2} MB of {:.0}, {} decoded",
             bytes as f64 / 1e6,
             scene_bytes as f64 / 1e6,
-            psnrs
+            psnrs,
+            st["firstMs"].as_f64().unwrap_or(f64::NAN),
+            peak / 1e6,
+            budget / 1048576.0,
+            st["decoded"],
+        );
+        assert!(
+            peak > 0.0 && peak <= budget,
+            "{name}: GPU frames {peak} of {budget} bytes"
         );
         assert!(psnrs.iter().all(|&p| p >= 40.0), "{name}: PSNR {psnrs:?}");
         assert!(

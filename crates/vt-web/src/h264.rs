@@ -53,7 +53,7 @@ pub fn encode(
             "-crf",
             &crf.min(51).to_string(),
             "-x264-params",
-            "aud=1",
+            &format!("aud=1:keyint={g}:min-keyint={g}:scenecut=0", g = crate::H264_GROUP),
             "-colorspace",
             "smpte170m",
             "-color_primaries",

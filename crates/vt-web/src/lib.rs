@@ -17,6 +17,13 @@
 //! `H_(p,q)^-1` on a grid of [`Q_STEPS`] viewpoints per view interval (the page interpolates
 //! between grid points; at grid points it is vt's own homography).
 //!
+//! # Object frames on demand
+//! The page decodes an object frame when a render needs it (its JPEG, or the H.264 group of
+//! [`H264_GROUP`] frames that holds it), decodes the next frames and the neighbours' switch
+//! targets ahead, and keeps decoded frames as textures up to [`ExportOptions::gpu_mb`], dropping
+//! the least recently used: it starts playing once the first frame is decoded, and its GPU
+//! memory is bounded by the setting, not by the scene's length.
+//!
 //! # Media
 //! Backgrounds and dynamic-region alphas as vt's PNGs; masks bit-packed per frame box, all frames
 //! of a view deflated together; parallax fields as their per-pixel displacement (`i16`, 1/32 px),
@@ -171,11 +178,26 @@ pub struct ExportOptions {
     pub fps: Option<f64>,
     /// The viewpoint the page opens at (None: the middle of the views).
     pub start_q: Option<f64>,
+    /// GPU memory the page's object frames may hold, MB, at least [`MIN_GPU_MB`]: frames are
+    /// decoded when a render needs them (a JPEG each, or the H.264 group of [`H264_GROUP`]
+    /// frames that holds one) and the least recently used are dropped beyond this.
+    pub gpu_mb: u32,
     /// Where the page sends a browser that cannot play it (no WebGL2, or no WebCodecs for
     /// H.264 frames), relative to the page: `vt view`'s CPU-rendered stream. None: the page says
     /// what is missing.
     pub fallback: Option<String>,
 }
+
+/// Frames from one key frame to the next in the H.264 object streams: the page decodes a frame's
+/// whole group when it needs the frame, so this bounds the work of a jump (a loop wrap, a switch).
+pub const H264_GROUP: usize = 16;
+
+/// Default of [`ExportOptions::gpu_mb`].
+pub const DEFAULT_GPU_MB: u32 = 256;
+/// Least [`ExportOptions::gpu_mb`]: a few HD frames.
+pub const MIN_GPU_MB: u32 = 1;
+/// Most [`ExportOptions::gpu_mb`].
+pub const MAX_GPU_MB: u32 = 65536;
 
 /// Fastest frame rate a page plays at speed 1.
 pub const MAX_FPS: f64 = 240.0;
@@ -192,6 +214,13 @@ impl ExportOptions {
                 why,
             })
         };
+        if !(MIN_GPU_MB..=MAX_GPU_MB).contains(&self.gpu_mb) {
+            return bad(
+                "gpu-mb",
+                self.gpu_mb.into(),
+                format!("must be in {MIN_GPU_MB}..={MAX_GPU_MB}"),
+            );
+        }
         if let Some(fps) = self.fps {
             if !(fps.is_finite() && fps > 0.0 && fps <= MAX_FPS) {
                 return bad("fps", fps, format!("must be in (0, {MAX_FPS}]"));
@@ -220,6 +249,7 @@ impl Default for ExportOptions {
             title: "scene".into(),
             fps: None,
             start_q: None,
+            gpu_mb: DEFAULT_GPU_MB,
             fallback: None,
         }
     }
@@ -422,6 +452,7 @@ fn write_page(
         "height": h,
         "fps": opts.fps.unwrap_or_else(|| scene.source_fps(120.0)),
         "start_q": opts.start_q,
+        "gpu_bytes": u64::from(opts.gpu_mb) << 20,
         "fallback": opts.fallback,
         "media": match opts.media { Media::H264 { .. } => "h264", Media::Jpeg { .. } => "jpeg" },
         "views": views,
