@@ -61,10 +61,11 @@ pub fn run(args: ExportArgs) -> Result<()> {
         format!("H.264 at CRF {}", crfs.join(", "))
     };
     println!(
-        "exported {} frames of {} views to {} ({} files, {:.2} MB, {:.2} MB of it object frames \
+        "exported {} frames of {} view{} to {} ({} files, {:.2} MB, {:.2} MB of it object frames \
          ({media}); the scene is {:.2} MB, {:.2}x)",
         summary.frames,
         done.views,
+        if done.views == 1 { "" } else { "s" },
         job.out.join("index.html").display(),
         summary.files,
         mb(summary.bytes),

@@ -22,11 +22,13 @@
 //! [`H264_GROUP`] frames that holds it), decodes the next frames and the neighbours' switch
 //! targets ahead, and keeps decoded frames as textures up to [`ExportOptions::gpu_mb`], dropping
 //! the least recently used: it starts playing once the first frame is decoded, and its GPU
-//! memory is bounded by the setting, not by the scene's length.
+//! memory is bounded by the setting, not by the scene's length. A view's object payload is one
+//! small script (boxes, groups) and one script per group (its masks and pictures), loaded when a
+//! frame of the group is first needed, so opening the page reads none of the frames.
 //!
 //! # Media
-//! Backgrounds and dynamic-region alphas as vt's PNGs; masks bit-packed per frame box, all frames
-//! of a view deflated together; parallax fields as their per-pixel displacement (`i16`, 1/32 px),
+//! Backgrounds and dynamic-region alphas as vt's PNGs; masks bit-packed per frame box, the frames
+//! of a group deflated together; parallax fields as their per-pixel displacement (`i16`, 1/32 px),
 //! deflated. Object pixels ([`Media`]): by default one H.264 stream per view over the union of
 //! its boxes ([`h264`]) at, per view, the largest CRF whose decoded object pixels keep
 //! [`TARGET_DB`] against the scene's, decoded by the browser's WebCodecs into I420 planes that
@@ -379,22 +381,21 @@ fn write_page(
         }
         let n = view.to_next.len();
         frames_per_view.push(n);
-        let text = match opts.media {
+        let objects = match opts.media {
             Media::Jpeg { quality } => objects_jpeg(scene, p, n, quality, &mut |_| {
                 done += 1;
                 progress(done, total)
             })?,
             Media::H264 { crf } => {
-                let (text, used) = objects_h264(scene, p, n, crf, &mut |_| {
+                let (objects, used) = objects_h264(scene, p, n, crf, &mut |_| {
                     done += 1;
                     progress(done, total)
                 })?;
                 crfs.extend(used);
-                text
+                objects
             }
         };
-        written.object_bytes += text.len() as u64;
-        written.script(&format!("objects_{p:03}.js"), &text)?;
+        objects.write(p, &mut written)?;
     }
 
     // Parallax fields of the morphed pairs.
@@ -539,6 +540,64 @@ fn each_frame(
     Ok(())
 }
 
+/// A view's object frames as the page loads them: `objects_PPP.js` with the boxes, the groups and
+/// how the pictures are coded, and per group `objects_PPP_GGGG.js` with its frames' masks
+/// (bit-packed, each frame from a byte, deflated) and pictures, loaded when a frame of the group
+/// is first needed.
+struct Objects {
+    boxes: Vec<[u32; 4]>,
+    /// Per frame, bit-packed.
+    masks: Vec<Vec<u8>>,
+    /// Per frame: a JPEG (empty where the frame has no object pixel) or an H.264 access unit.
+    pictures: Vec<Vec<u8>>,
+    /// The H.264 stream's codec string, union box and coded size; None for JPEG.
+    video: Option<serde_json::Value>,
+    /// First frame of each group (0 first): the H.264 key frames, or every [`H264_GROUP`]
+    /// frames for JPEG.
+    groups: Vec<usize>,
+}
+
+impl Objects {
+    fn write(&self, p: usize, written: &mut Written<'_>) -> Result<()> {
+        let head = format!(
+            "vtPayload('objects',{p},{});",
+            serde_json::json!({
+                "boxes": self.boxes,
+                "groups": self.groups,
+                "video": self.video,
+            })
+        );
+        written.object_bytes += head.len() as u64;
+        written.script(&format!("objects_{p:03}.js"), &head)?;
+        let n = self.boxes.len();
+        for (g, &start) in self.groups.iter().enumerate() {
+            let end = self.groups.get(g + 1).copied().unwrap_or(n);
+            let masks: Vec<u8> = self.masks[start..end].concat();
+            let mut text = format!(
+                "vtPayload('group','{p},{g}',{{masks:'{}',pictures:[",
+                base64(&deflate(&masks))
+            );
+            push_base64_list(&mut text, self.pictures[start..end].iter());
+            text.push_str("]});");
+            written.object_bytes += text.len() as u64;
+            written.script(&format!("objects_{p:03}_{g:04}.js"), &text)?;
+        }
+        Ok(())
+    }
+}
+
+/// Every [`H264_GROUP`] frames of `n`.
+fn fixed_groups(n: usize) -> Vec<usize> {
+    (0..n.max(1)).step_by(H264_GROUP).collect()
+}
+
+/// A frame's mask bit-packed.
+fn packed(mask: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(mask.len().div_ceil(8));
+    pack_bits(mask, &mut out);
+    out
+}
+
 /// View `p`'s object payload with one JPEG per frame's box.
 fn objects_jpeg(
     scene: &LoadedScene,
@@ -546,11 +605,11 @@ fn objects_jpeg(
     n: usize,
     quality: u8,
     tick: &mut dyn FnMut(usize),
-) -> Result<String> {
+) -> Result<Objects> {
     let background = &scene.render.views[p].background;
     let mut boxes = Vec::with_capacity(n);
     let mut jpegs = Vec::with_capacity(n);
-    let mut masks = Vec::new();
+    let mut masks = Vec::with_capacity(n);
     // Frames in chunks: decoded in order, encoded in parallel.
     const CHUNK: usize = 16;
     let mut patches = Vec::with_capacity(CHUNK);
@@ -563,7 +622,7 @@ fn objects_jpeg(
         for ((i, pt), jpeg) in patches.drain(..).zip(encoded) {
             boxes.push([pt.x0, pt.y0, pt.width, pt.height]);
             jpegs.push(jpeg?);
-            pack_bits(&pt.mask, &mut masks);
+            masks.push(packed(&pt.mask));
             tick(i);
         }
         Ok(())
@@ -576,14 +635,13 @@ fn objects_jpeg(
         Ok(())
     })?;
     flush(&mut patches)?;
-    let mut text = format!(
-        "vtPayload('objects',{p},{{boxes:{},masks:'{}',jpeg:[",
-        serde_json::json!(boxes),
-        base64(&deflate(&masks))
-    );
-    push_base64_list(&mut text, jpegs.iter());
-    text.push_str("]});");
-    Ok(text)
+    Ok(Objects {
+        boxes,
+        masks,
+        pictures: jpegs,
+        video: None,
+        groups: fixed_groups(n),
+    })
 }
 
 /// View `p`'s object payload as one H.264 stream over the union of its frames' boxes
@@ -594,31 +652,31 @@ fn objects_h264(
     n: usize,
     crf: Option<u8>,
     tick: &mut dyn FnMut(usize),
-) -> Result<(String, Option<u8>)> {
+) -> Result<(Objects, Option<u8>)> {
     let background = &scene.render.views[p].background;
     // Pass 1: boxes, masks and their union.
     let mut boxes = Vec::with_capacity(n);
-    let mut masks = Vec::new();
+    let mut masks = Vec::with_capacity(n);
     let (mut lo, mut hi) = ([u32::MAX; 2], [0u32; 2]);
     each_frame(scene, p, n, &mut |_, pt| {
         boxes.push([pt.x0, pt.y0, pt.width, pt.height]);
-        pack_bits(&pt.mask, &mut masks);
+        masks.push(packed(&pt.mask));
         if pt.width > 0 && pt.height > 0 {
             lo = [lo[0].min(pt.x0), lo[1].min(pt.y0)];
             hi = [hi[0].max(pt.x0 + pt.width), hi[1].max(pt.y0 + pt.height)];
         }
         Ok(())
     })?;
-    let masks = base64(&deflate(&masks));
     if hi[0] <= lo[0] || hi[1] <= lo[1] {
         (0..n).for_each(&mut *tick);
-        return Ok((
-            format!(
-                "vtPayload('objects',{p},{{boxes:{},masks:'{masks}',video:null}});",
-                serde_json::json!(boxes)
-            ),
-            None,
-        ));
+        let objects = Objects {
+            boxes,
+            masks,
+            pictures: vec![Vec::new(); n],
+            video: None,
+            groups: fixed_groups(n),
+        };
+        return Ok((objects, None));
     }
     // Pass 2: each frame over the union box, the background where it has no object pixel.
     // From even coordinates: the store's 4:2:0 chroma blocks stay the video's blocks.
@@ -679,17 +737,28 @@ fn objects_h264(
         }
     };
     (0..n).for_each(&mut *tick);
-    let mut text = format!(
-        "vtPayload('objects',{p},{{boxes:{},masks:'{masks}',video:{{codec:'{}',x0:{ux},y0:{uy},width:{},height:{},key:{},units:[",
-        serde_json::json!(boxes),
-        stream.codec,
-        uw + uw % 2,
-        uh + uh % 2,
-        serde_json::json!(stream.key),
-    );
-    push_base64_list(&mut text, stream.units.iter());
-    text.push_str("]}});");
-    Ok((text, Some(chosen)))
+    let groups: Vec<usize> = (0..n).filter(|&i| stream.key[i]).collect();
+    if groups.first() != Some(&0) {
+        return Err(Error::Encode {
+            what,
+            message: "the stream does not start with a key frame".into(),
+        });
+    }
+    let video = serde_json::json!({
+        "codec": stream.codec,
+        "x0": ux,
+        "y0": uy,
+        "width": uw + uw % 2,
+        "height": uh + uh % 2,
+    });
+    let objects = Objects {
+        boxes,
+        masks,
+        pictures: stream.units,
+        video: Some(video),
+        groups,
+    };
+    Ok((objects, Some(chosen)))
 }
 
 /// PSNR of the stream's decoded frames against the store's over every object pixel, dB.

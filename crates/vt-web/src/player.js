@@ -11,7 +11,7 @@
   const P = S.params;
   const qMax = M - 1;
   const status = document.getElementById('status');
-  const payloads = { background: [], dynamic: [], objects: [], parallax: [] };
+  const payloads = { background: [], dynamic: [], objects: [], parallax: [], group: {} };
   window.vtPayload = (kind, index, data) => { payloads[kind][index] = data; };
 
   // ---- eq. (6): the player ---------------------------------------------------------------
@@ -517,19 +517,11 @@
         };
       }
       const obj = payloads.objects[p];
-      const bits = await inflate(bytes(obj.masks));
-      // Each frame's first mask bit (rows of a box are packed together, each frame to a byte).
-      const offsets = [];
-      let bit = 0;
-      for (const [, , bw, bh] of obj.boxes) {
-        offsets.push(bit);
-        bit += Math.ceil((bw * bh) / 8) * 8;
-      }
       if (obj.video && typeof VideoDecoder === 'undefined') {
         throw new Error('this browser cannot decode the H.264 frames (no WebCodecs); export with --media jpeg');
       }
       tex.boxes[p] = obj.boxes;
-      sources[p] = { bits, offsets, jpeg: obj.jpeg || null, video: obj.video || null };
+      sources[p] = { groups: obj.groups, video: obj.video, loaded: [] };
       if (obj.video) {
         tex.video[p] = true;
         tex.origin[p] = [obj.video.x0, obj.video.y0];
@@ -557,35 +549,59 @@
       if (e) e.used = ++this.clock;
       return e;
     },
-    // Loads every [view, frame] of `list` (and what comes with them), then drops the least
-    // recently used others down to the budget.
+    // Frames the last render asked for: never dropped until the next render asks for others.
+    pinned: new Set(),
+    // Marks the frames of `list` used now and pins them.
+    pin(list) {
+      this.pinned = new Set(list.map(([p, f]) => this.key(p, f)));
+      list.forEach(([p, f]) => this.get(p, f));
+    },
+    // Loads every [view, frame] of `list` (and what comes with them) and pins them; the least
+    // recently used others are dropped down to the budget.
     async ensure(list) {
-      const keep = new Set(list.map(([p, f]) => this.key(p, f)));
+      this.pinned = new Set(list.map(([p, f]) => this.key(p, f)));
       for (;;) {
         const missing = list.filter(([p, f]) => !this.entries.has(this.key(p, f)));
         if (missing.length === 0) break;
-        await Promise.all(missing.map(([p, f]) => this.load(p, f, keep)));
+        // On as soon as a frame arrives: an H.264 group goes on decoding its later frames.
+        await Promise.race([Promise.all(missing.map(([p, f]) => this.load(p, f))), this.stored()]);
       }
-      list.forEach(([p, f]) => this.get(p, f));
-      this.trim(keep);
+      this.pin(list);
+      this.trim();
+    },
+    // Starts loading the frames of `list` not held yet, pinning none: a prefetched frame stays
+    // only while the budget has room for it beside the pinned ones.
+    prefetch(list) {
+      for (const [p, f] of list) {
+        if (!this.entries.has(this.key(p, f))) this.load(p, f).catch(failed);
+      }
     },
     ready(list) {
       return list.every(([p, f]) => this.entries.has(this.key(p, f)));
     },
-    load(p, f, keep) {
+    // Starts loading frame f of view p (with the rest of its H.264 group); resolves when done.
+    load(p, f) {
       const src = sources[p];
-      const start = src.video ? groupStart(src.video, f) : f;
-      const k = this.key(p, start);
+      const g = groupOf(src, f);
+      const k = this.key(p, src.video ? src.groups[g] : f);
       let pending = this.loading.get(k);
       if (!pending) {
-        pending = (src.video ? decodeGroup(p, start) : decodeJpeg(p, f)).then((got) => {
-          for (const [g, pic] of got) this.store(p, g, pic, keep);
-        }).finally(() => this.loading.delete(k));
+        const store = (i, pic) => this.store(p, i, pic);
+        pending = groupData(p, g)
+          .then((data) => (src.video ? decodeGroup(p, g, data, store) : decodeJpeg(p, f, data, store)))
+          .finally(() => this.loading.delete(k));
         this.loading.set(k, pending);
       }
       return pending;
     },
-    store(p, f, pic, keep) {
+    // A promise resolved when the next frame is stored.
+    stored() {
+      if (!this.signal) {
+        this.signal = new Promise((resolve) => { this.wake = resolve; });
+      }
+      return this.signal;
+    },
+    store(p, f, pic) {
       const k = this.key(p, f);
       if (this.entries.has(k)) {
         release(pic);
@@ -593,8 +609,10 @@
       }
       const [, , bw, bh] = tex.boxes[p][f];
       const n = bw * bh;
-      const bits = sources[p].bits;
-      const off = sources[p].offsets[f];
+      const src = sources[p];
+      const group = src.loaded[groupOf(src, f)];
+      const bits = group.bits;
+      const off = group.offsets[f - group.start];
       const m = new Uint8Array(n);
       for (let i = 0; i < n; i++) m[i] = (bits[(off + i) >> 3] >> ((off + i) & 7)) & 1 ? 255 : 0;
       const mask = n > 0 ? texture(gl.R8, bw, bh, gl.RED, gl.UNSIGNED_BYTE, m) : null;
@@ -602,11 +620,17 @@
       this.entries.set(k, { pic: pic || {}, mask, bytes, used: ++this.clock });
       this.used += bytes;
       this.decoded += 1;
-      this.trim(keep);
+      this.trim();
+      if (this.wake) {
+        const wake = this.wake;
+        this.signal = null;
+        this.wake = null;
+        wake();
+      }
     },
-    trim(keep) {
+    trim() {
       if (this.used > S.gpu_bytes) {
-        const order = [...this.entries].filter(([k]) => !keep.has(k)).sort((a, b) => a[1].used - b[1].used);
+        const order = [...this.entries].filter(([k]) => !this.pinned.has(k)).sort((a, b) => a[1].used - b[1].used);
         for (const [k, e] of order) {
           if (this.used <= S.gpu_bytes) break;
           release(e.pic);
@@ -624,57 +648,90 @@
     for (const t of [pic.rgb, pic.y, pic.u, pic.v]) if (t) gl.deleteTexture(t);
   }
 
-  // The key frame at or before `f`.
-  function groupStart(video, f) {
-    let g = f;
-    while (g > 0 && !video.key[g]) g -= 1;
-    return g;
+  // The group of view `src` that holds frame f.
+  function groupOf(src, f) {
+    const gs = src.groups;
+    let lo = 0;
+    let hi = gs.length - 1;
+    while (lo < hi) {
+      const mid = (lo + hi + 1) >> 1;
+      if (gs[mid] <= f) lo = mid;
+      else hi = mid - 1;
+    }
+    return lo;
   }
 
-  async function decodeJpeg(p, f) {
-    const j = sources[p].jpeg[f];
-    if (!j || !j.length) return [[f, null]];
+  // Group g of view p's object frames: its script loaded (once) and its masks inflated,
+  // { start, bits, offsets (each frame's first bit), pictures (base64) }.
+  function groupData(p, g) {
+    const src = sources[p];
+    if (!src.loaded[g]) {
+      const name = 'objects_' + pad(p) + '_' + String(g).padStart(4, '0');
+      src.loaded[g] = loadScript('data/' + name + '.js').then(async () => {
+        const id = p + ',' + g;
+        const data = payloads.group[id];
+        delete payloads.group[id];
+        if (!data) throw new Error(`data/${name}.js holds no frames`);
+        const start = src.groups[g];
+        const end = g + 1 < src.groups.length ? src.groups[g + 1] : tex.boxes[p].length;
+        const offsets = [];
+        let bit = 0;
+        for (let f = start; f < end; f++) {
+          const [, , bw, bh] = tex.boxes[p][f];
+          offsets.push(bit);
+          bit += Math.ceil((bw * bh) / 8) * 8;
+        }
+        const group = { start, bits: await inflate(bytes(data.masks)), offsets, pictures: data.pictures };
+        src.loaded[g] = group;
+        return group;
+      });
+    }
+    return Promise.resolve(src.loaded[g]);
+  }
+
+  async function decodeJpeg(p, f, group, store) {
+    const j = group.pictures[f - group.start];
+    if (!j || !j.length) {
+      store(f, null);
+      return;
+    }
     const b = await bitmap(bytes(j), 'image/jpeg');
     const [, , bw, bh] = tex.boxes[p][f];
     const t = texture(gl.RGBA8, 0, 0, gl.RGBA, gl.UNSIGNED_BYTE, b);
     b.close();
-    return [[f, { rgb: t, bytes: 4 * bw * bh }]];
+    store(f, { rgb: t, bytes: 4 * bw * bh });
   }
 
-  // The frames of view p's H.264 group that starts at key frame `start` (WebCodecs), each
-  // uploaded to textures as it comes.
-  async function decodeGroup(p, start) {
+  // The frames of view p's H.264 group g (WebCodecs), each stored as it comes.
+  async function decodeGroup(p, g, group, store) {
     const video = sources[p].video;
-    let end = start + 1;
-    while (end < video.units.length && !video.key[end]) end += 1;
-    const got = [];
+    const units = group.pictures;
+    let out = 0;
     let failed = null;
     let chain = Promise.resolve();
     const decoder = new VideoDecoder({
       output: (frame) => {
-        const i = start + got.length;
-        got.push([i, null]);
-        const slot = got.length - 1;
+        const i = group.start + out;
+        out += 1;
         chain = chain.then(() => planes(frame)).then((t) => {
-          if (t.size) t.bytes = Math.round(t.size[0] * t.size[1] * 1.5);
-          else t.bytes = 4 * video.width * video.height;
-          got[slot][1] = t;
+          t.bytes = t.size ? Math.round(t.size[0] * t.size[1] * 1.5) : 4 * video.width * video.height;
+          store(i, t);
         }, (e) => { failed = e; });
       },
       error: (e) => { failed = e; },
     });
     decoder.configure({ codec: video.codec, codedWidth: video.width, codedHeight: video.height, optimizeForLatency: true });
-    for (let i = start; i < end; i++) {
-      decoder.decode(new EncodedVideoChunk({ type: video.key[i] ? 'key' : 'delta', timestamp: i * 40000, data: bytes(video.units[i]) }));
-    }
+    units.forEach((u, k) => {
+      const i = group.start + k;
+      decoder.decode(new EncodedVideoChunk({ type: k === 0 ? 'key' : 'delta', timestamp: i * 40000, data: bytes(u) }));
+    });
     await decoder.flush();
     await chain;
     decoder.close();
     if (failed) throw failed;
-    if (got.length !== end - start) {
-      throw new Error(`view ${p}: ${got.length} of ${end - start} frames of the group at ${start} decoded`);
+    if (out !== units.length) {
+      throw new Error(`view ${p}: ${out} of ${units.length} frames of group ${g} decoded`);
     }
-    return got;
   }
 
   // Frames the live page will want soon: the shown view's next frames and where a switch to a
@@ -715,6 +772,7 @@
     waiting: false,
     redo: false,
     held: false,
+    loadedMs: null,
     firstMs: null,
   };
 
@@ -774,7 +832,7 @@
       }, failed);
       return false;
     }
-    need.forEach(([p, f]) => frames.get(p, f));
+    frames.pin(need);
     const t = live.renderer.render(live.q, live.choice);
     present(t);
     sync();
@@ -782,8 +840,7 @@
     live.renderMs = performance.now() - t0;
     live.drawn += 1;
     live.fpsCount += 1;
-    const soon = upcoming(live.choice).filter(([p, f]) => !frames.entries.has(frames.key(p, f)));
-    if (soon.length) frames.ensure(need.concat(soon)).catch(failed);
+    frames.prefetch(upcoming(live.choice));
     return true;
   }
 
@@ -849,7 +906,8 @@
       switches: live.player.switches,
       fps: live.fps,
       renderMs: live.renderMs,
-      // Milliseconds from opening the page to its first frame drawn.
+      // Milliseconds from opening the page to its assets loaded and to its first frame drawn.
+      loadedMs: live.loadedMs,
       firstMs: live.firstMs,
       // Bytes of object frames held on the GPU now and at most, the budget, frames decoded.
       gpuBytes: frames.used,
@@ -908,6 +966,7 @@
 
   load().then(() => {
     window.vt.loaded = true;
+    live.loadedMs = performance.now();
     requestAnimationFrame(tick);
   }).catch(failed);
 })();
