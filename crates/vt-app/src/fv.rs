@@ -661,3 +661,112 @@ pub fn eval(job: &EvalJob, progress: &mut dyn Progress) -> Result<Evaluated> {
         describe: view.describe(),
     })
 }
+
+/// Preset views of a page: this many around the cameras' ring (`angle:DEG`, evenly spaced
+/// from the first camera).
+pub const PAGE_VIEWS: usize = 8;
+
+/// `vt fv export`'s job: the model and the photos as a page that renders new views live.
+#[derive(Debug, Clone)]
+pub struct FvExportJob {
+    /// The data and the model.
+    pub data: FvData,
+    /// How the page textures its views (the references; the rest as `vt fv render`'s default).
+    pub view: ViewOptions,
+    /// The output folder (index.html and data/); must not exist.
+    pub out: PathBuf,
+}
+
+/// What [`fv_export`] wrote.
+pub struct FvExported {
+    /// Where the model came from.
+    pub model_line: String,
+    /// The page's files and bytes.
+    pub summary: vt_web::fv::FvSummary,
+    /// The preset views' camera specs (`vt fv render --camera`'s spelling), in order.
+    pub views: Vec<String>,
+}
+
+/// The page's parts: the data loaded, the model, the preset views.
+fn page_parts(
+    data: &FvData,
+    progress: &mut dyn Progress,
+) -> Result<(Dataset, ModelUsed, Vec<vt_fv::camera::Camera>, Vec<String>)> {
+    let d = data.load(progress)?;
+    let used = model_for(data, &d, progress)?;
+    whole(&used, data)?;
+    let centre = model_centre(&used.model);
+    let bounds = used.model.grid.bounds();
+    let specs: Vec<String> = (0..PAGE_VIEWS)
+        .map(|i| format!("angle:{}", 360.0 * i as f64 / PAGE_VIEWS as f64))
+        .collect();
+    let views = specs
+        .iter()
+        .map(|s| {
+            d.camera(s, data.options.scale, &centre, &bounds)
+                .map_err(|e| Error::Field {
+                    name: "camera",
+                    cause: Box::new(e.into()),
+                })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok((d, used, views, specs))
+}
+
+/// The page's model description over loaded parts.
+fn page_model<'a>(
+    d: &'a Dataset,
+    used: &'a ModelUsed,
+    views: &'a [vt_fv::camera::Camera],
+    texture: &'a vt_fv::texture::TextureParams,
+    title: &'a str,
+) -> vt_web::fv::FvModel<'a> {
+    vt_web::fv::FvModel {
+        cams: &d.cams,
+        images: &d.images,
+        model: &used.model,
+        views,
+        background: d.background,
+        texture,
+        title,
+    }
+}
+
+/// Writes the page for the data folder's model into `job.out`.
+pub fn fv_export(job: &FvExportJob, progress: &mut dyn Progress) -> Result<FvExported> {
+    job.data.check()?;
+    let inputs = job.data.inputs();
+    // Checked before any work (nothing is created yet).
+    drop(Output::dir(&job.out, OutputKind::WebExport, &inputs)?);
+    let (d, used, views, specs) = page_parts(&job.data, progress)?;
+    let (w, h) = d.size();
+    let params = job.view.params(w, h)?;
+    let title = crate::export::title(&job.data.data);
+    progress.start("page", None);
+    let summary = vt_web::fv::fv_export(
+        &page_model(&d, &used, &views, &params.texture, &title),
+        &job.out,
+        &inputs,
+    )?;
+    progress.finish();
+    Ok(FvExported {
+        model_line: used.line,
+        summary,
+        views: specs,
+    })
+}
+
+/// The page for the data folder's model in memory (`vt fv view`), with the model's line.
+pub fn fv_page(
+    data: &FvData,
+    view: &ViewOptions,
+    progress: &mut dyn Progress,
+) -> Result<(std::collections::BTreeMap<String, Vec<u8>>, String)> {
+    data.check()?;
+    let (d, used, views, _) = page_parts(data, progress)?;
+    let (w, h) = d.size();
+    let params = view.params(w, h)?;
+    let title = crate::export::title(&data.data);
+    let (files, _) = vt_web::fv::fv_page(&page_model(&d, &used, &views, &params.texture, &title))?;
+    Ok((files, used.line))
+}

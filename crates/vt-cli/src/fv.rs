@@ -33,6 +33,94 @@ pub enum FvCommand {
     Orbit(OrbitArgs),
     /// Leave one view out: rebuild without it, make it by --method, and score it and the baselines.
     Eval(EvalArgs),
+    /// A static page (open DIR/index.html from disk, no server) where you turn around the object
+    /// and zoom, rendered live in WebGL2 as `vt fv render` textures its views.
+    Export(PageExportArgs),
+    /// Serve the `vt fv export` page on 127.0.0.1 (built in memory; nothing is written).
+    View(PageViewArgs),
+}
+
+/// `vt fv export`.
+#[derive(Args)]
+pub struct PageExportArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    #[command(flatten)]
+    from: ModelFileArgs,
+    /// Reference photos blended per pixel (nearest by direction), as `vt fv render --references`.
+    #[arg(long, default_value_t = 2)]
+    references: usize,
+    /// Output folder (index.html and data/); must not exist. Written to a temporary folder and
+    /// renamed.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// `vt fv view`.
+#[derive(Args)]
+pub struct PageViewArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    #[command(flatten)]
+    from: ModelFileArgs,
+    /// Reference photos blended per pixel (nearest by direction), as `vt fv render --references`.
+    #[arg(long, default_value_t = 2)]
+    references: usize,
+    /// Port on 127.0.0.1 (0 = any free port; the URL is printed).
+    #[arg(long, default_value_t = 8080)]
+    port: u16,
+}
+
+/// The page's view settings: `vt fv render`'s textured default with `references`.
+fn page_view(references: usize) -> ViewOptions {
+    ViewOptions {
+        method: Method::Textured,
+        patch: 7,
+        exact: false,
+        refine: false,
+        references,
+    }
+}
+
+fn page_export(a: PageExportArgs) -> Result<()> {
+    let job = vt_app::fv::FvExportJob {
+        data: a.data.data(&a.model, Some(&a.from)),
+        view: page_view(a.references),
+        out: a.out.clone(),
+    };
+    let done = vt_app::fv::fv_export(&job, &mut Bars::default())?;
+    println!("{}", done.model_line);
+    let s = done.summary;
+    println!(
+        "wrote {} ({} files, {:.2} MB; {} surface voxels); its views 1-{} are `vt fv render --camera` {}",
+        a.out.join("index.html").display(),
+        s.files,
+        s.bytes as f64 / 1e6,
+        s.voxels,
+        done.views.len(),
+        done.views.join(", ")
+    );
+    Ok(())
+}
+
+fn page_view_serve(a: PageViewArgs) -> Result<()> {
+    let data = a.data.data(&a.model, Some(&a.from));
+    let (files, line) = vt_app::fv::fv_page(&data, &page_view(a.references), &mut Bars::default())?;
+    let server = vt_view::PageServer::bind(a.port, files).map_err(vt_app::Error::from)?;
+    eprintln!("{line}");
+    println!(
+        "vt fv view: serving {} at http://127.0.0.1:{}/ (Ctrl-C to stop)",
+        a.data.data.display(),
+        server.port()
+    );
+    std::io::Write::flush(&mut std::io::stdout()).ok();
+    vt_io::output::interrupt_means_stop();
+    server.serve();
+    Ok(())
 }
 
 /// Where the photos, cameras and silhouettes come from.
@@ -297,6 +385,8 @@ pub fn run(cmd: FvCommand) -> Result<()> {
         FvCommand::Render(a) => render(a),
         FvCommand::Orbit(a) => orbit(a),
         FvCommand::Eval(a) => eval(a),
+        FvCommand::Export(a) => page_export(a),
+        FvCommand::View(a) => page_view_serve(a),
     }
     .map_err(|e| match e.downcast::<vt_app::Error>() {
         Ok(e) => flagged(e),

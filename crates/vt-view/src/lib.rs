@@ -251,13 +251,83 @@ struct ViewHandler {
 impl ViewHandler {
     /// One of the WebGL page's files.
     fn file(&self, name: &str) -> Option<Reply> {
-        let bytes = self.files.get(name)?.clone();
-        let kind = match name.rsplit_once('.').map(|(_, e)| e) {
-            Some("html") => "text/html; charset=utf-8",
-            Some("js") => "text/javascript; charset=utf-8",
-            _ => "application/octet-stream",
+        page_file(&self.files, name)
+    }
+}
+
+/// A page's file by its exact path, with its content type.
+fn page_file(files: &BTreeMap<String, Arc<Vec<u8>>>, name: &str) -> Option<Reply> {
+    let bytes = files.get(name)?.clone();
+    let kind = match name.rsplit_once('.').map(|(_, e)| e) {
+        Some("html") => "text/html; charset=utf-8",
+        Some("js") => "text/javascript; charset=utf-8",
+        _ => "application/octet-stream",
+    };
+    Some(Reply::new(200, kind, Body::Shared(bytes)))
+}
+
+/// A static page served on 127.0.0.1 (`vt fv view`): `GET /` is its `index.html`, `GET
+/// /data/NAME` its files by exact name, everything else 404. Every request must name this
+/// server in `Host` (`127.0.0.1:PORT` or `localhost:PORT`; else 403), against DNS rebinding.
+pub struct PageServer {
+    listener: TcpListener,
+    port: u16,
+    files: Arc<BTreeMap<String, Arc<Vec<u8>>>>,
+}
+
+impl PageServer {
+    /// Binds 127.0.0.1:`port` (0 = any free port) for the page's `files` (by path).
+    pub fn bind(port: u16, files: BTreeMap<String, Vec<u8>>) -> Result<Self> {
+        let (listener, port) = http::bind(port)?;
+        let files = Arc::new(files.into_iter().map(|(k, v)| (k, Arc::new(v))).collect());
+        Ok(Self {
+            listener,
+            port,
+            files,
+        })
+    }
+
+    /// The port it listens on.
+    pub fn port(&self) -> u16 {
+        self.port
+    }
+
+    /// Serves connections until the process ends.
+    pub fn serve(self) {
+        let limits = http::Limits {
+            max_body: 0,
+            stack: 256 << 10,
         };
-        Some(Reply::new(200, kind, Body::Shared(bytes)))
+        let hosts = [
+            format!("127.0.0.1:{}", self.port),
+            format!("localhost:{}", self.port),
+        ];
+        let handler = PageHandler {
+            files: self.files,
+            hosts,
+        };
+        http::serve(self.listener, limits, Arc::new(handler));
+    }
+}
+
+struct PageHandler {
+    files: Arc<BTreeMap<String, Arc<Vec<u8>>>>,
+    hosts: [String; 2],
+}
+
+impl http::Handler for PageHandler {
+    fn handle(&self, req: &http::Request, _conn: &mut TcpStream) -> Reply {
+        if !req.host.as_ref().is_some_and(|h| self.hosts.contains(h)) {
+            let want = &self.hosts[0];
+            return Reply::text(403, format!("only pages from {want} may use this server"));
+        }
+        match req.path.as_str() {
+            "/" => page_file(&self.files, "index.html").unwrap_or_else(Reply::not_found),
+            p if p.starts_with("/data/") => {
+                page_file(&self.files, &p[1..]).unwrap_or_else(Reply::not_found)
+            }
+            _ => Reply::not_found(),
+        }
     }
 }
 

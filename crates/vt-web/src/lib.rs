@@ -49,6 +49,7 @@ use vt_core::warp::Interpolation;
 use vt_io::output::{Output, OutputKind};
 use vt_io::scene::LoadedScene;
 
+pub mod fv;
 mod h264;
 
 /// Grid points per view interval at which `H_(p,q)^-1` is stored (the page interpolates).

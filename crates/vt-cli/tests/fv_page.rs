@@ -1,0 +1,195 @@
+//! `vt fv export`'s page in headless Chromium (software WebGL) against `vt fv render`: the
+//! real templeSparseRing and kettle photos, a model built once per scene (`vt fv hull`), the
+//! page's 8 preset views around the object read back from the page and scored against `vt fv
+//! render --camera angle:DEG` inside the render's coverage; a real mouse drag turns the view.
+//! `vt fv view` serves the same page.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::cdp::{chromium_webgl, decode_b64, vt_server, Page};
+use common::*;
+
+/// PSNR (dB) of `got` (RGB) against `want` (RGBA, its coverage as a soft alpha) over the pixels
+/// inside the coverage (alpha 255: the pixel and its 8 neighbours covered), and their share.
+fn psnr_inside(got: &[u8], want: &image::RgbaImage) -> (f64, f64) {
+    let (mut sq, mut n) = (0.0f64, 0usize);
+    for (i, px) in want.pixels().enumerate() {
+        if px.0[3] < 255 {
+            continue;
+        }
+        for c in 0..3 {
+            let d = got[3 * i + c] as f64 - px.0[c] as f64;
+            sq += d * d;
+        }
+        n += 1;
+    }
+    let mse = sq / (3 * n.max(1)) as f64;
+    (
+        10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10(),
+        n as f64 / (want.width() * want.height()) as f64,
+    )
+}
+
+fn open(ws: &str, url: &str) -> Page {
+    let mut page = Page::open_sized(ws, url, Some((900, 900)));
+    page.wait_until(
+        "window.vt !== undefined && (window.vt.ready || window.vt.error !== null)",
+        "the page to load",
+        "document.getElementById('status').textContent",
+    );
+    let error = page.eval("window.vt.error");
+    assert!(error.is_null(), "the page failed: {error}");
+    page
+}
+
+/// The page's view `i` (0-based) read back as RGB, rows top first.
+fn look(page: &mut Page, what: &str) -> (Vec<u8>, serde_json::Value) {
+    let got = page.eval(&format!("window.vt.look({what})"));
+    let rgb = decode_b64(got["rgb"].as_str().expect("look returns rgb"));
+    (rgb, got["references"].clone())
+}
+
+/// Exports `data`'s page, scores its preset views against `vt fv render`'s, and drags; with
+/// `serve`, `vt fv view`'s page must show the same picture.
+fn page_matches_render(name: &str, data: &Path, root: &Path, serve: bool) {
+    let data_s = data.to_str().unwrap();
+    let model_dir = root.join(format!("{name}-model"));
+    vt_ok(&["fv", "hull", data_s, "--out", model_dir.to_str().unwrap()]);
+    let model = model_dir.join("model.vtfv");
+    let model_s = model.to_str().unwrap();
+    let web = root.join(format!("{name}-web"));
+    let out = vt_ok(&[
+        "fv",
+        "export",
+        data_s,
+        "--model",
+        model_s,
+        "--out",
+        web.to_str().unwrap(),
+    ]);
+    let specs: Vec<String> = out
+        .lines()
+        .find_map(|l| l.split_once("`vt fv render --camera` "))
+        .map(|(_, s)| s.split(", ").map(str::to_string).collect())
+        .unwrap_or_else(|| panic!("no views in {out:?}"));
+    assert_eq!(specs.len(), 8, "{out}");
+    let Some(browser) = chromium_webgl(&root.join(format!("{name}-profile"))) else {
+        eprintln!("skipped: chromium is not installed");
+        return;
+    };
+    let mut page = open(
+        &browser.ws,
+        &format!("file://{}", web.join("index.html").display()),
+    );
+    let mut scores = Vec::new();
+    for (i, spec) in specs.iter().enumerate() {
+        let png = root.join(format!("{name}-{i}.png"));
+        vt_ok(&[
+            "fv",
+            "render",
+            data_s,
+            "--model",
+            model_s,
+            "--camera",
+            spec,
+            "--out",
+            png.to_str().unwrap(),
+        ]);
+        let want = image::open(&png).unwrap().to_rgba8();
+        let (rgb, refs) = look(&mut page, &i.to_string());
+        assert_eq!(rgb.len(), (3 * want.width() * want.height()) as usize);
+        let (db, covered) = psnr_inside(&rgb, &want);
+        assert!(covered > 0.01, "{name} {spec}: the render covers {covered}");
+        scores.push(db);
+        if std::env::var_os("VT_TEST_VERBOSE").is_some() {
+            eprintln!("{name} {spec}: {db:.2} dB inside the render's coverage; photos {refs}");
+        }
+    }
+    eprintln!(
+        "{name}: page against vt fv render at 8 views: {:?} dB",
+        scores
+            .iter()
+            .map(|s| (s * 10.0).round() / 10.0)
+            .collect::<Vec<_>>()
+    );
+    for (spec, db) in specs.iter().zip(&scores) {
+        assert!(
+            *db >= 30.0,
+            "{name} {spec}: {db:.2} dB against vt fv render"
+        );
+    }
+
+    // A real drag across the picture turns the camera about the object and changes the view.
+    let (first, _) = look(&mut page, "0");
+    let before = page.eval("window.vt.camera()");
+    page.eval("window.before = JSON.stringify(window.vt.camera()), true");
+    page.drag((300.0, 300.0), (500.0, 330.0), 8);
+    page.wait_until(
+        "JSON.stringify(window.vt.camera()) !== window.before",
+        "the drag to move the camera",
+        "window.vt.camera()",
+    );
+    let after = page.eval("window.vt.camera()");
+    let (moved, _) = look(&mut page, "window.vt.camera()");
+    let changed = first.iter().zip(&moved).filter(|(a, b)| a != b).count();
+    assert!(
+        changed > first.len() / 20,
+        "{name}: the drag changed {changed} of {} values",
+        first.len()
+    );
+    // An orbit: the camera keeps its distance from the object's centre.
+    let centre = page.eval("window.vt.centre");
+    let (d0, d1) = (distance(&before, &centre), distance(&after, &centre));
+    assert!(
+        (d0 - d1).abs() <= 1e-6 * d0,
+        "{name}: the drag moved the camera from {d0} to {d1} from the centre"
+    );
+
+    if serve {
+        // `vt fv view` serves the same page: the same picture, byte for byte.
+        let (_server, url) = vt_server(&["fv", "view", data_s, "--model", model_s, "--port", "0"]);
+        let mut served = open(&browser.ws, &url);
+        let (same, _) = look(&mut served, "0");
+        assert!(
+            same == first,
+            "{name}: vt fv view's page differs from vt fv export's"
+        );
+    }
+}
+
+fn floats(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not an array: {v}"))
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// Distance of camera `c` ({k, r, t}) from `centre`: |C - centre| with C = -R^T t.
+fn distance(c: &serde_json::Value, centre: &serde_json::Value) -> f64 {
+    let (r, t, m) = (floats(&c["r"]), floats(&c["t"]), floats(centre));
+    (0..3)
+        .map(|i| (-(0..3).map(|k| r[3 * k + i] * t[k]).sum::<f64>() - m[i]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+fn testdata(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata")
+        .join(name)
+}
+
+#[test]
+fn temple_page_matches_vt_fv_render() {
+    let root = tempfile::tempdir().unwrap();
+    page_matches_render("temple", &testdata("templeSparseRing"), root.path(), true);
+}
+
+#[test]
+fn kettle_page_matches_vt_fv_render() {
+    let root = tempfile::tempdir().unwrap();
+    page_matches_render("kettle", &testdata("kettle"), root.path(), false);
+}

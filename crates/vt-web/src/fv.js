@@ -1,0 +1,641 @@
+// vt fv export: System B's model in the browser. The voxel model's surface is splatted as
+// vt_fv::render::render_rough splats it, and the photos are projected onto it as
+// vt_fv::texture::texture_view projects them: per pixel, the references chosen and faded as
+// fading_references chooses them, each seen only where its own splat render puts no surface in
+// front (per-pixel visibility), blended with unstructured-lumigraph weights, softened where
+// they disagree. Drag to orbit, wheel to zoom, C to show the photos' cameras.
+(() => {
+  'use strict';
+  const S = window.vtFvScene;
+  const status = document.getElementById('status');
+  const canvas = document.getElementById('view');
+  const W = S.width;
+  const H = S.height;
+  const N = S.cams.length;
+  const T = S.texture;
+  const MAX_REFS = 16;
+  const FAR = 1e30;
+  const payloads = { photo: [], voxels: null };
+  window.vtFvPayload = (kind, key, data) => {
+    if (kind === 'photo') payloads.photo[key] = data;
+    else payloads[kind] = data;
+  };
+  canvas.width = W;
+  canvas.height = H;
+  const gl = canvas.getContext('webgl2', { antialias: false, premultipliedAlpha: false, preserveDrawingBuffer: true });
+
+  window.vt = { ready: false, error: null, drawn: 0, renderMs: 0, references: [] };
+
+  // ---- small linear algebra (row-major 3x3 as arrays of 9) -----------------------------------
+  const mul3 = (a, b) => {
+    const o = new Array(9).fill(0);
+    for (let i = 0; i < 3; i++) for (let j = 0; j < 3; j++) for (let k = 0; k < 3; k++) o[3 * i + j] += a[3 * i + k] * b[3 * k + j];
+    return o;
+  };
+  const mulv = (a, v) => [0, 1, 2].map((i) => a[3 * i] * v[0] + a[3 * i + 1] * v[1] + a[3 * i + 2] * v[2]);
+  const tr = (a) => [a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]];
+  const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+  const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+  const scale = (a, s) => [a[0] * s, a[1] * s, a[2] * s];
+  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  const norm = (a) => Math.sqrt(dot(a, a));
+  const unit = (a) => scale(a, 1 / (norm(a) || 1));
+  const angle = (a, b) => Math.atan2(norm(cross(a, b)), dot(a, b));
+  const inv3 = (m) => {
+    const [a, b, c, d, e, f, g, h, i] = m;
+    const A = e * i - f * h;
+    const B = -(d * i - f * g);
+    const C = d * h - e * g;
+    const det = a * A + b * B + c * C;
+    return [A, -(b * i - c * h), b * f - c * e, B, a * i - c * g, -(a * f - c * d), C, -(a * h - b * g), a * e - b * d].map((x) => x / det);
+  };
+  // Rotation by `a` radians about the unit axis `k` (Rodrigues).
+  const rotation = (k, a) => {
+    const [x, y, z] = k;
+    const c = Math.cos(a);
+    const s = Math.sin(a);
+    const t = 1 - c;
+    return [t * x * x + c, t * x * y - s * z, t * x * z + s * y, t * x * y + s * z, t * y * y + c, t * y * z - s * x, t * x * z - s * y, t * y * z + s * x, t * z * z + c];
+  };
+  const centreOf = (cam) => scale(mulv(tr(cam.r), cam.t), -1);
+  const projection = (cam) => {
+    const kr = mul3(cam.k, cam.r);
+    const kt = mulv(cam.k, cam.t);
+    return [kr[0], kr[1], kr[2], kt[0], kr[3], kr[4], kr[5], kt[1], kr[6], kr[7], kr[8], kt[2]];
+  };
+
+  // ---- the references of a view (vt_fv::texture::fading_references) -------------------------
+  function samePose(a, b) {
+    const ca = centreOf(a);
+    const cb = centreOf(b);
+    const s = Math.max(norm(ca), norm(cb), 1e-3);
+    const fa = [a.r[6], a.r[7], a.r[8]];
+    const fb = [b.r[6], b.r[7], b.r[8]];
+    return norm(sub(ca, cb)) <= 1e-6 * s && angle(fa, fb) <= 1e-6;
+  }
+  function nearest(cam, n) {
+    const d = unit(sub(centreOf(cam), S.centre));
+    const order = S.cams.map((c, i) => [-dot(unit(sub(centreOf(c), S.centre)), d), i]);
+    order.sort((a, b) => a[0] - b[0] || a[1] - b[1]);
+    const chosen = [];
+    for (const [, i] of order) {
+      if (chosen.length === n) break;
+      if (!chosen.some((j) => samePose(S.cams[i], S.cams[j]))) chosen.push(i);
+    }
+    return chosen;
+  }
+  function fadingReferences(cam) {
+    const d = unit(sub(centreOf(cam), S.centre));
+    const all = nearest(cam, N);
+    const ang = (i) => angle(unit(sub(centreOf(S.cams[i]), S.centre)), d);
+    const next = T.references + 1 < all.length ? ang(all[T.references + 1]) : Math.PI;
+    const limit = Math.max(next, T.reach);
+    let chosen = [];
+    let fade = [];
+    for (const i of all.slice(0, MAX_REFS)) {
+      const f = limit > 0 ? Math.max(1 - ang(i) / limit, 0) : 1;
+      if (f <= 0) break;
+      chosen.push(i);
+      fade.push(f);
+    }
+    if (chosen.length === 0) {
+      chosen = all.slice(0, T.references + 1);
+      fade = chosen.map(() => 1);
+    }
+    return { chosen, fade };
+  }
+
+  // ---- GL helpers -------------------------------------------------------------------------
+  function shader(type, src) {
+    const s = gl.createShader(type);
+    gl.shaderSource(s, src);
+    gl.compileShader(s);
+    if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error('shader: ' + gl.getShaderInfoLog(s));
+    return s;
+  }
+  function program(vs, fs) {
+    const p = gl.createProgram();
+    gl.attachShader(p, shader(gl.VERTEX_SHADER, vs));
+    gl.attachShader(p, shader(gl.FRAGMENT_SHADER, fs));
+    gl.linkProgram(p);
+    if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error('program: ' + gl.getProgramInfoLog(p));
+    const u = {};
+    const n = gl.getProgramParameter(p, gl.ACTIVE_UNIFORMS);
+    for (let i = 0; i < n; i++) {
+      const name = gl.getActiveUniform(p, i).name.replace(/\[0\]$/, '');
+      u[name] = gl.getUniformLocation(p, name);
+    }
+    return { p, u };
+  }
+  function tex2d(internal, format, type, filter) {
+    const t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, internal, W, H);
+    for (const [k, v] of [[gl.TEXTURE_MIN_FILTER, filter], [gl.TEXTURE_MAG_FILTER, filter], [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) gl.texParameteri(gl.TEXTURE_2D, k, v);
+    return t;
+  }
+  function target(textures, depth) {
+    const fb = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+    textures.forEach((t, i) => gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0 + i, gl.TEXTURE_2D, t, 0));
+    if (depth) gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, depth);
+    gl.drawBuffers(textures.map((_, i) => gl.COLOR_ATTACHMENT0 + i));
+    if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) throw new Error('this browser cannot render to float textures');
+    return fb;
+  }
+  const bytes = (b64) => {
+    const bin = atob(b64);
+    const out = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
+    return out;
+  };
+  function loadScript(src) {
+    return new Promise((resolve, reject) => {
+      const el = document.createElement('script');
+      el.src = src;
+      el.onload = resolve;
+      el.onerror = () => reject(new Error('cannot load ' + src));
+      document.head.appendChild(el);
+    });
+  }
+
+  // ---- shaders ------------------------------------------------------------------------------
+  // Splats: a surface voxel as a square of side scale * f * size / z around its projection
+  // (at least a pixel), depth-tested on its centre's depth; writes colour and camera depth.
+  const SPLAT_VS = `#version 300 es
+  in vec3 pos; in vec3 col;
+  uniform mat3 K; uniform mat3 R; uniform vec3 t; uniform float focal; uniform float side;
+  uniform vec2 size; uniform vec2 range;
+  out vec3 vcol; flat out float vz;
+  void main() {
+    vec3 c = R * pos + t;
+    vcol = col; vz = c.z;
+    if (c.z <= 1e-9) { gl_Position = vec4(2.0, 2.0, 2.0, 1.0); gl_PointSize = 1.0; return; }
+    vec3 p = K * c;
+    vec2 uv = p.xy / p.z;
+    vec2 ndc = (uv + 0.5) / size * 2.0 - 1.0;
+    float zn = clamp((c.z - range.x) / (range.y - range.x), 0.0, 1.0) * 2.0 - 1.0;
+    gl_Position = vec4(ndc, zn, 1.0);
+    gl_PointSize = max(side * focal / c.z, 1.0);
+  }`;
+  const SPLAT_FS = `#version 300 es
+  precision highp float;
+  in vec3 vcol; flat in float vz;
+  layout(location = 0) out vec4 colour; layout(location = 1) out vec4 depth;
+  void main() { colour = vec4(vcol, 1.0); depth = vec4(vz, 0.0, 0.0, 0.0); }`;
+  const QUAD_VS = `#version 300 es
+  void main() { vec2 p = vec2(float((gl_VertexID & 1) << 2) - 1.0, float((gl_VertexID & 2) << 1) - 1.0); gl_Position = vec4(p, 0.0, 1.0); }`;
+  // Per pixel: the smoothed depth's surface point projected into the references, seen where
+  // their own render puts it in front, blended; alpha = how much to soften (texture_view).
+  const TEXTURE_FS = `#version 300 es
+  precision highp float; precision highp int; precision highp sampler2DArray;
+  uniform sampler2D depth; uniform sampler2D rough;
+  uniform sampler2DArray photos; uniform sampler2DArray refdepth;
+  uniform mat3 A; uniform vec3 own; uniform int count;
+  uniform vec4 P0[${MAX_REFS}]; uniform vec4 P1[${MAX_REFS}]; uniform vec4 P2[${MAX_REFS}];
+  uniform vec3 centres[${MAX_REFS}]; uniform float fades[${MAX_REFS}]; uniform int layers[${MAX_REFS}];
+  uniform float tol; uniform float eps2; uniform float agree; uniform float fullFade; uniform int radius;
+  uniform vec2 size;
+  out vec4 outColour;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    float d0 = texelFetch(depth, px, 0).r;
+    if (d0 >= ${FAR / 10}) { outColour = vec4(0.0); return; }
+    float sum = 0.0; float n = 0.0;
+    for (int dy = -radius; dy <= radius; dy++) for (int dx = -radius; dx <= radius; dx++) {
+      ivec2 q = px + ivec2(dx, dy);
+      if (q.x < 0 || q.y < 0 || q.x >= int(size.x) || q.y >= int(size.y)) continue;
+      float v = texelFetch(depth, q, 0).r;
+      if (v < ${FAR / 10}) { sum += v; n += 1.0; }
+    }
+    float d = sum / n;
+    vec3 pt = A * vec3(vec2(px), 1.0) * d + own;
+    vec3 view = normalize(own - pt);
+    vec3 acc = vec3(0.0); vec3 sq = vec3(0.0); float wsum = 0.0; int m = 0;
+    float top0 = 0.0; float top1 = 0.0;
+    for (int k = 0; k < ${MAX_REFS}; k++) {
+      if (k >= count) break;
+      vec4 x = vec4(pt, 1.0);
+      vec3 q = vec3(dot(P0[k], x), dot(P1[k], x), dot(P2[k], x));
+      if (q.z <= 0.0) continue;
+      vec2 uv = q.xy / q.z;
+      if (uv.x < 0.0 || uv.y < 0.0 || uv.x > size.x - 1.0 || uv.y > size.y - 1.0) continue;
+      ivec2 ip = min(ivec2(uv + 0.5), ivec2(size) - 1);
+      float rd = texelFetch(refdepth, ivec3(ip, layers[k]), 0).r;
+      if (rd >= ${FAR / 10} || q.z > rd + tol) continue;
+      vec3 r = normalize(centres[k] - pt);
+      float a = atan(length(cross(view, r)), dot(view, r));
+      float wt = fades[k] / (a * a + eps2);
+      float f = fades[k];
+      if (f > top0) { top1 = top0; top0 = f; } else if (f > top1) { top1 = f; }
+      vec3 c = texture(photos, vec3((uv + 0.5) / size, float(layers[k]))).rgb * 255.0;
+      acc += wt * c; sq += wt * c * c; wsum += wt; m += 1;
+    }
+    if (wsum <= 0.0) { outColour = vec4(texelFetch(rough, px, 0).rgb, 1.0); return; }
+    vec3 mean = acc / wsum;
+    float t = 1.0;
+    if (agree > 0.0) {
+      float sd = 1e30;
+      if (m >= 2) { vec3 v = max(sq / wsum - mean * mean, 0.0); sd = (sqrt(v.r) + sqrt(v.g) + sqrt(v.b)) / 3.0; }
+      float single = 1.0 - min(top1 / fullFade, 1.0);
+      t = max(min(sd / agree, 1.0), single);
+    }
+    outColour = vec4(floor(mean + 0.5) / 255.0, t);
+  }`;
+  // One direction of a Gaussian blur (reflect-101 borders, as vt_core::blur).
+  const BLUR_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D src; uniform ivec2 dir; uniform float weights[16]; uniform int radius; uniform vec2 size;
+  uniform int masked;
+  out vec4 outColour;
+  int reflect101(int i, int n) { if (n == 1) return 0; while (i < 0 || i >= n) { if (i < 0) i = -i; if (i >= n) i = 2 * n - 2 - i; } return i; }
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec4 acc = vec4(0.0);
+    for (int k = -15; k <= 15; k++) {
+      if (k < -radius || k > radius) continue;
+      ivec2 q = px + dir * k;
+      q = ivec2(reflect101(q.x, int(size.x)), reflect101(q.y, int(size.y)));
+      vec4 v = texelFetch(src, q, 0);
+      // The first pass reads the images themselves: the texture outside the coverage is
+      // black, the rough render is weighted by its coverage.
+      if (masked == 1) v = vec4(v.a > 0.0 ? v.rgb : vec3(0.0), v.a > 0.0 ? 1.0 : 0.0);
+      acc += weights[k < 0 ? -k : k] * v;
+    }
+    outColour = acc;
+  }`;
+  // The textured colours softened where the photos disagree (texture_view's last step), over
+  // the background outside the coverage.
+  const FINAL_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D sharp; uniform sampler2D soft; uniform sampler2D model; uniform sampler2D depth;
+  uniform float consensus; uniform vec3 background; uniform int flip; uniform vec2 size;
+  out vec4 outColour;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    if (flip == 1) px.y = int(size.y) - 1 - px.y;
+    if (texelFetch(depth, px, 0).r >= ${FAR / 10}) { outColour = vec4(background, 1.0); return; }
+    vec4 s = texelFetch(sharp, px, 0);
+    vec3 c = floor(texelFetch(soft, px, 0).rgb * 255.0 + 0.5);
+    vec4 m = texelFetch(model, px, 0);
+    if (consensus > 0.0 && m.a > 0.02) c = (1.0 - consensus) * c + consensus * (m.rgb / m.a * 255.0);
+    vec3 o = (1.0 - s.a) * s.rgb * 255.0 + s.a * c;
+    outColour = vec4(floor(o + 0.5) / 255.0, 1.0);
+  }`;
+  const LINE_VS = `#version 300 es
+  in vec3 pos;
+  uniform mat3 K; uniform mat3 R; uniform vec3 t; uniform vec2 size;
+  void main() {
+    vec3 c = R * pos + t;
+    vec3 p = K * c;
+    vec2 uv = p.xy / max(p.z, 1e-6);
+    vec2 ndc = (uv + 0.5) / size * 2.0 - 1.0;
+    gl_Position = c.z > 1e-6 ? vec4(ndc.x, -ndc.y, 0.0, 1.0) : vec4(2.0, 2.0, 2.0, 1.0);
+  }`;
+  const LINE_FS = `#version 300 es
+  precision highp float; out vec4 o; void main() { o = vec4(1.0, 0.8, 0.2, 1.0); }`;
+
+  // ---- state ----------------------------------------------------------------------------------
+  let progs;
+  let voxels;
+  let photosTex;
+  let refDepth;
+  const targets = {};
+  let lines = null;
+  const view = { cam: null, showCameras: false, dirty: true };
+  const radius = (() => {
+    const d = sub(S.bounds.max, S.bounds.min);
+    return 0.5 * norm(d);
+  })();
+
+  // Splats the model from `cam` into the bound framebuffer (colour, depth).
+  function splat(cam) {
+    const c = centreOf(cam);
+    const dist = norm(sub(c, S.centre));
+    const near = Math.max(dist - radius * 1.5, dist * 1e-4);
+    const far = dist + radius * 1.5;
+    const pr = progs.splat;
+    gl.useProgram(pr.p);
+    gl.uniformMatrix3fv(pr.u.K, true, cam.k);
+    gl.uniformMatrix3fv(pr.u.R, true, cam.r);
+    gl.uniform3fv(pr.u.t, cam.t);
+    gl.uniform1f(pr.u.focal, 0.5 * (Math.abs(cam.k[0]) + Math.abs(cam.k[4])));
+    gl.uniform1f(pr.u.side, S.splat_scale * S.voxel);
+    gl.uniform2f(pr.u.size, W, H);
+    gl.uniform2f(pr.u.range, near, far);
+    gl.viewport(0, 0, W, H);
+    gl.enable(gl.DEPTH_TEST);
+    gl.depthFunc(gl.LESS);
+    gl.clearBufferfv(gl.COLOR, 0, [0, 0, 0, 0]);
+    gl.clearBufferfv(gl.COLOR, 1, [FAR, 0, 0, 0]);
+    gl.clearBufferfv(gl.DEPTH, 0, [1]);
+    gl.bindVertexArray(voxels.vao);
+    gl.drawArrays(gl.POINTS, 0, voxels.n);
+    gl.bindVertexArray(null);
+    gl.disable(gl.DEPTH_TEST);
+  }
+
+  async function load() {
+    if (!gl) throw new Error('this browser has no WebGL2');
+    if (!gl.getExtension('EXT_color_buffer_float')) throw new Error('this browser cannot render to float textures');
+    progs = {
+      splat: program(SPLAT_VS, SPLAT_FS),
+      texture: program(QUAD_VS, TEXTURE_FS),
+      blur: program(QUAD_VS, BLUR_FS),
+      final: program(QUAD_VS, FINAL_FS),
+      line: program(LINE_VS, LINE_FS),
+    };
+    status.textContent = 'loading the model';
+    await loadScript('data/voxels.js');
+    const v = payloads.voxels;
+    const xyz = new Float32Array(bytes(v.xyz).buffer);
+    const rgb = bytes(v.rgb);
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const buf = (data, loc, n, type, normalized) => {
+      const b = gl.createBuffer();
+      gl.bindBuffer(gl.ARRAY_BUFFER, b);
+      gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
+      gl.enableVertexAttribArray(loc);
+      gl.vertexAttribPointer(loc, n, type, normalized, 0, 0);
+    };
+    buf(xyz, gl.getAttribLocation(progs.splat.p, 'pos'), 3, gl.FLOAT, false);
+    buf(rgb, gl.getAttribLocation(progs.splat.p, 'col'), 3, gl.UNSIGNED_BYTE, true);
+    gl.bindVertexArray(null);
+    voxels = { vao, n: v.n };
+    payloads.voxels = null;
+
+    // Render targets at the photos' size.
+    const depthRb = gl.createRenderbuffer();
+    gl.bindRenderbuffer(gl.RENDERBUFFER, depthRb);
+    gl.renderbufferStorage(gl.RENDERBUFFER, gl.DEPTH_COMPONENT32F, W, H);
+    targets.rough = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
+    targets.depth = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
+    targets.splatFb = target([targets.rough, targets.depth], depthRb);
+    for (const name of ['sharp', 'final']) {
+      targets[name] = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
+      targets[name + 'Fb'] = target([targets[name]]);
+    }
+    for (const name of ['blurA', 'blurB', 'modelA', 'modelB']) {
+      targets[name] = tex2d(gl.RGBA32F, gl.RGBA, gl.FLOAT, gl.NEAREST);
+      targets[name + 'Fb'] = target([targets[name]]);
+    }
+
+    // The photos, and each photo's own splat depth (its visibility test).
+    photosTex = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, photosTex);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA8, W, H, N);
+    for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.LINEAR], [gl.TEXTURE_MAG_FILTER, gl.LINEAR], [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
+    refDepth = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, refDepth);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.R32F, W, H, N);
+    for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
+    const layerFb = gl.createFramebuffer();
+    const scratch = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
+    for (let i = 0; i < N; i++) {
+      status.textContent = `loading photo ${i + 1} of ${N}`;
+      await loadScript('data/photo_' + String(i).padStart(3, '0') + '.js');
+      const img = await createImageBitmap(new Blob([bytes(payloads.photo[i])], { type: 'image/jpeg' }), { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
+      payloads.photo[i] = null;
+      gl.bindTexture(gl.TEXTURE_2D_ARRAY, photosTex);
+      gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, i, W, H, 1, gl.RGBA, gl.UNSIGNED_BYTE, img);
+      img.close();
+      gl.bindFramebuffer(gl.FRAMEBUFFER, layerFb);
+      gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, scratch, 0);
+      gl.framebufferTextureLayer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT1, refDepth, 0, i);
+      gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, depthRb);
+      gl.drawBuffers([gl.COLOR_ATTACHMENT0, gl.COLOR_ATTACHMENT1]);
+      splat(S.cams[i]);
+    }
+    gl.deleteFramebuffer(layerFb);
+    gl.deleteTexture(scratch);
+
+    // The photos' cameras as lines: the centre to the image corners at a tenth of its distance.
+    const seg = [];
+    for (const cam of S.cams) {
+      const c = centreOf(cam);
+      const a = mul3(tr(cam.r), inv3(cam.k));
+      const depth = 0.15 * norm(sub(c, S.centre));
+      const corners = [[0, 0], [W - 1, 0], [W - 1, H - 1], [0, H - 1]].map(([x, y]) => add(c, scale(mulv(a, [x, y, 1]), depth)));
+      for (let k = 0; k < 4; k++) seg.push(c, corners[k], corners[k], corners[(k + 1) % 4]);
+    }
+    lines = { vao: gl.createVertexArray(), n: seg.length };
+    gl.bindVertexArray(lines.vao);
+    const lb = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, lb);
+    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(seg.flat()), gl.STATIC_DRAW);
+    const loc = gl.getAttribLocation(progs.line.p, 'pos');
+    gl.enableVertexAttribArray(loc);
+    gl.vertexAttribPointer(loc, 3, gl.FLOAT, false, 0, 0);
+    gl.bindVertexArray(null);
+  }
+
+  function quad(pr, fb, textures) {
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+    gl.viewport(0, 0, W, H);
+    gl.useProgram(pr.p);
+    textures.forEach(([name, t, kind], unit) => {
+      gl.activeTexture(gl.TEXTURE0 + unit);
+      gl.bindTexture(kind || gl.TEXTURE_2D, t);
+      gl.uniform1i(pr.u[name], unit);
+    });
+    gl.drawArrays(gl.TRIANGLES, 0, 3);
+  }
+
+  // Gaussian weights of vt_core::blur's kernel: ksize 2 ceil(3 sigma) + 1.
+  function gaussian(sigma) {
+    const r = Math.min(Math.ceil(3 * sigma), 15);
+    const w = [];
+    for (let k = 0; k <= r; k++) w.push(Math.exp(-(k * k) / (2 * sigma * sigma)));
+    const total = w[0] + 2 * w.slice(1).reduce((a, b) => a + b, 0);
+    return { r, w: w.map((x) => x / total).concat(new Array(16 - w.length).fill(0)) };
+  }
+  function blur(src, mid, midFb, out, outFb, masked) {
+    const g = gaussian(T.soften_sigma);
+    const pr = progs.blur;
+    for (const [from, fb, dir, m] of [[src, midFb, [1, 0], masked], [mid, outFb, [0, 1], 0]]) {
+      gl.useProgram(pr.p);
+      gl.uniform1fv(pr.u.weights, g.w);
+      gl.uniform1i(pr.u.radius, g.r);
+      gl.uniform2f(pr.u.size, W, H);
+      gl.uniform2i(pr.u.dir, dir[0], dir[1]);
+      gl.uniform1i(pr.u.masked, m);
+      quad(pr, fb, [['src', from]]);
+    }
+    return out;
+  }
+
+  // The new view from `cam` into targets.final; returns the references used.
+  function render(cam) {
+    const t0 = performance.now();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, targets.splatFb);
+    splat(cam);
+    const { chosen, fade } = fadingReferences(cam);
+    const pr = progs.texture;
+    gl.useProgram(pr.p);
+    const P = [[], [], []];
+    const centres = [];
+    chosen.forEach((i) => {
+      const p = projection(S.cams[i]);
+      for (let r = 0; r < 3; r++) P[r].push(...p.slice(4 * r, 4 * r + 4));
+      centres.push(...centreOf(S.cams[i]));
+    });
+    const pad = (a, n) => a.concat(new Array(n - a.length).fill(0));
+    gl.uniform4fv(pr.u.P0, pad(P[0], 4 * MAX_REFS));
+    gl.uniform4fv(pr.u.P1, pad(P[1], 4 * MAX_REFS));
+    gl.uniform4fv(pr.u.P2, pad(P[2], 4 * MAX_REFS));
+    gl.uniform3fv(pr.u.centres, pad(centres, 3 * MAX_REFS));
+    gl.uniform1fv(pr.u.fades, pad(fade, MAX_REFS));
+    gl.uniform1iv(pr.u.layers, pad(chosen, MAX_REFS));
+    gl.uniform1i(pr.u.count, chosen.length);
+    gl.uniformMatrix3fv(pr.u.A, true, mul3(tr(cam.r), inv3(cam.k)));
+    gl.uniform3fv(pr.u.own, centreOf(cam));
+    gl.uniform1f(pr.u.tol, T.tol);
+    gl.uniform1f(pr.u.eps2, T.eps * T.eps);
+    gl.uniform1f(pr.u.agree, T.agree_sd);
+    gl.uniform1f(pr.u.fullFade, T.full_fade);
+    gl.uniform1i(pr.u.radius, T.depth_smooth);
+    gl.uniform2f(pr.u.size, W, H);
+    quad(pr, targets.sharpFb, [['depth', targets.depth], ['rough', targets.rough], ['photos', photosTex, gl.TEXTURE_2D_ARRAY], ['refdepth', refDepth, gl.TEXTURE_2D_ARRAY]]);
+    const soften = T.soften_sigma > 0;
+    if (soften) {
+      blur(targets.sharp, targets.blurA, targets.blurAFb, targets.blurB, targets.blurBFb, 0);
+      blur(targets.rough, targets.modelA, targets.modelAFb, targets.modelB, targets.modelBFb, 1);
+    }
+    const fin = progs.final;
+    gl.useProgram(fin.p);
+    gl.uniform1f(fin.u.consensus, soften ? T.consensus : 0);
+    gl.uniform3fv(fin.u.background, (S.background || [0, 0, 0]).map((x) => x / 255));
+    gl.uniform2f(fin.u.size, W, H);
+    gl.uniform1i(fin.u.flip, 0);
+    const softTex = soften ? targets.blurB : targets.sharp;
+    quad(fin, targets.finalFb, [['sharp', targets.sharp], ['soft', softTex], ['model', targets.modelB], ['depth', targets.depth]]);
+    // On screen, rows flipped (the targets hold row 0 at the top, as the photos).
+    gl.uniform1i(fin.u.flip, 1);
+    quad(fin, null, [['sharp', targets.sharp], ['soft', softTex], ['model', targets.modelB], ['depth', targets.depth]]);
+    if (view.showCameras) {
+      const lp = progs.line;
+      gl.useProgram(lp.p);
+      gl.uniformMatrix3fv(lp.u.K, true, cam.k);
+      gl.uniformMatrix3fv(lp.u.R, true, cam.r);
+      gl.uniform3fv(lp.u.t, cam.t);
+      gl.uniform2f(lp.u.size, W, H);
+      gl.bindVertexArray(lines.vao);
+      gl.drawArrays(gl.LINES, 0, lines.n);
+      gl.bindVertexArray(null);
+    }
+    window.vt.renderMs = performance.now() - t0;
+    window.vt.drawn += 1;
+    window.vt.references = chosen.map((i) => S.cams[i].name);
+    return chosen;
+  }
+
+  function readRgb() {
+    gl.bindFramebuffer(gl.FRAMEBUFFER, targets.finalFb);
+    const rgba = new Uint8Array(W * H * 4);
+    gl.readPixels(0, 0, W, H, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
+    const rgb = new Uint8Array(W * H * 3);
+    for (let i = 0, j = 0; i < rgba.length; i += 4, j += 3) {
+      rgb[j] = rgba[i];
+      rgb[j + 1] = rgba[i + 1];
+      rgb[j + 2] = rgba[i + 2];
+    }
+    let s = '';
+    for (let i = 0; i < rgb.length; i += 0x8000) s += String.fromCharCode.apply(null, rgb.subarray(i, i + 0x8000));
+    return btoa(s);
+  }
+
+  // ---- interaction ----------------------------------------------------------------------------
+  function describe() {
+    const c = centreOf(view.cam);
+    const d = sub(c, S.centre);
+    status.textContent = `distance ${norm(d).toPrecision(3)} · photos ${window.vt.references.slice(0, T.references + 1).join(', ')} · ${window.vt.renderMs.toFixed(0)} ms`;
+  }
+  function setCamera(cam) {
+    view.cam = { k: cam.k.slice(), r: cam.r.slice(), t: cam.t.slice() };
+    view.dirty = true;
+  }
+  // Orbits the camera about the model's centre: `ax` radians about its own up axis, `ay` about
+  // its right axis (both through the centre), from the pose `from`.
+  function orbit(from, ax, ay) {
+    const right = [from.r[0], from.r[1], from.r[2]];
+    const up = [-from.r[3], -from.r[4], -from.r[5]];
+    const q = mul3(rotation(up, -ax), rotation(right, ay));
+    const c = add(S.centre, mulv(q, sub(centreOf(from), S.centre)));
+    const r = mul3(from.r, tr(q));
+    setCamera({ k: from.k, r, t: scale(mulv(r, c), -1) });
+  }
+  function zoom(factor) {
+    const from = view.cam;
+    const c = add(S.centre, scale(sub(centreOf(from), S.centre), factor));
+    setCamera({ k: from.k, r: from.r, t: scale(mulv(from.r, c), -1) });
+  }
+  let drag = null;
+  canvas.addEventListener('pointerdown', (e) => {
+    drag = { x: e.clientX, y: e.clientY, cam: view.cam };
+    canvas.setPointerCapture(e.pointerId);
+    e.preventDefault();
+  });
+  canvas.addEventListener('pointermove', (e) => {
+    if (!drag) return;
+    const rect = canvas.getBoundingClientRect();
+    orbit(drag.cam, ((e.clientX - drag.x) / (rect.width || 1)) * Math.PI, ((e.clientY - drag.y) / (rect.height || 1)) * Math.PI);
+  });
+  const endDrag = () => { drag = null; };
+  canvas.addEventListener('pointerup', endDrag);
+  canvas.addEventListener('pointercancel', endDrag);
+  canvas.addEventListener('wheel', (e) => {
+    zoom(Math.exp(Math.max(-1, Math.min(1, e.deltaY * 0.001))));
+    e.preventDefault();
+  }, { passive: false });
+  document.addEventListener('keydown', (e) => {
+    if (e.key === 'c' || e.key === 'C') { view.showCameras = !view.showCameras; view.dirty = true; }
+    if (e.key === '+' || e.key === '=') zoom(0.9);
+    if (e.key === '-') zoom(1 / 0.9);
+    const k = parseInt(e.key, 10);
+    if (k >= 1 && k <= S.views.length) setCamera(S.views[k - 1]);
+  });
+  const buttons = document.getElementById('views');
+  S.views.forEach((cam, i) => {
+    const b = document.createElement('button');
+    b.textContent = String(i + 1);
+    b.title = cam.name;
+    b.addEventListener('click', () => setCamera(cam));
+    buttons.appendChild(b);
+  });
+  document.getElementById('cameras').addEventListener('click', () => { view.showCameras = !view.showCameras; view.dirty = true; });
+
+  function tick() {
+    requestAnimationFrame(tick);
+    if (!window.vt.ready || !view.dirty) return;
+    view.dirty = false;
+    render(view.cam);
+    describe();
+  }
+
+  load().then(() => {
+    setCamera(S.views[0]);
+    Object.assign(window.vt, {
+      ready: true,
+      // The camera shown now: { k, r, t } (row-major K and R, t; world to camera).
+      camera: () => view.cam,
+      // The view from `cam` ({ k, r, t }), or preset view i, shown and read back:
+      // { rgb: base64 RGB rows top first, references: photo names }.
+      look: (cam) => {
+        setCamera(typeof cam === 'number' ? S.views[cam] : cam);
+        view.dirty = false;
+        const refs = render(view.cam);
+        describe();
+        return { rgb: readRgb(), references: refs.map((i) => S.cams[i].name) };
+      },
+      showCameras: (on) => { view.showCameras = on; view.dirty = true; },
+      // The point the views turn about (the model's surface centroid).
+      centre: S.centre,
+    });
+    requestAnimationFrame(tick);
+  }).catch((e) => {
+    window.vt.error = String(e && e.message ? e.message : e);
+    status.textContent = 'cannot show the model: ' + window.vt.error;
+  });
+})();
