@@ -186,22 +186,38 @@
   void main() { colour = vec4(vcol, 1.0); depth = vec4(vz, 0.0, 0.0, 0.0); }`;
   const QUAD_VS = `#version 300 es
   void main() { vec2 p = vec2(float((gl_VertexID & 1) << 2) - 1.0, float((gl_VertexID & 2) << 1) - 1.0); gl_Position = vec4(p, 0.0, 1.0); }`;
-  // Per pixel: the smoothed depth's surface point projected into the references, seen where
-  // their own render puts it in front, blended; alpha = how much to soften (texture_view).
-  const TEXTURE_FS = `#version 300 es
+  // What the per-pixel passes share: the references (projection rows, centres, fades, layers),
+  // whether one sees a world point (in front of its own splat depth there, within tol), and
+  // its bilinear sample (vt_fv::texture's `seen` and `bilinear`).
+  const REFS_GLSL = `#version 300 es
   precision highp float; precision highp int; precision highp sampler2DArray;
-  uniform sampler2D depth; uniform sampler2D rough;
   uniform sampler2DArray photos; uniform sampler2DArray refdepth;
   uniform mat3 A; uniform vec3 own; uniform int count;
   uniform vec4 P0[${MAX_REFS}]; uniform vec4 P1[${MAX_REFS}]; uniform vec4 P2[${MAX_REFS}];
   uniform vec3 centres[${MAX_REFS}]; uniform float fades[${MAX_REFS}]; uniform int layers[${MAX_REFS}];
-  uniform float tol; uniform float eps2; uniform float agree; uniform float fullFade; uniform int radius;
-  uniform vec2 size;
-  out vec4 outColour;
+  uniform float tol; uniform vec2 size;
+  vec3 pointAt(ivec2 px, float d) { return A * vec3(vec2(px), 1.0) * d + own; }
+  bool sees(int k, vec3 pt, out vec2 uv) {
+    vec4 x = vec4(pt, 1.0);
+    vec3 q = vec3(dot(P0[k], x), dot(P1[k], x), dot(P2[k], x));
+    uv = vec2(-1.0);
+    if (q.z <= 0.0) return false;
+    uv = q.xy / q.z;
+    if (uv.x < 0.0 || uv.y < 0.0 || uv.x > size.x - 1.0 || uv.y > size.y - 1.0) return false;
+    ivec2 ip = min(ivec2(uv + 0.5), ivec2(size) - 1);
+    float rd = texelFetch(refdepth, ivec3(ip, layers[k]), 0).r;
+    return rd < ${FAR / 10} && q.z <= rd + tol;
+  }
+  vec3 photo(int k, vec2 uv) { return texture(photos, vec3((uv + 0.5) / size, float(layers[k]))).rgb * 255.0; }
+  `;
+  // The splat depth box-filtered over the covered pixels (texture_view's smooth_depth).
+  const SMOOTH_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D depth; uniform int radius; uniform vec2 size;
+  out vec4 outDepth;
   void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    float d0 = texelFetch(depth, px, 0).r;
-    if (d0 >= ${FAR / 10}) { outColour = vec4(0.0); return; }
+    if (texelFetch(depth, px, 0).r >= ${FAR / 10}) { outDepth = vec4(${FAR}); return; }
     float sum = 0.0; float n = 0.0;
     for (int dy = -radius; dy <= radius; dy++) for (int dx = -radius; dx <= radius; dx++) {
       ivec2 q = px + ivec2(dx, dy);
@@ -209,27 +225,81 @@
       float v = texelFetch(depth, q, 0).r;
       if (v < ${FAR / 10}) { sum += v; n += 1.0; }
     }
-    float d = sum / n;
-    vec3 pt = A * vec3(vec2(px), 1.0) * d + own;
+    outDepth = vec4(sum / n);
+  }`;
+  // One candidate depth of the refinement: the fade-weighted variance of the references'
+  // colours at the point `offset` along the ray (-1 where fewer than two see it).
+  const COST_FS = REFS_GLSL + `
+  uniform sampler2D smoothed; uniform float offset;
+  out vec4 outCost;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    float d = texelFetch(smoothed, px, 0).r;
+    if (d >= ${FAR / 10}) { outCost = vec4(-1.0); return; }
+    vec3 pt = pointAt(px, d + offset);
+    vec3 s1 = vec3(0.0); vec3 s2 = vec3(0.0); float m = 0.0; int n = 0;
+    for (int k = 0; k < ${MAX_REFS}; k++) {
+      if (k >= count) break;
+      vec2 uv;
+      if (!sees(k, pt, uv)) continue;
+      vec3 c = photo(k, uv);
+      s1 += fades[k] * c; s2 += fades[k] * c * c; m += fades[k]; n += 1;
+    }
+    if (n < 2) { outCost = vec4(-1.0); return; }
+    vec3 mean = s1 / m;
+    vec3 v = max(s2 / m - mean * mean, 0.0);
+    outCost = vec4(v.r + v.g + v.b);
+  }`;
+  // Per pixel the candidate whose cost, averaged over the window, is least (ties and no
+  // information keep the smoothed depth).
+  const PICK_FS = `#version 300 es
+  precision highp float; precision highp int; precision highp sampler2DArray;
+  uniform sampler2D smoothed; uniform sampler2DArray costs; uniform int sweep; uniform int radius;
+  uniform float stepSize; uniform vec2 size;
+  out vec4 outDepth;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    float d = texelFetch(smoothed, px, 0).r;
+    if (d >= ${FAR / 10}) { outDepth = vec4(${FAR}); return; }
+    float best = 3.0e38; int bi = sweep;
+    for (int c = 0; c <= 2 * sweep; c++) {
+      float sum = 0.0; float n = 0.0;
+      for (int dy = -radius; dy <= radius; dy++) for (int dx = -radius; dx <= radius; dx++) {
+        ivec2 q = px + ivec2(dx, dy);
+        if (q.x < 0 || q.y < 0 || q.x >= int(size.x) || q.y >= int(size.y)) continue;
+        float v = texelFetch(costs, ivec3(q, c), 0).r;
+        if (v >= 0.0) { sum += v; n += 1.0; }
+      }
+      if (n == 0.0) continue;
+      float v = sum / n;
+      if (v < best || (v == best && abs(c - sweep) < abs(bi - sweep))) { best = v; bi = c; }
+    }
+    outDepth = vec4(d + float(bi - sweep) * stepSize);
+  }`;
+  // Per pixel: the refined depth's surface point projected into the references that see it,
+  // blended; alpha = how much to soften (texture_view).
+  const TEXTURE_FS = REFS_GLSL + `
+  uniform sampler2D refined; uniform sampler2D rough;
+  uniform float eps2; uniform float agree; uniform float fullFade;
+  out vec4 outColour;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    float d = texelFetch(refined, px, 0).r;
+    if (d >= ${FAR / 10}) { outColour = vec4(0.0); return; }
+    vec3 pt = pointAt(px, d);
     vec3 view = normalize(own - pt);
     vec3 acc = vec3(0.0); vec3 sq = vec3(0.0); float wsum = 0.0; int m = 0;
     float top0 = 0.0; float top1 = 0.0;
     for (int k = 0; k < ${MAX_REFS}; k++) {
       if (k >= count) break;
-      vec4 x = vec4(pt, 1.0);
-      vec3 q = vec3(dot(P0[k], x), dot(P1[k], x), dot(P2[k], x));
-      if (q.z <= 0.0) continue;
-      vec2 uv = q.xy / q.z;
-      if (uv.x < 0.0 || uv.y < 0.0 || uv.x > size.x - 1.0 || uv.y > size.y - 1.0) continue;
-      ivec2 ip = min(ivec2(uv + 0.5), ivec2(size) - 1);
-      float rd = texelFetch(refdepth, ivec3(ip, layers[k]), 0).r;
-      if (rd >= ${FAR / 10} || q.z > rd + tol) continue;
+      vec2 uv;
+      if (!sees(k, pt, uv)) continue;
       vec3 r = normalize(centres[k] - pt);
       float a = atan(length(cross(view, r)), dot(view, r));
       float wt = fades[k] / (a * a + eps2);
       float f = fades[k];
       if (f > top0) { top1 = top0; top0 = f; } else if (f > top1) { top1 = f; }
-      vec3 c = texture(photos, vec3((uv + 0.5) / size, float(layers[k]))).rgb * 255.0;
+      vec3 c = photo(k, uv);
       acc += wt * c; sq += wt * c * c; wsum += wt; m += 1;
     }
     if (wsum <= 0.0) { outColour = vec4(texelFetch(rough, px, 0).rgb, 1.0); return; }
@@ -341,6 +411,9 @@
     if (!gl.getExtension('EXT_color_buffer_float')) throw new Error('this browser cannot render to float textures');
     progs = {
       splat: program(SPLAT_VS, SPLAT_FS),
+      smooth: program(QUAD_VS, SMOOTH_FS),
+      cost: program(QUAD_VS, COST_FS),
+      pick: program(QUAD_VS, PICK_FS),
       texture: program(QUAD_VS, TEXTURE_FS),
       blur: program(QUAD_VS, BLUR_FS),
       final: program(QUAD_VS, FINAL_FS),
@@ -373,6 +446,23 @@
     targets.rough = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
     targets.depth = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
     targets.splatFb = target([targets.rough, targets.depth], depthRb);
+    for (const name of ['smoothed', 'refined']) {
+      targets[name] = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
+      targets[name + 'Fb'] = target([targets[name]]);
+    }
+    const layers = 2 * Math.max(T.sweep, 0) + 1;
+    targets.costs = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, targets.costs);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.R32F, W, H, layers);
+    for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
+    targets.costFbs = [];
+    for (let c = 0; c < layers; c++) {
+      const fb = gl.createFramebuffer();
+      gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+      gl.framebufferTextureLayer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, targets.costs, 0, c);
+      gl.drawBuffers([gl.COLOR_ATTACHMENT0]);
+      targets.costFbs.push(fb);
+    }
     for (const name of ['sharp', 'final']) {
       targets[name] = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
       targets[name + 'Fb'] = target([targets[name]]);
@@ -467,13 +557,12 @@
   }
 
   // The new view from `cam` into targets.final; returns the references used.
-  function render(cam) {
+  // `quick`: without the depth refinement (while the view moves).
+  function render(cam, quick) {
     const t0 = performance.now();
     gl.bindFramebuffer(gl.FRAMEBUFFER, targets.splatFb);
     splat(cam);
     const { chosen, fade } = fadingReferences(cam);
-    const pr = progs.texture;
-    gl.useProgram(pr.p);
     const P = [[], [], []];
     const centres = [];
     chosen.forEach((i) => {
@@ -482,22 +571,50 @@
       centres.push(...centreOf(S.cams[i]));
     });
     const pad = (a, n) => a.concat(new Array(n - a.length).fill(0));
-    gl.uniform4fv(pr.u.P0, pad(P[0], 4 * MAX_REFS));
-    gl.uniform4fv(pr.u.P1, pad(P[1], 4 * MAX_REFS));
-    gl.uniform4fv(pr.u.P2, pad(P[2], 4 * MAX_REFS));
-    gl.uniform3fv(pr.u.centres, pad(centres, 3 * MAX_REFS));
-    gl.uniform1fv(pr.u.fades, pad(fade, MAX_REFS));
-    gl.uniform1iv(pr.u.layers, pad(chosen, MAX_REFS));
-    gl.uniform1i(pr.u.count, chosen.length);
-    gl.uniformMatrix3fv(pr.u.A, true, mul3(tr(cam.r), inv3(cam.k)));
-    gl.uniform3fv(pr.u.own, centreOf(cam));
-    gl.uniform1f(pr.u.tol, T.tol);
+    const references = (pr) => {
+      gl.useProgram(pr.p);
+      gl.uniform4fv(pr.u.P0, pad(P[0], 4 * MAX_REFS));
+      gl.uniform4fv(pr.u.P1, pad(P[1], 4 * MAX_REFS));
+      gl.uniform4fv(pr.u.P2, pad(P[2], 4 * MAX_REFS));
+      gl.uniform3fv(pr.u.centres, pad(centres, 3 * MAX_REFS));
+      gl.uniform1fv(pr.u.fades, pad(fade, MAX_REFS));
+      gl.uniform1iv(pr.u.layers, pad(chosen, MAX_REFS));
+      gl.uniform1i(pr.u.count, chosen.length);
+      gl.uniformMatrix3fv(pr.u.A, true, mul3(tr(cam.r), inv3(cam.k)));
+      gl.uniform3fv(pr.u.own, centreOf(cam));
+      gl.uniform1f(pr.u.tol, T.tol);
+      gl.uniform2f(pr.u.size, W, H);
+    };
+    const refTextures = [['photos', photosTex, gl.TEXTURE_2D_ARRAY], ['refdepth', refDepth, gl.TEXTURE_2D_ARRAY]];
+    // The splat depth smoothed, then refined along each ray where the photos agree best.
+    const sm = progs.smooth;
+    gl.useProgram(sm.p);
+    gl.uniform1i(sm.u.radius, T.depth_smooth);
+    gl.uniform2f(sm.u.size, W, H);
+    quad(sm, targets.smoothedFb, [['depth', targets.depth]]);
+    let refined = targets.smoothed;
+    if (T.sweep > 0 && chosen.length >= 2 && !quick) {
+      const cost = progs.cost;
+      references(cost);
+      for (let c = 0; c <= 2 * T.sweep; c++) {
+        gl.uniform1f(cost.u.offset, (c - T.sweep) * T.sweep_step);
+        quad(cost, targets.costFbs[c], [['smoothed', targets.smoothed], ...refTextures]);
+      }
+      const pick = progs.pick;
+      gl.useProgram(pick.p);
+      gl.uniform1i(pick.u.sweep, T.sweep);
+      gl.uniform1i(pick.u.radius, T.sweep_window);
+      gl.uniform1f(pick.u.stepSize, T.sweep_step);
+      gl.uniform2f(pick.u.size, W, H);
+      quad(pick, targets.refinedFb, [['smoothed', targets.smoothed], ['costs', targets.costs, gl.TEXTURE_2D_ARRAY]]);
+      refined = targets.refined;
+    }
+    const pr = progs.texture;
+    references(pr);
     gl.uniform1f(pr.u.eps2, T.eps * T.eps);
     gl.uniform1f(pr.u.agree, T.agree_sd);
     gl.uniform1f(pr.u.fullFade, T.full_fade);
-    gl.uniform1i(pr.u.radius, T.depth_smooth);
-    gl.uniform2f(pr.u.size, W, H);
-    quad(pr, targets.sharpFb, [['depth', targets.depth], ['rough', targets.rough], ['photos', photosTex, gl.TEXTURE_2D_ARRAY], ['refdepth', refDepth, gl.TEXTURE_2D_ARRAY]]);
+    quad(pr, targets.sharpFb, [['refined', refined], ['rough', targets.rough], ...refTextures]);
     const soften = T.soften_sigma > 0;
     if (soften) {
       blur(targets.sharp, targets.blurA, targets.blurAFb, targets.blurB, targets.blurBFb, 0);
@@ -526,6 +643,7 @@
       gl.bindVertexArray(null);
     }
     window.vt.renderMs = performance.now() - t0;
+    window.vt.refined = !quick;
     window.vt.drawn += 1;
     window.vt.references = chosen.map((i) => S.cams[i].name);
     return chosen;
@@ -606,12 +724,22 @@
   });
   document.getElementById('cameras').addEventListener('click', () => { view.showCameras = !view.showCameras; view.dirty = true; });
 
+  // While a drag moves the view, frames skip the depth refinement; once it stops, the view is
+  // rendered in full.
   function tick() {
     requestAnimationFrame(tick);
-    if (!window.vt.ready || !view.dirty) return;
-    view.dirty = false;
-    render(view.cam);
-    describe();
+    if (!window.vt.ready) return;
+    const moving = drag !== null;
+    if (view.dirty) {
+      view.dirty = false;
+      view.rough = moving;
+      render(view.cam, moving);
+      describe();
+    } else if (view.rough && !moving) {
+      view.rough = false;
+      render(view.cam, false);
+      describe();
+    }
   }
 
   load().then(() => {
@@ -625,7 +753,7 @@
       look: (cam) => {
         setCamera(typeof cam === 'number' ? S.views[cam] : cam);
         view.dirty = false;
-        const refs = render(view.cam);
+        const refs = render(view.cam, false);
         describe();
         return { rgb: readRgb(), references: refs.map((i) => S.cams[i].name) };
       },

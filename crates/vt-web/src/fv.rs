@@ -151,6 +151,9 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
             "soften_sigma": t.soften_sigma,
             "consensus": t.consensus,
             "depth_smooth": t.depth_smooth,
+            "sweep": t.sweep,
+            "sweep_step": t.sweep_step * size,
+            "sweep_window": t.sweep_window,
             "full_fade": FULL_FADE,
         },
     });
