@@ -687,12 +687,21 @@ pub struct FvExported {
     pub views: Vec<String>,
 }
 
-/// The page's parts: the data loaded, the model, the preset views.
-fn page_parts(
-    data: &FvData,
-    progress: &mut dyn Progress,
-) -> Result<(Dataset, ModelUsed, Vec<vt_fv::camera::Camera>, Vec<String>)> {
+/// The page's parts: the data loaded, the view settings (checked before the model is built),
+/// the model, the preset views and their specs.
+struct PageParts {
+    d: Dataset,
+    params: vt_fv::pipeline::ViewParams,
+    used: ModelUsed,
+    views: Vec<vt_fv::camera::Camera>,
+    specs: Vec<String>,
+}
+
+fn page_parts(data: &FvData, view: &ViewOptions, progress: &mut dyn Progress) -> Result<PageParts> {
+    data.check()?;
     let d = data.load(progress)?;
+    let (w, h) = d.size();
+    let params = view.params(w, h)?;
     let used = model_for(data, &d, progress)?;
     whole(&used, data)?;
     let centre = model_centre(&used.model);
@@ -710,49 +719,44 @@ fn page_parts(
                 })
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok((d, used, views, specs))
+    Ok(PageParts {
+        d,
+        params,
+        used,
+        views,
+        specs,
+    })
 }
 
-/// The page's model description over loaded parts.
-fn page_model<'a>(
-    d: &'a Dataset,
-    used: &'a ModelUsed,
-    views: &'a [vt_fv::camera::Camera],
-    texture: &'a vt_fv::texture::TextureParams,
-    title: &'a str,
-) -> vt_web::fv::FvModel<'a> {
-    vt_web::fv::FvModel {
-        cams: &d.cams,
-        images: &d.images,
-        model: &used.model,
-        views,
-        background: d.background,
-        texture,
-        title,
+impl PageParts {
+    /// The page's description of these parts.
+    fn model<'a>(&'a self, title: &'a str) -> vt_web::fv::FvModel<'a> {
+        vt_web::fv::FvModel {
+            cams: &self.d.cams,
+            images: &self.d.images,
+            model: &self.used.model,
+            views: &self.views,
+            background: self.d.background,
+            texture: &self.params.texture,
+            title,
+        }
     }
 }
 
 /// Writes the page for the data folder's model into `job.out`.
 pub fn fv_export(job: &FvExportJob, progress: &mut dyn Progress) -> Result<FvExported> {
-    job.data.check()?;
     let inputs = job.data.inputs();
     // Checked before any work (nothing is created yet).
     drop(Output::dir(&job.out, OutputKind::WebExport, &inputs)?);
-    let (d, used, views, specs) = page_parts(&job.data, progress)?;
-    let (w, h) = d.size();
-    let params = job.view.params(w, h)?;
+    let parts = page_parts(&job.data, &job.view, progress)?;
     let title = crate::export::title(&job.data.data);
     progress.start("page", None);
-    let summary = vt_web::fv::fv_export(
-        &page_model(&d, &used, &views, &params.texture, &title),
-        &job.out,
-        &inputs,
-    )?;
+    let summary = vt_web::fv::fv_export(&parts.model(&title), &job.out, &inputs)?;
     progress.finish();
     Ok(FvExported {
-        model_line: used.line,
+        model_line: parts.used.line,
         summary,
-        views: specs,
+        views: parts.specs,
     })
 }
 
@@ -762,11 +766,8 @@ pub fn fv_page(
     view: &ViewOptions,
     progress: &mut dyn Progress,
 ) -> Result<(std::collections::BTreeMap<String, Vec<u8>>, String)> {
-    data.check()?;
-    let (d, used, views, _) = page_parts(data, progress)?;
-    let (w, h) = d.size();
-    let params = view.params(w, h)?;
+    let parts = page_parts(data, view, progress)?;
     let title = crate::export::title(&data.data);
-    let (files, _) = vt_web::fv::fv_page(&page_model(&d, &used, &views, &params.texture, &title))?;
-    Ok((files, used.line))
+    let (files, _) = vt_web::fv::fv_page(&parts.model(&title))?;
+    Ok((files, parts.used.line))
 }

@@ -107,9 +107,9 @@ fn page_matches_render(name: &str, data: &Path, root: &Path, serve: bool) {
             eprintln!("{name} {spec}: {db:.2} dB inside the render's coverage; photos {refs}");
         }
     }
-    let ms = page.eval("window.vt.renderMs").as_f64().unwrap_or(f64::NAN);
+    let ms = page.eval("window.vt.lookMs").as_f64().unwrap_or(f64::NAN);
     eprintln!(
-        "{name}: page against vt fv render at 8 views: {:?} dB; a view in {ms:.0} ms (software WebGL)",
+        "{name}: page against vt fv render at 8 views: {:?} dB; a view rendered and read back in {ms:.0} ms (software WebGL)",
         scores
             .iter()
             .map(|s| (s * 10.0).round() / 10.0)
@@ -147,6 +147,30 @@ fn page_matches_render(name: &str, data: &Path, root: &Path, serve: bool) {
         (d0 - d1).abs() <= 1e-6 * d0,
         "{name}: the drag moved the camera from {d0} to {d1} from the centre"
     );
+
+    // Stepping back (the - key) brings the photos' cameras into the picture; C draws them over
+    // the view on screen.
+    let d_near = distance(&page.eval("window.vt.camera()"), &centre);
+    for _ in 0..12 {
+        page.key("-", "Minus", 189);
+    }
+    let d_far = distance(&page.eval("window.vt.camera()"), &centre);
+    assert!(
+        d_far > 2.5 * d_near,
+        "{name}: - moved the camera from {d_near} to {d_far}"
+    );
+    let canvas = "document.getElementById('view').toDataURL()";
+    let settled = "!window.vt.pending()";
+    page.wait_until(settled, "the page to draw the view", "window.vt.drawn");
+    let plain = page.eval(canvas);
+    let drawn = page.eval("window.vt.drawn").as_u64().unwrap();
+    page.key("c", "KeyC", 67);
+    page.wait_until(
+        &format!("window.vt.drawn > {drawn} && {settled}"),
+        "the page to redraw after C",
+        "window.vt.drawn",
+    );
+    assert!(page.eval(canvas) != plain, "{name}: C showed no cameras");
 
     if serve {
         // `vt fv view` serves the same page: the same picture, byte for byte.

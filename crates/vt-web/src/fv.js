@@ -749,15 +749,21 @@
       // The camera shown now: { k, r, t } (row-major K and R, t; world to camera).
       camera: () => view.cam,
       // The view from `cam` ({ k, r, t }), or preset view i, shown and read back:
-      // { rgb: base64 RGB rows top first, references: photo names }.
+      // { rgb: base64 RGB rows top first, references: photo names }; lookMs says how long.
       look: (cam) => {
         setCamera(typeof cam === 'number' ? S.views[cam] : cam);
         view.dirty = false;
+        const t0 = performance.now();
         const refs = render(view.cam, false);
+        const rgb = readRgb();
+        // Rendered and read back: what the view costs the GPU.
+        window.vt.lookMs = performance.now() - t0;
         describe();
-        return { rgb: readRgb(), references: refs.map((i) => S.cams[i].name) };
+        return { rgb, references: refs.map((i) => S.cams[i].name) };
       },
       showCameras: (on) => { view.showCameras = on; view.dirty = true; },
+      // Whether a change waits to be drawn.
+      pending: () => view.dirty || view.rough,
       // The point the views turn about (the model's surface centroid).
       centre: S.centre,
     });
