@@ -14,8 +14,10 @@ tasks:
   lint          cargo fmt --check and cargo clippy (warnings are errors)
   cross-check   run vt-core and vt-cv (OpenCV) on the same inputs and assert they agree
   bench         thesis-scale System A benchmark (decode vs analysis time, peak memory),
-                `vt analyze`'s peak memory on 1080p clips of 300 and 600 frames, then the
-                criterion benches; pass --quick for only a smaller thesis-scale scene
+                `vt analyze`'s peak memory on 1080p clips of 300 and 600 frames and its
+                time against its floor, an exported 720p page's start in headless
+                Chromium, then the criterion benches; pass --quick for only a smaller
+                thesis-scale scene
   report        [--quick] [--out DIR]: measure every knob's speed/accuracy trade, stability,
                 model choice, real-data accuracy and performance against OpenCV; writes
                 DIR/index.html (plots beside it), report.json and README.md
@@ -101,6 +103,22 @@ fn main() -> Result<()> {
                     ]);
                     run(c)?;
                 }
+                // The exported page's start on a 720p scene in headless Chromium (issue #36).
+                let mut p = cargo();
+                p.args([
+                    "test",
+                    "--release",
+                    "--quiet",
+                    "-p",
+                    "vt-cli",
+                    "--test",
+                    "export",
+                    "page_start_720p",
+                    "--",
+                    "--ignored",
+                    "--nocapture",
+                ]);
+                run(p)?;
                 let mut b = cargo();
                 b.args(["bench", "-p", "vt-core"]);
                 run(b)?;
