@@ -430,7 +430,7 @@ fn waves(
 fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
     use vt_core::analysis::{analyze, AnalyzeParams, FrameSource, MemorySource, Quiet};
     let (w, h) = (96u32, 32u32);
-    let run = |frames: Vec<RgbImage>, max_length: usize| {
+    let run_with = |frames: Vec<RgbImage>, max_length: usize, cache_bytes: usize| {
         let mut src = MemorySource {
             name: "two periods".into(),
             frames,
@@ -440,6 +440,7 @@ fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
                 window: 3,
                 min_length: 5,
             },
+            cache_bytes,
             ..Default::default()
         };
         let rp = params
@@ -451,6 +452,8 @@ fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
         let mut sources: Vec<&mut dyn FrameSource> = vec![&mut src];
         analyze(&mut sources, &[], &params, &mut Quiet).unwrap()
     };
+    let run =
+        |frames, max_length| run_with(frames, max_length, AnalyzeParams::default().cache_bytes);
     // 45 frames hold the common period: the thesis's loop is exact and stays.
     let exact = run(waves(45, (w, h), &[48], &[5, 7], (0, 0.0)), 35);
     let v = &exact.views[0];
@@ -483,4 +486,16 @@ fn by_default_per_region_loops_are_kept_only_where_they_are_better() {
     assert!(!q.shows(), "{q:?}");
     assert!(v.region_loop.is_none() && v.region_rejected.is_none());
     assert_eq!(v.n_frames, 30);
+    // Without a frame cache the thesis's loop is measured on its frames decoded once more, as
+    // they come: the same figures, and nothing packed for a loop that needs nothing.
+    for (frames, cached) in [
+        (waves(45, (w, h), &[48], &[5, 7], (0, 0.0)), &exact),
+        (waves(30, (w, h), &[], &[6], (6, 0.0)), &kept),
+    ] {
+        let streamed = run_with(frames, 35, 0);
+        let (a, b) = (&streamed.views[0], &cached.views[0]);
+        assert_eq!(a.region_not_needed, b.region_not_needed);
+        assert_eq!(a.regions_over_cache, None, "nothing was packed");
+        assert_eq!((a.best_loop, a.n_frames), (b.best_loop, b.n_frames));
+    }
 }

@@ -418,128 +418,145 @@ pub(super) fn analyze_view(
             period: best_loop.len(),
         };
         let need = own.start + own.period + 1;
-        let packed = match &cache {
-            Some(_) => None,
-            None => {
-                let held: usize = masks.iter().map(|m| m.len().div_ceil(64) * 8).sum();
-                let budget = params.cache_bytes.saturating_sub(held);
+        // Asked only where better, without a frame cache: whether the thesis's loop already
+        // wraps as it steps is measured on its frames as they are decoded once more, nothing
+        // kept; only a loop whose wraps show has its window packed for the label search.
+        let streamed = match (&cache, rp.only_if_better) {
+            (None, true) => {
                 let dims = (masks[0].width(), masks[0].height());
-                // A packed window holds the loop and a few frames past it: the labels' pairwise
-                // costs grow with the square of the window's length. (The label search's own
-                // memory is checked against what the window leaves once the search is asked
-                // for: a loop that already wraps as it steps needs none.)
-                let want = span.min(need + PACKED_SLACK);
-                let (packed, last) = read_window(src, first..first + want, n1, budget, &label)?;
-                if packed.len() < need {
-                    // Over the budget: what the loop's frames would take at the rate so far
-                    // (the frame left out counted), their label search, and the masks beside
-                    // them.
-                    let rate =
-                        (packed.byte_len() as u64 + last as u64).div_ceil(packed.len() as u64 + 1);
-                    let search = crate::regions::search_bytes(dims, need, rp);
-                    regions_over_cache = Some(rate * need as u64 + search as u64 + held as u64);
-                    None
-                } else {
-                    span = packed.len();
-                    // What the budget leaves the label search, and what the view holds
-                    // besides.
-                    let room = budget.saturating_sub(packed.byte_len());
-                    let besides = (packed.byte_len() + held) as u64;
-                    Some((packed, room, besides))
-                }
+                let one =
+                    crate::regions::single_loop(own, dims, crate::regions::reduction(dims, rp).1);
+                let start = first + own.start;
+                Some(streamed_wraps(src, dims, &one, start, n1, alpha, &label)?)
             }
+            _ => None,
         };
-        let window_masks = &masks[first..first + span];
-        let window = match (&cache, &packed) {
-            (Some(frames), _) => Some(Window::Cached(&frames[first..first + span])),
-            (None, Some((packed, _, _))) => Some(Window::Packed(packed)),
-            (None, None) => None,
-        };
-        let room = packed.as_ref().map(|&(_, room, _)| room);
-        let made = match &window {
-            Some(w) => Some(bake_regions(
-                w,
-                window_masks,
-                own,
-                alpha,
-                rp,
-                params.loops.min_length,
-                room,
-            )?),
-            None => None,
-        };
-        if let Some(made) = made {
-            let secs = t_bake.elapsed().as_secs_f64();
-            match made {
-                Baked::OverCache(search) => {
-                    let besides = packed.as_ref().map_or(0, |&(_, _, b)| b);
-                    regions_over_cache = Some(besides + search as u64);
+        if let Some(wraps) = streamed.filter(|w| !w.shows()) {
+            thesis_smooth = Some(wraps);
+        } else {
+            let packed = match &cache {
+                Some(_) => None,
+                None => {
+                    let held: usize = masks.iter().map(|m| m.len().div_ceil(64) * 8).sum();
+                    let budget = params.cache_bytes.saturating_sub(held);
+                    let dims = (masks[0].width(), masks[0].height());
+                    // A packed window holds the loop and a few frames past it: the labels' pairwise
+                    // costs grow with the square of the window's length. (The label search's own
+                    // memory is checked against what the window leaves once the search is asked
+                    // for: a loop that already wraps as it steps needs none.)
+                    let want = span.min(need + PACKED_SLACK);
+                    let (packed, last) = read_window(src, first..first + want, n1, budget, &label)?;
+                    if packed.len() < need {
+                        // Over the budget: what the loop's frames would take at the rate so far
+                        // (the frame left out counted), their label search, and the masks beside
+                        // them.
+                        let rate = (packed.byte_len() as u64 + last as u64)
+                            .div_ceil(packed.len() as u64 + 1);
+                        let search = crate::regions::search_bytes(dims, need, rp);
+                        regions_over_cache = Some(rate * need as u64 + search as u64 + held as u64);
+                        None
+                    } else {
+                        span = packed.len();
+                        // What the budget leaves the label search, and what the view holds
+                        // besides.
+                        let room = budget.saturating_sub(packed.byte_len());
+                        let besides = (packed.byte_len() + held) as u64;
+                        Some((packed, room, besides))
+                    }
                 }
-                Baked::ThesisSmooth(single) => thesis_smooth = Some(single),
-                Baked::Worse(chosen, quality, single) => {
-                    regions_worse = Some(RegionResult {
-                        chosen,
-                        quality,
-                        single,
-                        secs,
-                    })
-                }
-                Baked::Kept(rl, quality, single) => {
-                    // The player's wrap onto the smoothest step of the cycle; the baked frames
-                    // replace the view's frames in the store (its file made anew).
-                    let frames = window.as_ref().expect("made from a window");
-                    let bake =
-                        Bake::new(frames, window_masks, &rl, rp.feather).rotated(quality.smoothest);
-                    let mut baked_masks = Vec::with_capacity(rl.length + 1);
-                    let mut baked_thumbs = Vec::new();
-                    let blur = GaussianBlur::new(&params.blur)?;
-                    let (mut f, mut blurred) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
-                    let mut scratch = BlurScratch::default();
-                    for t in 0..=rl.length {
-                        let m = bake.frame_into(t, &mut f);
-                        observer.object_frame(p, t, &shown(&m), &f)?;
-                        if with_thumbs {
-                            if blurred.dimensions() != f.dimensions() {
-                                blurred = RgbImage::new(f.width(), f.height());
+            };
+            let window_masks = &masks[first..first + span];
+            let window = match (&cache, &packed) {
+                (Some(frames), _) => Some(Window::Cached(&frames[first..first + span])),
+                (None, Some((packed, _, _))) => Some(Window::Packed(packed)),
+                (None, None) => None,
+            };
+            let room = packed.as_ref().map(|&(_, room, _)| room);
+            let made = match &window {
+                Some(w) => Some(bake_regions(
+                    w,
+                    window_masks,
+                    own,
+                    alpha,
+                    rp,
+                    params.loops.min_length,
+                    room,
+                )?),
+                None => None,
+            };
+            if let Some(made) = made {
+                let secs = t_bake.elapsed().as_secs_f64();
+                match made {
+                    Baked::OverCache(search) => {
+                        let besides = packed.as_ref().map_or(0, |&(_, _, b)| b);
+                        regions_over_cache = Some(besides + search as u64);
+                    }
+                    Baked::ThesisSmooth(single) => thesis_smooth = Some(single),
+                    Baked::Worse(chosen, quality, single) => {
+                        regions_worse = Some(RegionResult {
+                            chosen,
+                            quality,
+                            single,
+                            secs,
+                        })
+                    }
+                    Baked::Kept(rl, quality, single) => {
+                        // The player's wrap onto the smoothest step of the cycle; the baked frames
+                        // replace the view's frames in the store (its file made anew).
+                        let frames = window.as_ref().expect("made from a window");
+                        let bake = Bake::new(frames, window_masks, &rl, rp.feather)
+                            .rotated(quality.smoothest);
+                        let mut baked_masks = Vec::with_capacity(rl.length + 1);
+                        let mut baked_thumbs = Vec::new();
+                        let blur = GaussianBlur::new(&params.blur)?;
+                        let (mut f, mut blurred) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
+                        let mut scratch = BlurScratch::default();
+                        for t in 0..=rl.length {
+                            let m = bake.frame_into(t, &mut f);
+                            observer.object_frame(p, t, &shown(&m), &f)?;
+                            if with_thumbs {
+                                if blurred.dimensions() != f.dimensions() {
+                                    blurred = RgbImage::new(f.width(), f.height());
+                                }
+                                blur.apply_into(&f, &mut blurred, &mut scratch)?;
+                                baked_thumbs.push(change_thumb(&blurred, &bg_blur, factor));
                             }
-                            blur.apply_into(&f, &mut blurred, &mut scratch)?;
-                            baked_thumbs.push(change_thumb(&blurred, &bg_blur, factor));
+                            baked_masks.push(m);
                         }
-                        baked_masks.push(m);
+                        let mut rl = bake.region_loop();
+                        drop(bake);
+                        for l in &mut rl.labels {
+                            l.start += first;
+                        }
+                        thumbs = baked_thumbs;
+                        masks = baked_masks;
+                        xor_steps = masks
+                            .par_windows(2)
+                            .map(|w| crate::mask::xor_count(&w[0], &w[1]))
+                            .collect();
+                        app_steps = thumbs
+                            .par_windows(2)
+                            .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
+                            .collect();
+                        kappa = appearance::kappa(
+                            params.appearance as f64,
+                            mean(&xor_steps),
+                            mean(&app_steps),
+                        );
+                        // Frame L is frame 0 again: the wrap L -> 1 is the step 0 -> 1.
+                        best_loop = Loop {
+                            start: 0,
+                            end: rl.length,
+                            cost: 0,
+                        };
+                        n_frames = masks.len();
+                        region_loop = Some(RegionResult {
+                            chosen: rl,
+                            quality,
+                            single,
+                            secs: t_bake.elapsed().as_secs_f64(),
+                        });
                     }
-                    let mut rl = bake.region_loop();
-                    drop(bake);
-                    for l in &mut rl.labels {
-                        l.start += first;
-                    }
-                    thumbs = baked_thumbs;
-                    masks = baked_masks;
-                    xor_steps = masks
-                        .par_windows(2)
-                        .map(|w| crate::mask::xor_count(&w[0], &w[1]))
-                        .collect();
-                    app_steps = thumbs
-                        .par_windows(2)
-                        .map(|w| appearance::thumb_cost(&w[0], &w[1], None))
-                        .collect();
-                    kappa = appearance::kappa(
-                        params.appearance as f64,
-                        mean(&xor_steps),
-                        mean(&app_steps),
-                    );
-                    // Frame L is frame 0 again: the wrap L -> 1 is the step 0 -> 1.
-                    best_loop = Loop {
-                        start: 0,
-                        end: rl.length,
-                        cost: 0,
-                    };
-                    n_frames = masks.len();
-                    region_loop = Some(RegionResult {
-                        chosen: rl,
-                        quality,
-                        single,
-                        secs: t_bake.elapsed().as_secs_f64(),
-                    });
                 }
             }
         }
@@ -694,6 +711,70 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     } else {
         Baked::Kept(rl, quality, single)
     })
+}
+
+/// [`crate::regions::wraps_of`] of the single-label loop `one` over frames `start..start +
+/// one.length` of `src` (`w x h`), decoded once more (all `n` of them) and measured as they come on another
+/// thread, two frames in flight.
+fn streamed_wraps(
+    src: &mut dyn FrameSource,
+    (w, h): (u32, u32),
+    one: &crate::regions::RegionLoop,
+    start: usize,
+    n: usize,
+    alpha: Option<&GrayImage>,
+    label: &dyn Fn(&str) -> String,
+) -> Result<crate::regions::Quality> {
+    let l = one.length;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<RgbImage>(2);
+    let (got, wraps) = std::thread::scope(|scope| {
+        let meter = scope.spawn(move || {
+            let mut first: Option<RgbImage> = None;
+            crate::regions::wraps_in(
+                |t, out: &mut RgbImage| {
+                    // Output frame L is frame 0 again.
+                    if t == l {
+                        if let Some(f) = &first {
+                            out.clone_from(f);
+                        }
+                        return;
+                    }
+                    // A read that stopped early leaves black frames: its error is returned.
+                    *out = rx
+                        .recv()
+                        .unwrap_or_else(|_| RgbImage::new(out.width(), out.height()));
+                    if t == 0 {
+                        first = Some(out.clone());
+                    }
+                },
+                (w, h),
+                one,
+                alpha,
+            )
+        });
+        let got = src.for_each_native(&mut |i, frame| {
+            if (start..start + l).contains(&i) {
+                let mut rgb = RgbImage::new(0, 0);
+                frame.to_rgb_into(&mut rgb);
+                // The meter only stops early when it panicked, which join reports.
+                let _ = tx.send(rgb);
+            }
+            Ok(())
+        });
+        drop(tx);
+        let wraps = meter
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (got, wraps)
+    });
+    let got = got?;
+    if got != n {
+        return Err(Error::Source {
+            view: label(""),
+            message: format!("gave {n} frames on the first read and {got} on the third"),
+        });
+    }
+    Ok(wraps)
 }
 
 /// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they take

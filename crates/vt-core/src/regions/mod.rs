@@ -35,7 +35,7 @@ mod solve;
 use bake::*;
 pub use bake::{compose, correction, single_loop, spreads, AxisBlend, Bake};
 use quality::{mad, median};
-pub use quality::{quality, quality_of, single_frame, single_frames, wraps_of, Quality};
+pub use quality::{quality, quality_of, single_frame, single_frames, wraps_in, wraps_of, Quality};
 pub use solve::{reduction, search_bytes, solve, Problem, Strips, Temporal};
 
 /// The parameters of per-region loops.

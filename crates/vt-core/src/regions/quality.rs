@@ -154,7 +154,7 @@ where
     M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
-    measure(make, source, rl, alpha, true)
+    measure(make, source.dimensions(), Some(source), rl, alpha)
 }
 
 /// [`quality_of`]'s step figures alone ([`Quality::smoothest`], [`Quality::worst_step`],
@@ -170,21 +170,36 @@ where
     M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
-    measure(make, source, rl, alpha, false)
+    measure(make, source.dimensions(), None::<&F>, rl, alpha)
 }
 
-fn measure<M, F>(
-    mut make: M,
-    source: &F,
+/// [`wraps_of`] of `w x h` frames that `make` gives without a source behind them (e.g. decoded
+/// as they are measured).
+pub fn wraps_in<M>(
+    make: M,
+    dims: (u32, u32),
     rl: &RegionLoop,
     alpha: Option<&image::GrayImage>,
-    full: bool,
+) -> Quality
+where
+    M: FnMut(usize, &mut RgbImage),
+{
+    measure(make, dims, None::<&[RgbImage]>, rl, alpha)
+}
+
+/// The loop's step figures, and with `source` the figures against it.
+fn measure<M, F>(
+    mut make: M,
+    (w, h): (u32, u32),
+    source: Option<&F>,
+    rl: &RegionLoop,
+    alpha: Option<&image::GrayImage>,
 ) -> Quality
 where
     M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
-    let (w, h) = source.dimensions();
+    let full = source.is_some();
     let wt: Vec<f32> = match alpha {
         Some(a) => a.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
         None => vec![1.0; (w * h) as usize],
@@ -271,7 +286,7 @@ where
                 } else {
                     tt.ordinary.push(step);
                 }
-                let Some(energy) = &energy else {
+                let (Some(energy), Some(source)) = (&energy, source) else {
                     return;
                 };
                 tt.error += candidates(ti, t)
@@ -317,13 +332,15 @@ where
     let worst_step = steps.iter().cloned().fold(0.0, f64::max) / med;
     // The source frames' gradient energy, per tile and over the frame, one frame in RGB at a
     // time per thread.
-    let n_src = if full { source.count() } else { 0 };
+    let n_src = source.map_or(0, |s| s.count());
     let (ge_src_tiles, ge_src) = (0..n_src)
         .into_par_iter()
         .map_init(
             || RgbImage::new(w, h),
             |buf, f| {
-                source.rgb_into(f, buf);
+                source
+                    .expect("n_src > 0 only with a source")
+                    .rgb_into(f, buf);
                 let sums: Vec<(f64, f64)> = tile_px
                     .iter()
                     .map(|px| crate::metrics::gradient_sums_at(buf, Some(px), Some(&wt)))
