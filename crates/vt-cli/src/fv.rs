@@ -40,9 +40,9 @@ pub enum FvCommand {
     View(PageViewArgs),
 }
 
-/// `vt fv export`.
+/// What `vt fv export` and `vt fv view` make their page from.
 #[derive(Args)]
-pub struct PageExportArgs {
+pub struct PageArgs {
     #[command(flatten)]
     data: DataArgs,
     #[command(flatten)]
@@ -52,6 +52,19 @@ pub struct PageExportArgs {
     /// Reference photos blended per pixel (nearest by direction), as `vt fv render --references`.
     #[arg(long, default_value_t = 2)]
     references: usize,
+}
+
+impl PageArgs {
+    fn data(&self) -> FvData {
+        self.data.data(&self.model, Some(&self.from))
+    }
+}
+
+/// `vt fv export`.
+#[derive(Args)]
+pub struct PageExportArgs {
+    #[command(flatten)]
+    page: PageArgs,
     /// Output folder (index.html and data/); must not exist. Written to a temporary folder and
     /// renamed.
     #[arg(long)]
@@ -62,14 +75,7 @@ pub struct PageExportArgs {
 #[derive(Args)]
 pub struct PageViewArgs {
     #[command(flatten)]
-    data: DataArgs,
-    #[command(flatten)]
-    model: ModelArgs,
-    #[command(flatten)]
-    from: ModelFileArgs,
-    /// Reference photos blended per pixel (nearest by direction), as `vt fv render --references`.
-    #[arg(long, default_value_t = 2)]
-    references: usize,
+    page: PageArgs,
     /// Port on 127.0.0.1 (0 = any free port; the URL is printed).
     #[arg(long, default_value_t = 8080)]
     port: u16,
@@ -88,8 +94,8 @@ fn page_view(references: usize) -> ViewOptions {
 
 fn page_export(a: PageExportArgs) -> Result<()> {
     let job = vt_app::fv::FvExportJob {
-        data: a.data.data(&a.model, Some(&a.from)),
-        view: page_view(a.references),
+        data: a.page.data(),
+        view: page_view(a.page.references),
         out: a.out.clone(),
     };
     let done = vt_app::fv::fv_export(&job, &mut Bars::default())?;
@@ -108,13 +114,14 @@ fn page_export(a: PageExportArgs) -> Result<()> {
 }
 
 fn page_view_serve(a: PageViewArgs) -> Result<()> {
-    let data = a.data.data(&a.model, Some(&a.from));
-    let (files, line) = vt_app::fv::fv_page(&data, &page_view(a.references), &mut Bars::default())?;
+    let data = a.page.data();
+    let view = page_view(a.page.references);
+    let (files, line) = vt_app::fv::fv_page(&data, &view, &mut Bars::default())?;
     let server = vt_view::PageServer::bind(a.port, files).map_err(vt_app::Error::from)?;
     eprintln!("{line}");
     println!(
         "vt fv view: serving {} at http://127.0.0.1:{}/ (Ctrl-C to stop)",
-        a.data.data.display(),
+        data.data.display(),
         server.port()
     );
     std::io::Write::flush(&mut std::io::stdout()).ok();

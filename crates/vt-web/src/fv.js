@@ -144,21 +144,7 @@
     if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) throw new Error('this browser cannot render to float textures');
     return fb;
   }
-  const bytes = (b64) => {
-    const bin = atob(b64);
-    const out = new Uint8Array(bin.length);
-    for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
-    return out;
-  };
-  function loadScript(src) {
-    return new Promise((resolve, reject) => {
-      const el = document.createElement('script');
-      el.src = src;
-      el.onload = resolve;
-      el.onerror = () => reject(new Error('cannot load ' + src));
-      document.head.appendChild(el);
-    });
-  }
+  const { bytes, loadScript } = vtUtil;
 
   // ---- shaders ------------------------------------------------------------------------------
   // Splats: a surface voxel as a square of side scale * f * size / z around its projection
@@ -649,19 +635,9 @@
     return chosen;
   }
 
+  // The last view rendered, top row first (the targets hold row 0 at the top, as the photos).
   function readRgb() {
-    gl.bindFramebuffer(gl.FRAMEBUFFER, targets.finalFb);
-    const rgba = new Uint8Array(W * H * 4);
-    gl.readPixels(0, 0, W, H, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
-    const rgb = new Uint8Array(W * H * 3);
-    for (let i = 0, j = 0; i < rgba.length; i += 4, j += 3) {
-      rgb[j] = rgba[i];
-      rgb[j + 1] = rgba[i + 1];
-      rgb[j + 2] = rgba[i + 2];
-    }
-    let s = '';
-    for (let i = 0; i < rgb.length; i += 0x8000) s += String.fromCharCode.apply(null, rgb.subarray(i, i + 0x8000));
-    return btoa(s);
+    return vtUtil.readRgb(gl, targets.finalFb, W, H);
   }
 
   // ---- interaction ----------------------------------------------------------------------------

@@ -159,7 +159,7 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
     });
     let meta = meta.to_string().replace('<', "\\u003c");
     written.script("fv.js", &format!("window.vtFvScene = {meta};"))?;
-    written.script("viewer.js", VIEWER)?;
+    written.script("viewer.js", &format!("{}\n{VIEWER}", crate::UTIL))?;
     let mut xyz = Vec::with_capacity(m.model.surface.len() * 12);
     let mut rgb = Vec::with_capacity(m.model.surface.len() * 3);
     for v in &m.model.surface {

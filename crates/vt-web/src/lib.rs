@@ -127,6 +127,8 @@ fn push_base64_list<'a>(text: &mut String, items: impl Iterator<Item = &'a Vec<u
 
 const PAGE: &str = include_str!("index.html");
 const PLAYER: &str = include_str!("player.js");
+/// The pages' shared helpers, written ahead of each page's script.
+const UTIL: &str = include_str!("util.js");
 const VERTEX: &str = include_str!("quad.vert");
 const COMMON: &str = include_str!("common.glsl");
 const BLEND: &str = include_str!("blend.frag");
@@ -493,7 +495,10 @@ fn write_page(
         "vert": VERTEX, "common": COMMON, "blend": BLEND, "morph": MORPH, "composite": COMPOSITE,
         "mix": MIX, "present": PRESENT,
     });
-    written.script("player.js", &format!("var vtShaders={shaders};\n{PLAYER}"))?;
+    written.script(
+        "player.js",
+        &format!("var vtShaders={shaders};\n{UTIL}\n{PLAYER}"),
+    )?;
     let page = PAGE.replace("__TITLE__", &html_escape(&opts.title));
     written.file("index.html", page.into_bytes())?;
     Ok(ExportSummary {

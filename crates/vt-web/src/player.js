@@ -409,38 +409,12 @@
 
   // The frame in `t` as RGB bytes, top row first, base64.
   function readRgb(t) {
-    gl.bindFramebuffer(gl.FRAMEBUFFER, t.fb);
-    const rgba = new Uint8Array(W * H * 4);
-    gl.readPixels(0, 0, W, H, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
-    const rgb = new Uint8Array(W * H * 3);
-    for (let i = 0, j = 0; i < rgba.length; i += 4, j += 3) {
-      rgb[j] = rgba[i];
-      rgb[j + 1] = rgba[i + 1];
-      rgb[j + 2] = rgba[i + 2];
-    }
-    let s = '';
-    for (let i = 0; i < rgb.length; i += 0x8000) s += String.fromCharCode.apply(null, rgb.subarray(i, i + 0x8000));
-    return btoa(s);
+    return vtUtil.readRgb(gl, t.fb, W, H);
   }
 
   // ---- loading ---------------------------------------------------------------------------
 
-  function loadScript(src) {
-    return new Promise((resolve, reject) => {
-      const el = document.createElement('script');
-      el.src = src;
-      el.onload = resolve;
-      el.onerror = () => reject(new Error('cannot load ' + src));
-      document.head.appendChild(el);
-    });
-  }
-
-  function bytes(b64) {
-    const bin = atob(b64);
-    const out = new Uint8Array(bin.length);
-    for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
-    return out;
-  }
+  const { bytes, loadScript } = vtUtil;
 
   async function inflate(data) {
     const stream = new Blob([data]).stream().pipeThrough(new DecompressionStream('deflate'));
