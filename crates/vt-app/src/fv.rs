@@ -737,6 +737,9 @@ impl PageParts {
             model: &self.used.model,
             views: &self.views,
             background: self.d.background,
+            masks: &self.d.masks,
+            clip: self.params.clip.as_ref(),
+            depth_clip: self.params.depth_clip.as_ref(),
             texture: &self.params.texture,
             title,
         }

@@ -1,8 +1,9 @@
 //! `vt fv export`'s page in headless Chromium (software WebGL) against `vt fv render`: the
-//! real templeSparseRing and kettle photos, a model built once per scene (`vt fv hull`), the
-//! page's 8 preset views around the object read back from the page and scored against `vt fv
-//! render --camera angle:DEG` inside the render's coverage; a real mouse drag turns the view.
-//! `vt fv view` serves the same page.
+//! real templeSparseRing and kettle photos and the NeRF lego's 8 benchmark views, a model built
+//! once per scene (`vt fv hull`), the page's 8 preset views around the object read back from
+//! the page and scored against `vt fv render --camera angle:DEG` (inside the render's coverage
+//! where it has an alpha channel; the whole image over white for the lego, as its benchmark
+//! scores); a real mouse drag turns the view. `vt fv view` serves the same page.
 
 mod common;
 
@@ -11,8 +12,9 @@ use std::path::{Path, PathBuf};
 use common::cdp::{chromium_webgl, decode_b64, vt_server, Page};
 use common::*;
 
-/// PSNR (dB) of `got` (RGB) against `want` (RGBA, its coverage as a soft alpha) over the pixels
-/// inside the coverage (alpha 255: the pixel and its 8 neighbours covered), and their share.
+/// PSNR (dB) of `got` (RGB) against `want` (RGBA, its coverage as a soft alpha; opaque for a
+/// render over a background) over the pixels inside the coverage (alpha 255: the pixel and its
+/// 8 neighbours covered), and their share.
 fn psnr_inside(got: &[u8], want: &image::RgbaImage) -> (f64, f64) {
     let (mut sq, mut n) = (0.0f64, 0usize);
     for (i, px) in want.pixels().enumerate() {
@@ -53,14 +55,15 @@ fn look(page: &mut Page, what: &str) -> (Vec<u8>, serde_json::Value) {
 
 /// Exports `data`'s page, scores its preset views against `vt fv render`'s, and drags; with
 /// `serve`, `vt fv view`'s page must show the same picture.
-fn page_matches_render(name: &str, data: &Path, root: &Path, serve: bool) {
+fn page_matches_render(name: &str, data: &Path, extra: &[&str], root: &Path, serve: bool) {
     let data_s = data.to_str().unwrap();
     let model_dir = root.join(format!("{name}-model"));
-    vt_ok(&["fv", "hull", data_s, "--out", model_dir.to_str().unwrap()]);
+    let with = |args: &[&str]| -> String { vt_ok(&[args, extra].concat()) };
+    with(&["fv", "hull", data_s, "--out", model_dir.to_str().unwrap()]);
     let model = model_dir.join("model.vtfv");
     let model_s = model.to_str().unwrap();
     let web = root.join(format!("{name}-web"));
-    let out = vt_ok(&[
+    let out = with(&[
         "fv",
         "export",
         data_s,
@@ -86,7 +89,7 @@ fn page_matches_render(name: &str, data: &Path, root: &Path, serve: bool) {
     let mut scores = Vec::new();
     for (i, spec) in specs.iter().enumerate() {
         let png = root.join(format!("{name}-{i}.png"));
-        vt_ok(&[
+        with(&[
             "fv",
             "render",
             data_s,
@@ -174,7 +177,12 @@ fn page_matches_render(name: &str, data: &Path, root: &Path, serve: bool) {
 
     if serve {
         // `vt fv view` serves the same page: the same picture, byte for byte.
-        let (_server, url) = vt_server(&["fv", "view", data_s, "--model", model_s, "--port", "0"]);
+        let args = [
+            &["fv", "view", data_s, "--model", model_s, "--port", "0"],
+            extra,
+        ]
+        .concat();
+        let (_server, url) = vt_server(&args);
         let mut served = open(&browser.ws, &url);
         let (same, _) = look(&mut served, "0");
         assert!(
@@ -210,11 +218,25 @@ fn testdata(name: &str) -> PathBuf {
 #[test]
 fn temple_page_matches_vt_fv_render() {
     let root = tempfile::tempdir().unwrap();
-    page_matches_render("temple", &testdata("templeSparseRing"), root.path(), true);
+    page_matches_render(
+        "temple",
+        &testdata("templeSparseRing"),
+        &[],
+        root.path(),
+        true,
+    );
 }
 
 #[test]
 fn kettle_page_matches_vt_fv_render() {
     let root = tempfile::tempdir().unwrap();
-    page_matches_render("kettle", &testdata("kettle"), root.path(), false);
+    page_matches_render("kettle", &testdata("kettle"), &[], root.path(), false);
+}
+
+/// The field's sparse-view setting: NeRF cameras, RGBA photos over white, 8 views.
+#[test]
+fn lego_page_matches_vt_fv_render() {
+    let root = tempfile::tempdir().unwrap();
+    let views = ["--views", "r_26,r_86,r_2,r_55,r_75,r_93,r_16,r_73"];
+    page_matches_render("lego", &testdata("nerf-lego"), &views, root.path(), false);
 }

@@ -177,6 +177,12 @@ impl HullTest {
     }
 }
 
+/// The photos' silhouettes as [`clip_to_silhouettes`] and [`clip_to_depths`] test them with
+/// `clip` (after [`ClipParams::for_silhouettes`]): closed by `close`, grown by `slack`.
+pub fn tested_silhouettes(cams: &[Camera], masks: &[Mask], clip: &ClipParams) -> Vec<Mask> {
+    HullTest::new(cams, masks, clip.close, clip.slack).masks
+}
+
 /// How far the photos' silhouettes disagree with one another: per slack `0..=max` (pixels the
 /// silhouettes, closed by `close`, are grown by), the share of rim pixels (a ring one pixel
 /// inside each photo's outline, every `stride`-th) whose ray meets no point inside every

@@ -1,9 +1,11 @@
-// vt fv export: System B's model in the browser. The voxel model's surface is splatted as
-// vt_fv::render::render_rough splats it, and the photos are projected onto it as
-// vt_fv::texture::texture_view projects them: per pixel, the references chosen and faded as
-// fading_references chooses them, each seen only where its own splat render puts no surface in
-// front (per-pixel visibility), blended with unstructured-lumigraph weights, softened where
-// they disagree. Drag to orbit, wheel to zoom, C to show the photos' cameras.
+// vt fv export: System B's model in the browser, rendered by vt fv render's default method in
+// WebGL2 passes: the voxel model's surface splatted as vt_fv::render::render_rough splats it,
+// trimmed to the silhouettes and the depth maps' free space (clip_to_hull, clip_to_free_space),
+// the photos projected onto it as vt_fv::texture::texture_view projects them (the references
+// chosen and faded as fading_references chooses them, each seen only where its own splat render
+// puts no surface in front, unstructured-lumigraph weights, the depth refined where they agree,
+// holes filled by push-pull, softened where they disagree) and the outline's soft alpha over the
+// background (vt_fv::composite). Drag to orbit, wheel to zoom, C to show the photos' cameras.
 (() => {
   'use strict';
   const S = window.vtFvScene;
@@ -196,6 +198,104 @@
   }
   vec3 photo(int k, vec2 uv) { return texture(photos, vec3((uv + 0.5) / size, float(layers[k]))).rgb * 255.0; }
   `;
+  // vt_fv::render's trims of the splat render, per pixel: to the visual hull of the silhouettes
+  // (clip_to_hull: some point of the ray near the splat depth inside every photo's silhouette
+  // that sees it) and past the free space the photos' depth maps prove (clip_to_free_space);
+  // a pixel trimmed away is uncovered. Cameras' projections are rows of `camsTex`.
+  const CLIP_FS = `#version 300 es
+  precision highp float; precision highp int; precision highp sampler2DArray; precision highp sampler3D;
+  uniform sampler2D depth; uniform sampler2D rough; uniform sampler2D camsTex; uniform int ncams;
+  uniform sampler2DArray sils; uniform sampler2DArray maps; uniform sampler3D occ;
+  uniform mat3 A; uniform vec3 own; uniform vec2 size;
+  uniform float before; uniform float behind; uniform float stepSize; uniform float voxel;
+  uniform int depthOn; uniform float margin; uniform float protect; uniform int through;
+  uniform float vmin; uniform vec3 gmin; uniform vec3 gmax; uniform ivec3 dims;
+  uniform vec2 mapSize; uniform float mapStep;
+  layout(location = 0) out vec4 outDepth; layout(location = 1) out vec4 outRough;
+  vec3 proj(int k, vec3 x) {
+    vec4 X = vec4(x, 1.0);
+    return vec3(dot(texelFetch(camsTex, ivec2(0, k), 0), X), dot(texelFetch(camsTex, ivec2(1, k), 0), X), dot(texelFetch(camsTex, ivec2(2, k), 0), X));
+  }
+  bool insideHull(vec3 x) {
+    for (int k = 0; k < 1024; k++) {
+      if (k >= ncams) break;
+      vec3 q = proj(k, x);
+      if (q.z <= 0.0) continue;
+      vec2 uv = floor(q.xy / q.z + 0.5);
+      if (uv.x < 0.0 || uv.y < 0.0 || uv.x >= size.x || uv.y >= size.y) continue;
+      if (texelFetch(sils, ivec3(ivec2(uv), k), 0).r < 0.5) return false;
+    }
+    return true;
+  }
+  bool freeAt(vec3 x) {
+    int th = 0;
+    for (int k = 0; k < 1024; k++) {
+      if (k >= ncams) break;
+      vec3 q = proj(k, x);
+      if (q.z <= 0.0) continue;
+      vec2 uv = q.xy / q.z;
+      vec2 ui = floor(uv + 0.5);
+      if (ui.x < 0.0 || ui.y < 0.0 || ui.x >= size.x || ui.y >= size.y) continue;
+      if (texelFetch(sils, ivec3(ivec2(ui), k), 0).r < 0.5) { th += through; continue; }
+      vec2 cell = floor(uv / mapStep + 0.5);
+      if (cell.x < 0.0 || cell.y < 0.0 || cell.x >= mapSize.x || cell.y >= mapSize.y) continue;
+      float d = texelFetch(maps, ivec3(ivec2(cell), k), 0).r;
+      if (d < 0.0) continue;
+      if (abs(d - q.z) <= protect * vmin) return false;
+      if (d > q.z + margin * vmin) th += 1;
+    }
+    return th >= through;
+  }
+  bool occupied(vec3 p) {
+    vec3 f = (p - gmin) / ((gmax - gmin) / vec3(dims));
+    if (f.x < 0.0 || f.y < 0.0 || f.z < 0.0 || f.x >= float(dims.x) || f.y >= float(dims.y) || f.z >= float(dims.z)) return false;
+    return texelFetch(occ, ivec3(f), 0).r > 0.5;
+  }
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    float d = texelFetch(depth, px, 0).r;
+    vec4 colour = texelFetch(rough, px, 0);
+    outDepth = vec4(${FAR}); outRough = vec4(0.0);
+    if (d >= ${FAR / 10}) return;
+    vec3 ray = A * vec3(vec2(px), 1.0);
+    int steps = int(floor((before + behind) / max(stepSize, 1e-3) + 0.5));
+    bool keep = false;
+    for (int s = 0; s <= 4096; s++) {
+      if (s > steps) break;
+      float t = d + (float(s) * stepSize - before) * voxel;
+      if (t > 0.0 && insideHull(ray * t + own)) { keep = true; break; }
+    }
+    if (!keep) return;
+    if (depthOn == 1 && freeAt(own + ray * d)) {
+      float len = length(ray);
+      float behindD = d + 0.5 * vmin / len;
+      // The ray's stretch inside the grid's box (Aabb::ray_span), from just behind d on.
+      float t0 = 0.0; float t1 = 3.0e38;
+      for (int k = 0; k < 3; k++) {
+        if (abs(ray[k]) < 1e-12) {
+          if (own[k] < gmin[k] || own[k] > gmax[k]) return;
+          continue;
+        }
+        float a = (gmin[k] - own[k]) / ray[k]; float c = (gmax[k] - own[k]) / ray[k];
+        t0 = max(t0, min(a, c)); t1 = min(t1, max(a, c));
+      }
+      if (t0 > t1) return;
+      t0 = max(t0, behindD);
+      float dt = 0.5 * vmin / len;
+      int n = t1 >= t0 ? int((t1 - t0) / dt) + 1 : 0;
+      float found = -1.0;
+      for (int k = 0; k < 100000; k++) {
+        if (k >= n) break;
+        float t = t0 + float(k) * dt;
+        vec3 p = own + ray * t;
+        if (occupied(p) && !freeAt(p)) { found = t; break; }
+      }
+      if (found < 0.0) return;
+      d = found;
+    }
+    outDepth = vec4(d);
+    outRough = colour;
+  }`;
   // The splat depth box-filtered over the covered pixels (texture_view's smooth_depth).
   const SMOOTH_FS = `#version 300 es
   precision highp float;
@@ -299,6 +399,69 @@
     }
     outColour = vec4(floor(mean + 0.5) / 255.0, t);
   }`;
+  // The object region (texture_view's `region`): the coverage closed by a square of
+  // `radius` (dilated from the depth, then eroded; pixels outside the image count for neither).
+  const MORPH_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D src; uniform int radius; uniform int erode; uniform vec2 size;
+  out vec4 outMask;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    bool acc = erode == 1;
+    for (int dy = -radius; dy <= radius; dy++) for (int dx = -radius; dx <= radius; dx++) {
+      ivec2 q = px + ivec2(dx, dy);
+      if (q.x < 0 || q.y < 0 || q.x >= int(size.x) || q.y >= int(size.y)) continue;
+      float v = texelFetch(src, q, 0).r;
+      bool on = erode == 1 ? v > 0.5 : v < ${FAR / 10};
+      acc = erode == 1 ? (acc && on) : (acc || on);
+    }
+    outMask = vec4(acc ? 1.0 : 0.0);
+  }`;
+  // Push-pull (texture_view's hole filling): each coarser level the mean of the known texels of
+  // 2x2 (alpha: known), then each level's unknown texels from the coarser one.
+  const PUSH_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D src; uniform sampler2D depth; uniform int base; uniform ivec2 srcSize;
+  out vec4 outColour;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    if (base == 1) {
+      // Level 0: the textured colours where the render covers.
+      vec4 c = texelFetch(src, px, 0);
+      outColour = texelFetch(depth, px, 0).r < ${FAR / 10} ? vec4(c.rgb * 255.0, 1.0) : vec4(0.0);
+      return;
+    }
+    vec3 acc = vec3(0.0); float n = 0.0;
+    for (int k = 0; k < 4; k++) {
+      ivec2 q = 2 * px + ivec2(k & 1, k >> 1);
+      if (q.x >= srcSize.x || q.y >= srcSize.y) continue;
+      vec4 v = texelFetch(src, q, 0);
+      if (v.a > 0.0) { acc += v.rgb; n += 1.0; }
+    }
+    outColour = n > 0.0 ? vec4(acc / n, 1.0) : vec4(0.0);
+  }`;
+  const PULL_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D fine; uniform sampler2D coarse;
+  out vec4 outColour;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec4 v = texelFetch(fine, px, 0);
+    outColour = v.a > 0.0 ? v : texelFetch(coarse, px / 2, 0);
+  }`;
+  // The textured view over the object region: known colours, holes filled, black outside;
+  // alpha the softening (1 where no photo gave the colour).
+  const FILL_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D sharp; uniform sampler2D filled; uniform sampler2D region; uniform sampler2D depth;
+  out vec4 outColour;
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    if (texelFetch(region, px, 0).r < 0.5) { outColour = vec4(0.0); return; }
+    if (texelFetch(depth, px, 0).r < ${FAR / 10}) { outColour = texelFetch(sharp, px, 0); return; }
+    vec4 f = texelFetch(filled, px, 0);
+    outColour = vec4(floor(f.rgb + 0.5) / 255.0, 1.0);
+  }`;
   // One direction of a Gaussian blur (reflect-101 borders, as vt_core::blur).
   const BLUR_FS = `#version 300 es
   precision highp float;
@@ -322,22 +485,44 @@
     outColour = acc;
   }`;
   // The textured colours softened where the photos disagree (texture_view's last step), over
-  // the background outside the coverage.
+  // the background outside the object region (`depth` here: the region, 1 inside).
   const FINAL_FS = `#version 300 es
   precision highp float;
   uniform sampler2D sharp; uniform sampler2D soft; uniform sampler2D model; uniform sampler2D depth;
-  uniform float consensus; uniform vec3 background; uniform int flip; uniform vec2 size;
+  uniform float consensus; uniform vec3 background;
   out vec4 outColour;
   void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    if (flip == 1) px.y = int(size.y) - 1 - px.y;
-    if (texelFetch(depth, px, 0).r >= ${FAR / 10}) { outColour = vec4(background, 1.0); return; }
+    if (texelFetch(depth, px, 0).r < 0.5) { outColour = vec4(background, 1.0); return; }
     vec4 s = texelFetch(sharp, px, 0);
     vec3 c = floor(texelFetch(soft, px, 0).rgb * 255.0 + 0.5);
     vec4 m = texelFetch(model, px, 0);
     if (consensus > 0.0 && m.a > 0.02) c = (1.0 - consensus) * c + consensus * (m.rgb / m.a * 255.0);
     vec3 o = (1.0 - s.a) * s.rgb * 255.0 + s.a * c;
     outColour = vec4(floor(o + 0.5) / 255.0, 1.0);
+  }`;
+  // The view as vt_fv::composite shows it: the coverage as a soft alpha (the share of covered
+  // pixels in each 3x3, edges replicated), the colour just outside the coverage the mean of
+  // its covered neighbours, over the background.
+  const COMPOSE_FS = `#version 300 es
+  precision highp float;
+  uniform sampler2D colour; uniform sampler2D depth; uniform vec3 background; uniform int flip; uniform vec2 size;
+  out vec4 outColour;
+  bool covered(ivec2 q) { return texelFetch(depth, q, 0).r < ${FAR / 10}; }
+  void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    if (flip == 1) px.y = int(size.y) - 1 - px.y;
+    ivec2 hi = ivec2(size) - 1;
+    float n = 0.0; vec3 sum = vec3(0.0); float m = 0.0;
+    for (int dy = -1; dy <= 1; dy++) for (int dx = -1; dx <= 1; dx++) {
+      ivec2 q = px + ivec2(dx, dy);
+      if (covered(clamp(q, ivec2(0), hi))) n += 1.0;
+      if (q == clamp(q, ivec2(0), hi) && covered(q)) { sum += floor(texelFetch(colour, q, 0).rgb * 255.0 + 0.5); m += 1.0; }
+    }
+    float a = floor((n * 255.0 + 4.0) / 9.0);
+    vec3 p = covered(px) ? floor(texelFetch(colour, px, 0).rgb * 255.0 + 0.5) : (m > 0.0 ? floor((sum + floor(m / 2.0)) / m) : vec3(0.0));
+    vec3 o = floor((p * a + floor(background * 255.0 + 0.5) * (255.0 - a) + 127.0) / 255.0);
+    outColour = vec4(o / 255.0, 1.0);
   }`;
   const LINE_VS = `#version 300 es
   in vec3 pos;
@@ -358,6 +543,7 @@
   let photosTex;
   let refDepth;
   const targets = {};
+  const clipTex = {};
   let lines = null;
   const view = { cam: null, showCameras: false, dirty: true };
   const radius = (() => {
@@ -397,10 +583,16 @@
     if (!gl.getExtension('EXT_color_buffer_float')) throw new Error('this browser cannot render to float textures');
     progs = {
       splat: program(SPLAT_VS, SPLAT_FS),
+      clip: program(QUAD_VS, CLIP_FS),
       smooth: program(QUAD_VS, SMOOTH_FS),
       cost: program(QUAD_VS, COST_FS),
       pick: program(QUAD_VS, PICK_FS),
       texture: program(QUAD_VS, TEXTURE_FS),
+      morph: program(QUAD_VS, MORPH_FS),
+      push: program(QUAD_VS, PUSH_FS),
+      pull: program(QUAD_VS, PULL_FS),
+      fill: program(QUAD_VS, FILL_FS),
+      compose: program(QUAD_VS, COMPOSE_FS),
       blur: program(QUAD_VS, BLUR_FS),
       final: program(QUAD_VS, FINAL_FS),
       line: program(LINE_VS, LINE_FS),
@@ -432,6 +624,9 @@
     targets.rough = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
     targets.depth = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
     targets.splatFb = target([targets.rough, targets.depth], depthRb);
+    targets.clippedDepth = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
+    targets.clippedRough = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
+    targets.clipFb = target([targets.clippedDepth, targets.clippedRough]);
     for (const name of ['smoothed', 'refined']) {
       targets[name] = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
       targets[name + 'Fb'] = target([targets[name]]);
@@ -449,7 +644,26 @@
       gl.drawBuffers([gl.COLOR_ATTACHMENT0]);
       targets.costFbs.push(fb);
     }
-    for (const name of ['sharp', 'final']) {
+    for (const name of ['dilated', 'region']) {
+      targets[name] = tex2d(gl.R8, gl.RED, gl.UNSIGNED_BYTE, gl.NEAREST);
+      targets[name + 'Fb'] = target([targets[name]]);
+    }
+    // The push-pull pyramid: per level its texels and the filled ones.
+    targets.levels = [];
+    for (let w = W, h = H; ; w = Math.ceil(w / 2), h = Math.ceil(h / 2)) {
+      const level = { w, h };
+      for (const name of ['own', 'filled']) {
+        const t = gl.createTexture();
+        gl.bindTexture(gl.TEXTURE_2D, t);
+        gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, w, h);
+        for (const [k, v] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D, k, v);
+        level[name] = t;
+        level[name + 'Fb'] = target([t]);
+      }
+      targets.levels.push(level);
+      if (w === 1 && h === 1) break;
+    }
+    for (const name of ['sharp', 'textured', 'final', 'shown']) {
       targets[name] = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
       targets[name + 'Fb'] = target([targets[name]]);
     }
@@ -487,6 +701,57 @@
     gl.deleteFramebuffer(layerFb);
     gl.deleteTexture(scratch);
 
+    // vt fv render's trims: the silhouettes as it tests them, the cameras' projections, and for
+    // the trim to free space the photos' depth maps and the model's occupied voxels.
+    const layered = (internal, w, h, n) => {
+      const t = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_2D_ARRAY, t);
+      gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, internal, w, h, n);
+      for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
+      return t;
+    };
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    if (S.clip) {
+      status.textContent = 'loading the silhouettes';
+      await loadScript('data/silhouettes.js');
+      const bits = await vtUtil.inflate(bytes(payloads.silhouettes));
+      payloads.silhouettes = null;
+      clipTex.sils = layered(gl.R8, W, H, N);
+      const per = Math.ceil((W * H) / 8);
+      for (let i = 0; i < N; i++) {
+        gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, i, W, H, 1, gl.RED, gl.UNSIGNED_BYTE, vtUtil.unpackBits(bits, i * per, W * H));
+      }
+      const rows = new Float32Array(12 * N);
+      S.cams.forEach((c, k) => rows.set(projection(c), 12 * k));
+      clipTex.cams = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_2D, clipTex.cams);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, 3, N, 0, gl.RGBA, gl.FLOAT, rows);
+      for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D, k, val);
+    }
+    const dc = S.depth_clip;
+    if (dc) {
+      status.textContent = 'loading the depth maps';
+      await loadScript('data/depths.js');
+      const [mw, mh] = dc.maps;
+      const raw = await vtUtil.inflate(bytes(payloads.depths.maps));
+      const maps = new Float32Array(raw.buffer, raw.byteOffset, raw.byteLength / 4);
+      clipTex.maps = layered(gl.R32F, mw, mh, N);
+      gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, 0, mw, mh, N, gl.RED, gl.FLOAT, maps);
+      const [nx, ny, nz] = dc.dims;
+      const occ = vtUtil.unpackBits(await vtUtil.inflate(bytes(payloads.depths.occupied)), 0, nx * ny * nz);
+      payloads.depths = null;
+      clipTex.occ = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_3D, clipTex.occ);
+      gl.texImage3D(gl.TEXTURE_3D, 0, gl.R8, nx, ny, nz, 0, gl.RED, gl.UNSIGNED_BYTE, occ);
+      for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_3D, k, val);
+    } else {
+      // Samplers the clip pass declares but does not read.
+      clipTex.maps = layered(gl.R32F, 1, 1, 1);
+      clipTex.occ = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_3D, clipTex.occ);
+      gl.texImage3D(gl.TEXTURE_3D, 0, gl.R8, 1, 1, 1, 0, gl.RED, gl.UNSIGNED_BYTE, new Uint8Array(1));
+    }
+
     // The photos' cameras as lines: the centre to the image corners at a tenth of its distance.
     const seg = [];
     for (const cam of S.cams) {
@@ -507,9 +772,9 @@
     gl.bindVertexArray(null);
   }
 
-  function quad(pr, fb, textures) {
+  function quad(pr, fb, textures, size) {
     gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
-    gl.viewport(0, 0, W, H);
+    gl.viewport(0, 0, size ? size[0] : W, size ? size[1] : H);
     gl.useProgram(pr.p);
     textures.forEach(([name, t, kind], unit) => {
       gl.activeTexture(gl.TEXTURE0 + unit);
@@ -548,6 +813,36 @@
     const t0 = performance.now();
     gl.bindFramebuffer(gl.FRAMEBUFFER, targets.splatFb);
     splat(cam);
+    let depth = targets.depth;
+    let rough = targets.rough;
+    if (S.clip) {
+      const cp = progs.clip;
+      gl.useProgram(cp.p);
+      gl.uniformMatrix3fv(cp.u.A, true, mul3(tr(cam.r), inv3(cam.k)));
+      gl.uniform3fv(cp.u.own, centreOf(cam));
+      gl.uniform2f(cp.u.size, W, H);
+      gl.uniform1i(cp.u.ncams, N);
+      gl.uniform1f(cp.u.before, S.clip.before);
+      gl.uniform1f(cp.u.behind, S.clip.behind);
+      gl.uniform1f(cp.u.stepSize, S.clip.step);
+      gl.uniform1f(cp.u.voxel, S.clip.size);
+      const dc = S.depth_clip;
+      gl.uniform1i(cp.u.depthOn, dc ? 1 : 0);
+      if (dc) {
+        gl.uniform1f(cp.u.margin, dc.margin);
+        gl.uniform1f(cp.u.protect, dc.protect);
+        gl.uniform1i(cp.u.through, dc.through);
+        gl.uniform1f(cp.u.vmin, dc.voxel);
+        gl.uniform3fv(cp.u.gmin, S.bounds.min);
+        gl.uniform3fv(cp.u.gmax, S.bounds.max);
+        gl.uniform3iv(cp.u.dims, dc.dims);
+        gl.uniform2f(cp.u.mapSize, dc.maps[0], dc.maps[1]);
+        gl.uniform1f(cp.u.mapStep, dc.maps[2]);
+      }
+      quad(cp, targets.clipFb, [['depth', targets.depth], ['rough', targets.rough], ['camsTex', clipTex.cams], ['sils', clipTex.sils, gl.TEXTURE_2D_ARRAY], ['maps', clipTex.maps, gl.TEXTURE_2D_ARRAY], ['occ', clipTex.occ, gl.TEXTURE_3D]]);
+      depth = targets.clippedDepth;
+      rough = targets.clippedRough;
+    }
     const { chosen, fade } = fadingReferences(cam);
     const P = [[], [], []];
     const centres = [];
@@ -577,7 +872,7 @@
     gl.useProgram(sm.p);
     gl.uniform1i(sm.u.radius, T.depth_smooth);
     gl.uniform2f(sm.u.size, W, H);
-    quad(sm, targets.smoothedFb, [['depth', targets.depth]]);
+    quad(sm, targets.smoothedFb, [['depth', depth]]);
     let refined = targets.smoothed;
     if (T.sweep > 0 && chosen.length >= 2 && !quick) {
       const cost = progs.cost;
@@ -600,23 +895,54 @@
     gl.uniform1f(pr.u.eps2, T.eps * T.eps);
     gl.uniform1f(pr.u.agree, T.agree_sd);
     gl.uniform1f(pr.u.fullFade, T.full_fade);
-    quad(pr, targets.sharpFb, [['refined', refined], ['rough', targets.rough], ...refTextures]);
+    quad(pr, targets.sharpFb, [['refined', refined], ['rough', rough], ...refTextures]);
+    // The object region (the coverage closed) and the holes in it filled by push-pull.
+    const mp = progs.morph;
+    gl.useProgram(mp.p);
+    gl.uniform1i(mp.u.radius, T.fill_radius);
+    gl.uniform2f(mp.u.size, W, H);
+    gl.uniform1i(mp.u.erode, 0);
+    quad(mp, targets.dilatedFb, [['src', depth]]);
+    gl.uniform1i(mp.u.erode, 1);
+    quad(mp, targets.regionFb, [['src', targets.dilated]]);
+    const L = targets.levels;
+    const push = progs.push;
+    gl.useProgram(push.p);
+    gl.uniform1i(push.u.base, 1);
+    quad(push, L[0].ownFb, [['src', targets.sharp], ['depth', depth]]);
+    gl.uniform1i(push.u.base, 0);
+    for (let k = 1; k < L.length; k++) {
+      gl.uniform2i(push.u.srcSize, L[k - 1].w, L[k - 1].h);
+      quad(push, L[k].ownFb, [['src', L[k - 1].own], ['depth', depth]], [L[k].w, L[k].h]);
+    }
+    const pull = progs.pull;
+    const last = L.length - 1;
+    quad(pull, L[last].filledFb, [['fine', L[last].own], ['coarse', L[last].own]], [L[last].w, L[last].h]);
+    for (let k = last - 1; k >= 0; k--) {
+      quad(pull, L[k].filledFb, [['fine', L[k].own], ['coarse', L[k + 1].filled]], [L[k].w, L[k].h]);
+    }
+    quad(progs.fill, targets.texturedFb, [['sharp', targets.sharp], ['filled', L[0].filled], ['region', targets.region], ['depth', depth]]);
     const soften = T.soften_sigma > 0;
     if (soften) {
-      blur(targets.sharp, targets.blurA, targets.blurAFb, targets.blurB, targets.blurBFb, 0);
-      blur(targets.rough, targets.modelA, targets.modelAFb, targets.modelB, targets.modelBFb, 1);
+      blur(targets.textured, targets.blurA, targets.blurAFb, targets.blurB, targets.blurBFb, 0);
+      blur(rough, targets.modelA, targets.modelAFb, targets.modelB, targets.modelBFb, 1);
     }
     const fin = progs.final;
     gl.useProgram(fin.p);
     gl.uniform1f(fin.u.consensus, soften ? T.consensus : 0);
     gl.uniform3fv(fin.u.background, (S.background || [0, 0, 0]).map((x) => x / 255));
-    gl.uniform2f(fin.u.size, W, H);
-    gl.uniform1i(fin.u.flip, 0);
-    const softTex = soften ? targets.blurB : targets.sharp;
-    quad(fin, targets.finalFb, [['sharp', targets.sharp], ['soft', softTex], ['model', targets.modelB], ['depth', targets.depth]]);
+    const softTex = soften ? targets.blurB : targets.textured;
+    const finals = [['sharp', targets.textured], ['soft', softTex], ['model', targets.modelB], ['depth', targets.region]];
+    quad(fin, targets.finalFb, finals);
+    const cp = progs.compose;
+    gl.useProgram(cp.p);
+    gl.uniform3fv(cp.u.background, (S.background || [0, 0, 0]).map((x) => x / 255));
+    gl.uniform2f(cp.u.size, W, H);
+    gl.uniform1i(cp.u.flip, 0);
+    quad(cp, targets.shownFb, [['colour', targets.final], ['depth', depth]]);
     // On screen, rows flipped (the targets hold row 0 at the top, as the photos).
-    gl.uniform1i(fin.u.flip, 1);
-    quad(fin, null, [['sharp', targets.sharp], ['soft', softTex], ['model', targets.modelB], ['depth', targets.depth]]);
+    gl.uniform1i(cp.u.flip, 1);
+    quad(cp, null, [['colour', targets.final], ['depth', depth]]);
     if (view.showCameras) {
       const lp = progs.line;
       gl.useProgram(lp.p);
@@ -637,7 +963,7 @@
 
   // The last view rendered, top row first (the targets hold row 0 at the top, as the photos).
   function readRgb() {
-    return vtUtil.readRgb(gl, targets.finalFb, W, H);
+    return vtUtil.readRgb(gl, targets.shownFb, W, H);
   }
 
   // ---- interaction ----------------------------------------------------------------------------

@@ -1,31 +1,36 @@
 //! `vt fv export`: System B's model as a static page (file://, no server) where the user turns
-//! around the object and zooms, rendered live in WebGL2 the way `vt fv render` renders its
-//! default view: the surface voxels splatted as [`vt_fv::render::render_rough`] splats them, the
-//! photos projected onto that surface as [`vt_fv::texture::texture_view`] projects them (the
+//! around the object and zooms, rendered live in WebGL2 by `vt fv render`'s default method, step
+//! for step: the surface voxels splatted as [`vt_fv::render::render_rough`] splats them, the
+//! render trimmed to the silhouettes and to the free space of the depth maps
+//! ([`vt_fv::render::clip_to_silhouettes`], [`vt_fv::render::clip_to_depths`]), the photos
+//! projected onto that surface as [`vt_fv::texture::texture_view`] projects them (the
 //! references chosen and faded as [`vt_fv::texture::fading_references`] does, each photo seen
 //! only where its own splat render of the model puts nothing in front, unstructured-lumigraph
-//! weights, softened where the photos disagree, a share of the model's own colours there).
-//!
-//! What the page leaves out of `vt fv render`: the trims to the silhouettes and to the depth
-//! maps' free space, the depth refinement of the texturing and the hole filling: each is a
-//! search per pixel over many photos that the browser would redo at every frame. The page's
-//! picture is measured against `vt fv render`'s by `crates/vt-cli/tests/fv_page.rs`.
+//! weights, the depth refined where the photos agree, holes filled, softened where the photos
+//! disagree, a share of the model's own colours there), and the outline as
+//! [`vt_fv::composite`]'s soft alpha over the background. The page's picture is measured
+//! against `vt fv render`'s by `crates/vt-cli/tests/fv_page.rs`.
 //!
 //! Files: `index.html`, `data/viewer.js` (the viewer), `data/fv.js` (cameras, preset views,
 //! settings), `data/voxels.js` (surface voxel centres as `f32` and colours), one
-//! `data/photo_NNN.js` per photo (PNG, lossless: the texture is the photos themselves).
+//! `data/photo_NNN.js` per photo (PNG, lossless: the texture is the photos themselves),
+//! `data/silhouettes.js` (as the trims test them, bit-packed, deflated) and `data/depths.js`
+//! (the photos' depth maps and the model's occupied voxels, deflated).
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use image::RgbImage;
 use vt_fv::camera::Camera;
-use vt_fv::render::DEFAULT_SPLAT_SCALE;
+use vt_fv::render::{tested_silhouettes, ClipParams, DepthClipParams, DEFAULT_SPLAT_SCALE};
 use vt_fv::texture::{model_centre, TextureParams, FULL_FADE};
+use vt_fv::Mask;
 use vt_fv::VoxelModel;
 use vt_io::output::{Output, OutputKind};
 
-use crate::{base64, encode_png_rgb, html_escape, Error, Folder, Result, Sink, Written};
+use crate::{
+    base64, deflate, encode_png_rgb, html_escape, pack_bits, Error, Folder, Result, Sink, Written,
+};
 
 const PAGE: &str = include_str!("fv.html");
 const VIEWER: &str = include_str!("fv.js");
@@ -42,6 +47,12 @@ pub struct FvModel<'a> {
     pub views: &'a [Camera],
     /// The colour around the object (`None`: black).
     pub background: Option<[u8; 3]>,
+    /// The silhouettes the model was carved from (`vt fv render` trims its views to them).
+    pub masks: &'a [Mask],
+    /// The trim of each view to the silhouettes (`None`: splats as they fall).
+    pub clip: Option<&'a ClipParams>,
+    /// With `clip` and the model's depth maps: the trim to the free space they prove.
+    pub depth_clip: Option<&'a DepthClipParams>,
     /// The texturing settings the page renders with.
     pub texture: &'a TextureParams,
     /// The page's title.
@@ -101,6 +112,14 @@ fn check(m: &FvModel<'_>) -> Result<()> {
     if m.model.surface.is_empty() {
         return bad("model", "0 voxels".into(), "has no surface");
     }
+    if m.masks.len() != m.cams.len() || m.masks.iter().any(|k| (k.width(), k.height()) != size) {
+        let value = format!("{} silhouettes", m.masks.len());
+        return bad(
+            "silhouettes",
+            value,
+            "need one per photo, of the photos' size",
+        );
+    }
     Ok(())
 }
 
@@ -155,8 +174,71 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
             "sweep_step": t.sweep_step * size,
             "sweep_window": t.sweep_window,
             "full_fade": FULL_FADE,
+            "fill_radius": t.fill_radius,
         },
     });
+    let mut meta = meta;
+    // The trims of `vt fv render`: the silhouettes as its clip tests them, and for the trim to
+    // free space the model's depth maps and occupied voxels.
+    let clip = m.clip.map(|c| c.for_silhouettes(m.cams, m.masks, &bounds));
+    if let Some(c) = &clip {
+        let mut bits = Vec::new();
+        for k in tested_silhouettes(m.cams, m.masks, c) {
+            let (mw, mh) = (k.width(), k.height());
+            let px: Vec<u8> = (0..mh)
+                .flat_map(|y| (0..mw).map(move |x| (x, y)))
+                .map(|(x, y)| k.get(x, y) as u8)
+                .collect();
+            pack_bits(&px, &mut bits);
+        }
+        written.script(
+            "silhouettes.js",
+            &format!(
+                "vtFvPayload('silhouettes',0,'{}');",
+                base64(&deflate(&bits))
+            ),
+        )?;
+        meta["clip"] = serde_json::json!({
+            "before": c.before, "behind": c.behind, "step": c.step, "size": size,
+        });
+    }
+    let maps = &m.model.depths;
+    let same_maps = maps.first().map(|f| (f.w, f.h, f.step));
+    if let (Some(_), Some(dc), Some((mw, mh, step))) = (&clip, m.depth_clip, same_maps) {
+        if maps.len() == m.cams.len() && maps.iter().all(|f| (f.w, f.h, f.step) == (mw, mh, step)) {
+            let mut depth = Vec::with_capacity(maps.len() * mw * mh * 4);
+            for f in maps {
+                for &d in &f.depth {
+                    // Non-finite (no confirmed depth) as -1.
+                    let d = if d.is_finite() { d } else { -1.0 };
+                    depth.extend_from_slice(&d.to_le_bytes());
+                }
+            }
+            let [nx, ny, nz] = grid.dims();
+            let mut occ = Vec::with_capacity(nx * ny * nz);
+            for z in 0..nz {
+                for y in 0..ny {
+                    for x in 0..nx {
+                        occ.push(grid.get(x as i64, y as i64, z as i64) as u8);
+                    }
+                }
+            }
+            let mut occ_bits = Vec::new();
+            pack_bits(&occ, &mut occ_bits);
+            written.script(
+                "depths.js",
+                &format!(
+                    "vtFvPayload('depths',0,{{maps:'{}',occupied:'{}'}});",
+                    base64(&deflate(&depth)),
+                    base64(&deflate(&occ_bits))
+                ),
+            )?;
+            meta["depth_clip"] = serde_json::json!({
+                "margin": dc.margin, "protect": dc.protect, "through": dc.through,
+                "voxel": vs.min(), "maps": [mw, mh, step], "dims": [nx, ny, nz],
+            });
+        }
+    }
     let meta = meta.to_string().replace('<', "\\u003c");
     written.script("fv.js", &format!("window.vtFvScene = {meta};"))?;
     written.script("viewer.js", &format!("{}\n{VIEWER}", crate::UTIL))?;

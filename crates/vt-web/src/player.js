@@ -414,12 +414,8 @@
 
   // ---- loading ---------------------------------------------------------------------------
 
-  const { bytes, loadScript } = vtUtil;
+  const { bytes, loadScript, inflate } = vtUtil;
 
-  async function inflate(data) {
-    const stream = new Blob([data]).stream().pipeThrough(new DecompressionStream('deflate'));
-    return new Uint8Array(await new Response(stream).arrayBuffer());
-  }
 
   function bitmap(data, type) {
     return createImageBitmap(new Blob([data], { type }), { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });

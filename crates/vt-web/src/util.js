@@ -8,6 +8,19 @@ const vtUtil = {
     return out;
   },
 
+  // zlib-deflated bytes inflated.
+  async inflate(data) {
+    const stream = new Blob([data]).stream().pipeThrough(new DecompressionStream('deflate'));
+    return new Uint8Array(await new Response(stream).arrayBuffer());
+  },
+
+  // Bits packed least significant first, `count` of them from byte `offset`, as 0/255 bytes.
+  unpackBits(bits, offset, count) {
+    const out = new Uint8Array(count);
+    for (let i = 0; i < count; i++) out[i] = (bits[offset + (i >> 3)] >> (i & 7)) & 1 ? 255 : 0;
+    return out;
+  },
+
   loadScript(src) {
     return new Promise((resolve, reject) => {
       const el = document.createElement('script');
