@@ -117,7 +117,8 @@ fn main() -> Result<()> {
                     "--",
                     "--ignored",
                     "--nocapture",
-                ]);
+                ])
+                .env("VT_BENCH", "1");
                 run(p)?;
                 let mut b = cargo();
                 b.args(["bench", "-p", "vt-core"]);
