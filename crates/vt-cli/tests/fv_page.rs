@@ -183,6 +183,32 @@ fn page_matches_render(name: &str, data: &Path, extra: &[&str], root: &Path, ser
         ]
         .concat();
         let (_server, url) = vt_server(&args);
+        // Only requests naming the server are answered (against DNS rebinding), and only the
+        // page's own files by their exact names.
+        let hostport = url
+            .trim_start_matches("http://")
+            .trim_end_matches('/')
+            .to_string();
+        let get = |path: &str, host: &str| -> String {
+            use std::io::{Read, Write};
+            let mut c = std::net::TcpStream::connect(&hostport).unwrap();
+            write!(
+                c,
+                "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+            )
+            .unwrap();
+            let mut reply = String::new();
+            c.read_to_string(&mut reply).ok();
+            reply.lines().next().unwrap_or_default().to_string()
+        };
+        assert!(
+            get("/", &hostport).contains(" 200 "),
+            "{}",
+            get("/", &hostport)
+        );
+        assert!(get("/", "evil.example:80").contains(" 403 "));
+        assert!(get("/data/../index.html", &hostport).contains(" 404 "));
+        assert!(get("/data/fv.js", &hostport).contains(" 200 "));
         let mut served = open(&browser.ws, &url);
         let (same, _) = look(&mut served, "0");
         assert!(
