@@ -130,13 +130,18 @@
     }
     return { p, u };
   }
-  function tex2d(internal, format, type, filter) {
+  // A texture with immutable storage of `size` ([w, h] for TEXTURE_2D, [w, h, depth] for the
+  // others), edges clamped, sampled by `filter`.
+  function storage(kind, internal, size, filter = gl.NEAREST) {
     const t = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, t);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, internal, W, H);
-    for (const [k, v] of [[gl.TEXTURE_MIN_FILTER, filter], [gl.TEXTURE_MAG_FILTER, filter], [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) gl.texParameteri(gl.TEXTURE_2D, k, v);
+    gl.bindTexture(kind, t);
+    if (kind === gl.TEXTURE_2D) gl.texStorage2D(kind, 1, internal, size[0], size[1]);
+    else gl.texStorage3D(kind, 1, internal, size[0], size[1], size[2]);
+    for (const [k, v] of [[gl.TEXTURE_MIN_FILTER, filter], [gl.TEXTURE_MAG_FILTER, filter], [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) gl.texParameteri(kind, k, v);
     return t;
   }
+  // A render target's texture at the photos' size.
+  const tex2d = (internal) => storage(gl.TEXTURE_2D, internal, [W, H]);
   function target(textures, depth) {
     const fb = gl.createFramebuffer();
     gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
@@ -621,21 +626,18 @@
     const depthRb = gl.createRenderbuffer();
     gl.bindRenderbuffer(gl.RENDERBUFFER, depthRb);
     gl.renderbufferStorage(gl.RENDERBUFFER, gl.DEPTH_COMPONENT32F, W, H);
-    targets.rough = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
-    targets.depth = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
+    targets.rough = tex2d(gl.RGBA8);
+    targets.depth = tex2d(gl.R32F);
     targets.splatFb = target([targets.rough, targets.depth], depthRb);
-    targets.clippedDepth = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
-    targets.clippedRough = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
+    targets.clippedDepth = tex2d(gl.R32F);
+    targets.clippedRough = tex2d(gl.RGBA8);
     targets.clipFb = target([targets.clippedDepth, targets.clippedRough]);
     for (const name of ['smoothed', 'refined']) {
-      targets[name] = tex2d(gl.R32F, gl.RED, gl.FLOAT, gl.NEAREST);
+      targets[name] = tex2d(gl.R32F);
       targets[name + 'Fb'] = target([targets[name]]);
     }
     const layers = 2 * Math.max(T.sweep, 0) + 1;
-    targets.costs = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, targets.costs);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.R32F, W, H, layers);
-    for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
+    targets.costs = storage(gl.TEXTURE_2D_ARRAY, gl.R32F, [W, H, layers]);
     targets.costFbs = [];
     for (let c = 0; c < layers; c++) {
       const fb = gl.createFramebuffer();
@@ -645,7 +647,7 @@
       targets.costFbs.push(fb);
     }
     for (const name of ['dilated', 'region']) {
-      targets[name] = tex2d(gl.R8, gl.RED, gl.UNSIGNED_BYTE, gl.NEAREST);
+      targets[name] = tex2d(gl.R8);
       targets[name + 'Fb'] = target([targets[name]]);
     }
     // The push-pull pyramid: per level its texels and the filled ones.
@@ -653,10 +655,7 @@
     for (let w = W, h = H; ; w = Math.ceil(w / 2), h = Math.ceil(h / 2)) {
       const level = { w, h };
       for (const name of ['own', 'filled']) {
-        const t = gl.createTexture();
-        gl.bindTexture(gl.TEXTURE_2D, t);
-        gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, w, h);
-        for (const [k, v] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D, k, v);
+        const t = storage(gl.TEXTURE_2D, gl.RGBA32F, [w, h]);
         level[name] = t;
         level[name + 'Fb'] = target([t]);
       }
@@ -664,29 +663,23 @@
       if (w === 1 && h === 1) break;
     }
     for (const name of ['sharp', 'textured', 'final', 'shown']) {
-      targets[name] = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
+      targets[name] = tex2d(gl.RGBA8);
       targets[name + 'Fb'] = target([targets[name]]);
     }
     for (const name of ['blurA', 'blurB', 'modelA', 'modelB']) {
-      targets[name] = tex2d(gl.RGBA32F, gl.RGBA, gl.FLOAT, gl.NEAREST);
+      targets[name] = tex2d(gl.RGBA32F);
       targets[name + 'Fb'] = target([targets[name]]);
     }
 
     // The photos, and each photo's own splat depth (its visibility test).
-    photosTex = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, photosTex);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA8, W, H, N);
-    for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.LINEAR], [gl.TEXTURE_MAG_FILTER, gl.LINEAR], [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
-    refDepth = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, refDepth);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.R32F, W, H, N);
-    for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
+    photosTex = storage(gl.TEXTURE_2D_ARRAY, gl.RGBA8, [W, H, N], gl.LINEAR);
+    refDepth = storage(gl.TEXTURE_2D_ARRAY, gl.R32F, [W, H, N]);
     const layerFb = gl.createFramebuffer();
-    const scratch = tex2d(gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, gl.NEAREST);
+    const scratch = tex2d(gl.RGBA8);
     for (let i = 0; i < N; i++) {
       status.textContent = `loading photo ${i + 1} of ${N}`;
       await loadScript('data/photo_' + String(i).padStart(3, '0') + '.js');
-      const img = await createImageBitmap(new Blob([bytes(payloads.photo[i])], { type: 'image/jpeg' }), { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
+      const img = await createImageBitmap(new Blob([bytes(payloads.photo[i])], { type: 'image/png' }), { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
       payloads.photo[i] = null;
       gl.bindTexture(gl.TEXTURE_2D_ARRAY, photosTex);
       gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, i, W, H, 1, gl.RGBA, gl.UNSIGNED_BYTE, img);
@@ -703,30 +696,21 @@
 
     // vt fv render's trims: the silhouettes as it tests them, the cameras' projections, and for
     // the trim to free space the photos' depth maps and the model's occupied voxels.
-    const layered = (internal, w, h, n) => {
-      const t = gl.createTexture();
-      gl.bindTexture(gl.TEXTURE_2D_ARRAY, t);
-      gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, internal, w, h, n);
-      for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D_ARRAY, k, val);
-      return t;
-    };
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     if (S.clip) {
       status.textContent = 'loading the silhouettes';
       await loadScript('data/silhouettes.js');
       const bits = await vtUtil.inflate(bytes(payloads.silhouettes));
       payloads.silhouettes = null;
-      clipTex.sils = layered(gl.R8, W, H, N);
+      clipTex.sils = storage(gl.TEXTURE_2D_ARRAY, gl.R8, [W, H, N]);
       const per = Math.ceil((W * H) / 8);
       for (let i = 0; i < N; i++) {
         gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, i, W, H, 1, gl.RED, gl.UNSIGNED_BYTE, vtUtil.unpackBits(bits, i * per, W * H));
       }
       const rows = new Float32Array(12 * N);
       S.cams.forEach((c, k) => rows.set(projection(c), 12 * k));
-      clipTex.cams = gl.createTexture();
-      gl.bindTexture(gl.TEXTURE_2D, clipTex.cams);
-      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, 3, N, 0, gl.RGBA, gl.FLOAT, rows);
-      for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D, k, val);
+      clipTex.cams = storage(gl.TEXTURE_2D, gl.RGBA32F, [3, N]);
+      gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, 3, N, gl.RGBA, gl.FLOAT, rows);
     }
     const dc = S.depth_clip;
     if (dc) {
@@ -735,21 +719,17 @@
       const [mw, mh] = dc.maps;
       const raw = await vtUtil.inflate(bytes(payloads.depths.maps));
       const maps = new Float32Array(raw.buffer, raw.byteOffset, raw.byteLength / 4);
-      clipTex.maps = layered(gl.R32F, mw, mh, N);
+      clipTex.maps = storage(gl.TEXTURE_2D_ARRAY, gl.R32F, [mw, mh, N]);
       gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, 0, mw, mh, N, gl.RED, gl.FLOAT, maps);
       const [nx, ny, nz] = dc.dims;
       const occ = vtUtil.unpackBits(await vtUtil.inflate(bytes(payloads.depths.occupied)), 0, nx * ny * nz);
       payloads.depths = null;
-      clipTex.occ = gl.createTexture();
-      gl.bindTexture(gl.TEXTURE_3D, clipTex.occ);
-      gl.texImage3D(gl.TEXTURE_3D, 0, gl.R8, nx, ny, nz, 0, gl.RED, gl.UNSIGNED_BYTE, occ);
-      for (const [k, val] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_3D, k, val);
+      clipTex.occ = storage(gl.TEXTURE_3D, gl.R8, [nx, ny, nz]);
+      gl.texSubImage3D(gl.TEXTURE_3D, 0, 0, 0, 0, nx, ny, nz, gl.RED, gl.UNSIGNED_BYTE, occ);
     } else {
       // Samplers the clip pass declares but does not read.
-      clipTex.maps = layered(gl.R32F, 1, 1, 1);
-      clipTex.occ = gl.createTexture();
-      gl.bindTexture(gl.TEXTURE_3D, clipTex.occ);
-      gl.texImage3D(gl.TEXTURE_3D, 0, gl.R8, 1, 1, 1, 0, gl.RED, gl.UNSIGNED_BYTE, new Uint8Array(1));
+      clipTex.maps = storage(gl.TEXTURE_2D_ARRAY, gl.R32F, [1, 1, 1]);
+      clipTex.occ = storage(gl.TEXTURE_3D, gl.R8, [1, 1, 1]);
     }
 
     // The photos' cameras as lines: the centre to the image corners at a tenth of its distance.

@@ -583,8 +583,8 @@
       const group = src.loaded[groupOf(src, f)];
       const bits = group.bits;
       const off = group.offsets[f - group.start];
-      const m = new Uint8Array(n);
-      for (let i = 0; i < n; i++) m[i] = (bits[(off + i) >> 3] >> ((off + i) & 7)) & 1 ? 255 : 0;
+      // Each frame's mask starts on a byte.
+      const m = vtUtil.unpackBits(bits, off >> 3, n);
       const mask = n > 0 ? texture(gl.R8, bw, bh, gl.RED, gl.UNSIGNED_BYTE, m) : null;
       const bytes = n + (pic ? pic.bytes : 0);
       this.entries.set(k, { pic: pic || {}, mask, bytes, used: ++this.clock });

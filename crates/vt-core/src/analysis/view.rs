@@ -726,7 +726,9 @@ fn streamed_wraps(
     label: &dyn Fn(&str) -> String,
 ) -> Result<crate::regions::Quality> {
     let l = one.length;
+    // Frames go to the meter two at a time, and their buffers come back for the next ones.
     let (tx, rx) = std::sync::mpsc::sync_channel::<RgbImage>(2);
+    let (back, spent) = std::sync::mpsc::channel::<RgbImage>();
     let (got, wraps) = std::thread::scope(|scope| {
         let meter = scope.spawn(move || {
             let mut first: Option<RgbImage> = None;
@@ -740,9 +742,10 @@ fn streamed_wraps(
                         return;
                     }
                     // A read that stopped early leaves black frames: its error is returned.
-                    *out = rx
+                    let next = rx
                         .recv()
                         .unwrap_or_else(|_| RgbImage::new(out.width(), out.height()));
+                    let _ = back.send(std::mem::replace(out, next));
                     if t == 0 {
                         first = Some(out.clone());
                     }
@@ -754,7 +757,7 @@ fn streamed_wraps(
         });
         let got = src.for_each_native(&mut |i, frame| {
             if (start..start + l).contains(&i) {
-                let mut rgb = RgbImage::new(0, 0);
+                let mut rgb = spent.try_recv().unwrap_or_else(|_| RgbImage::new(0, 0));
                 frame.to_rgb_into(&mut rgb);
                 // The meter only stops early when it panicked, which join reports.
                 let _ = tx.send(rgb);
