@@ -43,9 +43,15 @@ pub fn vt_server(args: &[&str]) -> (Kill, String) {
 
 /// A running headless Chromium and its DevTools WebSocket URL.
 pub struct Chromium {
+    // Dropped in this order: the browser is gone before the next test's may start.
     _child: Kill,
+    _turn: std::sync::MutexGuard<'static, ()>,
     pub ws: String,
 }
+
+/// One browser at a time in a test process: two software-WebGL browsers side by side on a
+/// small machine only contend for its cores and memory.
+static TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// Starts headless Chromium with its profile in `profile`; None when `chromium` is not
 /// installed.
@@ -82,6 +88,8 @@ pub fn chromium_webgl(profile: &Path) -> Option<Chromium> {
 /// Starts Chromium with `flags` beside the ones every test uses (no sandbox, first run,
 /// background networking, updates or sync; DevTools on a free port).
 fn chromium_with(profile: &Path, flags: &[&str]) -> Option<Chromium> {
+    // A test that failed holding the turn poisons it; the next one may still go.
+    let turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let spawned = Command::new("chromium")
         .args(flags)
         .args([
@@ -114,7 +122,11 @@ fn chromium_with(profile: &Path, flags: &[&str]) -> Option<Chromium> {
     let ws = rx
         .recv_timeout(Duration::from_secs(30))
         .expect("chromium printed its DevTools URL");
-    Some(Chromium { _child: child, ws })
+    Some(Chromium {
+        _child: child,
+        _turn: turn,
+        ws,
+    })
 }
 
 /// A CDP connection to one page (flat session mode).
@@ -123,6 +135,10 @@ pub struct Page {
     session: String,
     id: u64,
 }
+
+/// How long one DevTools call may take before the test fails (a page whose promise never
+/// settles, or a browser that stopped answering, must fail the test, not hang it).
+const CALL_DEADLINE: Duration = Duration::from_secs(300);
 
 fn call(
     ws: &mut WebSocket<MaybeTlsStream<TcpStream>>,
@@ -137,14 +153,45 @@ fn call(
     }
     ws.send(Message::text(msg.to_string()))
         .expect("send to chromium");
+    if let MaybeTlsStream::Plain(tcp) = ws.get_mut() {
+        tcp.set_read_timeout(Some(Duration::from_secs(5)))
+            .expect("a read timeout on the DevTools socket");
+    }
+    let start = Instant::now();
     loop {
-        let m = ws.read().expect("read from chromium");
+        let m = match ws.read() {
+            Ok(m) => m,
+            Err(tungstenite::Error::Io(e))
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) =>
+            {
+                assert!(
+                    start.elapsed() < CALL_DEADLINE,
+                    "chromium did not answer {method} within {} s",
+                    CALL_DEADLINE.as_secs()
+                );
+                continue;
+            }
+            Err(e) => panic!("read from chromium during {method}: {e}"),
+        };
         if let Message::Text(t) = m {
             let v: Value = serde_json::from_str(&t).unwrap();
             if v["id"] == json!(id) {
                 assert!(v.get("error").is_none(), "{method}: {v}");
                 return v["result"].clone();
             }
+            // A page that crashed or went away never answers: say so instead of waiting.
+            let event = v["method"].as_str().unwrap_or("");
+            let ours = session.is_some() && v["sessionId"].as_str() == session;
+            let detached = event == "Target.detachedFromTarget"
+                && session.is_some()
+                && v["params"]["sessionId"].as_str() == session;
+            assert!(
+                !(ours && event == "Inspector.targetCrashed") && !detached,
+                "the page crashed or closed during {method}: {v}"
+            );
         }
     }
 }
