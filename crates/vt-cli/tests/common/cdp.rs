@@ -153,10 +153,6 @@ fn call(
     }
     ws.send(Message::text(msg.to_string()))
         .expect("send to chromium");
-    if let MaybeTlsStream::Plain(tcp) = ws.get_mut() {
-        tcp.set_read_timeout(Some(Duration::from_secs(5)))
-            .expect("a read timeout on the DevTools socket");
-    }
     let start = Instant::now();
     loop {
         let m = match ws.read() {
@@ -205,6 +201,11 @@ impl Page {
     /// Opens `url` in a new page whose viewport is `size` CSS pixels (device scale 1).
     pub fn open_sized(browser_ws: &str, url: &str, size: Option<(u32, u32)>) -> Page {
         let (mut ws, _) = tungstenite::connect(browser_ws).expect("connect to chromium");
+        // Reads wake every 5 s, so a call can check its deadline.
+        if let MaybeTlsStream::Plain(tcp) = ws.get_mut() {
+            tcp.set_read_timeout(Some(Duration::from_secs(5)))
+                .expect("a read timeout on the DevTools socket");
+        }
         let first = if size.is_some() { "about:blank" } else { url };
         let target = call(
             &mut ws,
