@@ -519,22 +519,40 @@
       if (e) e.used = ++this.clock;
       return e;
     },
-    // Frames the last render asked for: never dropped until the next render asks for others.
+    // Frames never dropped: those the last render asked for, and those every unfinished
+    // `ensure` waits for (the live page's and a test's may overlap; a waiter whose frames
+    // another dropped would decode them again for ever under a small budget).
     pinned: new Set(),
-    // Marks the frames of `list` used now and pins them.
+    rendered: [],
+    waiting: new Set(),
+    repin() {
+      this.pinned = new Set(this.rendered);
+      for (const keys of this.waiting) keys.forEach((k) => this.pinned.add(k));
+    },
+    // Marks the frames of `list` used now and pins them as the last render's.
     pin(list) {
-      this.pinned = new Set(list.map(([p, f]) => this.key(p, f)));
+      this.rendered = list.map(([p, f]) => this.key(p, f));
+      this.repin();
       list.forEach(([p, f]) => this.get(p, f));
     },
-    // Loads every [view, frame] of `list` (and what comes with them) and pins them; the least
-    // recently used others are dropped down to the budget.
+    // Loads every [view, frame] of `list` (and what comes with them), pinned meanwhile, and
+    // pins them as the last render's; the least recently used others are dropped down to the
+    // budget.
     async ensure(list) {
-      this.pinned = new Set(list.map(([p, f]) => this.key(p, f)));
-      for (;;) {
-        const missing = list.filter(([p, f]) => !this.entries.has(this.key(p, f)));
-        if (missing.length === 0) break;
-        // On as soon as a frame arrives: an H.264 group goes on decoding its later frames.
-        await Promise.race([Promise.all(missing.map(([p, f]) => this.load(p, f))), this.stored()]);
+      const keys = list.map(([p, f]) => this.key(p, f));
+      // A new render asks for these: the last render's frames may go.
+      this.rendered = [];
+      this.waiting.add(keys);
+      this.repin();
+      try {
+        for (;;) {
+          const missing = list.filter(([p, f]) => !this.entries.has(this.key(p, f)));
+          if (missing.length === 0) break;
+          // On as soon as a frame arrives: an H.264 group goes on decoding its later frames.
+          await Promise.race([Promise.all(missing.map(([p, f]) => this.load(p, f))), this.stored()]);
+        }
+      } finally {
+        this.waiting.delete(keys);
       }
       this.pin(list);
       this.trim();
