@@ -82,6 +82,7 @@ fn apply_model(k: &str, v: &str, model: &mut ModelParams) -> bool {
         "conf" => st.confirmations = f() as usize,
         "unseen" => st.unseen_keep = (f() >= 0.0).then(|| f() as usize),
         "texture" => st.min_texture = f(),
+        "colour" => st.colour = f() > 0.0,
         "grid" => model.grid = f() as usize,
         "stereo" => model.stereo = f() > 0.0,
         _ => return false,

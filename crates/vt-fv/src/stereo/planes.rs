@@ -171,6 +171,7 @@ pub(super) fn patchmatch_map(
         best: p.best,
     };
     let nk = scorer.offsets.len();
+    let nv = nk * plane.c;
     let step = p.pixel_step;
     let (mw, mh) = (w.div_ceil(step), h.div_ceil(step));
     let r = p.radius as usize;
@@ -182,7 +183,7 @@ pub(super) fn patchmatch_map(
             if !masks[i].get(x as u32, y as u32) || x < r || y < r || x + r >= w || y + r >= h {
                 return None;
             }
-            let mut refv = vec![0f32; nk];
+            let mut refv = vec![0f32; nv];
             let (var, spread) = reference_window(plane, x, y, &scorer.offsets, &mut refv);
             if spread < p.min_texture {
                 return None;
@@ -211,7 +212,7 @@ pub(super) fn patchmatch_map(
         .par_iter()
         .enumerate()
         .map_init(
-            || (vec![0.0; nk], vec![0.0f32; nk], Vec::new()),
+            || (vec![0.0; nk], vec![0.0f32; nv], Vec::new()),
             |(dq, sv, sc), (ci, c)| {
                 let Some(c) = c else { return unscored };
                 let mut rng = Rng::new(hash(&[seed, ci as u64, u64::MAX]));
@@ -253,7 +254,7 @@ pub(super) fn patchmatch_map(
             let updates: Vec<(usize, Hyp)> = (0..mh)
                 .into_par_iter()
                 .flat_map_iter(|cy| {
-                    let (mut dq, mut sv, mut sc) = (vec![0.0; nk], vec![0.0f32; nk], Vec::new());
+                    let (mut dq, mut sv, mut sc) = (vec![0.0; nk], vec![0.0f32; nv], Vec::new());
                     let mut out = Vec::new();
                     let hyps = &hyps;
                     let cells = &cells;

@@ -191,6 +191,14 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
                 StereoParams { patchmatch: 6, ..d },
             ),
             (
+                "colour windows, NCC 0.3".into(),
+                StereoParams {
+                    colour: true,
+                    min_ncc: 0.3,
+                    ..d
+                },
+            ),
+            (
                 "no geometric round".into(),
                 StereoParams { geo_iters: 0, ..d },
             ),
