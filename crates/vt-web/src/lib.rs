@@ -417,7 +417,15 @@ fn write_page(
                     &format!("parallax_{p:03}.js"),
                     &format!("vtPayload('parallax',{p},'{}');", base64(&deflate(&raw))),
                 )?;
-                parallax.push(Some([par.a.width(), par.a.height()]));
+                let (da, db) = (par.a.direction(), par.b.direction());
+                parallax.push(Some(serde_json::json!([
+                    par.a.width(),
+                    par.a.height(),
+                    da[0],
+                    da[1],
+                    db[0],
+                    db[1]
+                ])));
             }
             None => parallax.push(None),
         }
@@ -478,6 +486,7 @@ fn write_page(
         "morph_steps": vt_core::parallax::FIXED_POINT_STEPS,
         "converged_px": vt_core::parallax::CONVERGED_PX,
         "unconverged_weight": vt_core::parallax::UNCONVERGED_WEIGHT,
+        "occlusion_px": vt_core::parallax::OCCLUSION_PX,
     });
     let mut grid_bytes = Vec::with_capacity(grid.len() * 4);
     for v in &grid {

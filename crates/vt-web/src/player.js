@@ -209,6 +209,21 @@
     gl.drawArrays(gl.TRIANGLES, 0, 6);
   }
 
+  // vt_core::parallax::nearer_towards: per view of pair p, the vector whose dot product with a
+  // flow grows as the surface comes nearer, from the plane's motion between the views at the
+  // output's centre (`ha`, `hb`: H_(p,q)^-1 of both views, rows).
+  function nearerTowards(ha, hb, dirs) {
+    const at = (m) => {
+      const x = W / 2, y = H / 2;
+      const w = m[6] * x + m[7] * y + m[8];
+      return [(m[0] * x + m[1] * y + m[2]) / w, (m[3] * x + m[4] * y + m[5]) / w];
+    };
+    const [xa, xb] = [at(ha), at(hb)];
+    const m = (xb[0] - xa[0]) * dirs[0] + (xb[1] - xa[1]) * dirs[1];
+    const s = !Number.isFinite(m) || Math.abs(m) < 0.5 ? 0 : Math.sign(m);
+    return [[dirs[0] * s, dirs[1] * s], [dirs[2] * s, dirs[3] * s]];
+  }
+
   // Eq. (3), or the morph for a pair with stored parallax, into `fb`.
   function drawBackground(q, fb) {
     const { floor: f, ceil: c } = splitQ(q);
@@ -222,8 +237,13 @@
       gl.uniform1i(loc.bg1, bindTex(1, tex.background[c]));
       gl.uniform1i(loc.flow0, bindTex(2, flow.a));
       gl.uniform1i(loc.flow1, bindTex(3, flow.b));
-      gl.uniformMatrix3fv(loc.h0, false, hinv(f, q));
-      gl.uniformMatrix3fv(loc.h1, false, hinv(c, q));
+      const [ha, hb] = [hinv(f, q), hinv(c, q)];
+      gl.uniformMatrix3fv(loc.h0, false, ha);
+      gl.uniformMatrix3fv(loc.h1, false, hb);
+      const towards = nearerTowards(ha, hb, S.parallax[f].slice(2));
+      gl.uniform2fv(loc.toward0, towards[0]);
+      gl.uniform2fv(loc.toward1, towards[1]);
+      gl.uniform1f(loc.occlusion, S.occlusion_px);
       gl.uniform3fv(loc.gi0, gi(f));
       gl.uniform3fv(loc.gi1, gi(c));
       gl.uniform1f(loc.frac0, q - f);

@@ -12,15 +12,16 @@ use crate::warp::{
 };
 use crate::{Homography, Point};
 
-use crate::parallax::{CONVERGED_PX, FIXED_POINT_STEPS as MORPH_STEPS, UNCONVERGED_WEIGHT};
+use crate::parallax::{morph_weights, CONVERGED_PX, FIXED_POINT_STEPS as MORPH_STEPS};
 
 /// The background beyond the plane (the morph of [`crate::parallax`]) at fraction `frac` of
 /// the pair: each output pixel `z` is traced into both views (`x0 = H_(p,q)^-1 z`, then the
 /// fixed point `x = x0 - frac u(x)` along that view's parallax field; `1 - frac` from the
 /// other), sampled bilinearly, divided by the view's gain and blended with weights
 /// `(1 - frac, frac)` (one view alone where the other's sample falls outside its image; both
-/// from their replicated edges where neither sees; the view whose trace converged preferred
-/// where only one did, as in [`crate::parallax::morph`]). Rows in parallel; written to `out` and
+/// from their replicated edges where neither sees; the nearer surface alone where both traces
+/// converged on different ones; the view whose trace converged preferred where only one did:
+/// [`crate::parallax::morph_weights`], as in [`crate::parallax::morph`]). Rows in parallel; written to `out` and
 /// `copy` when given.
 pub(super) fn morph_blend(
     images: [&Padded; 2],
@@ -33,6 +34,7 @@ pub(super) fn morph_blend(
 ) {
     let w = out.width() as usize;
     let size = out.dimensions();
+    let towards = crate::parallax::nearer_towards(par, h[0], h[1], size);
     let side = |s: usize| {
         let fld = [&par.a, &par.b][s];
         MorphSide {
@@ -48,6 +50,7 @@ pub(super) fn morph_blend(
             flow: fld.flow(),
             frac: if s == 0 { frac } else { 1.0 - frac },
             gain_inv: gain_inv[s],
+            toward: towards[s],
         }
     };
     let sides = [side(0), side(1)];
@@ -85,6 +88,9 @@ struct MorphSide<'a> {
     flow: &'a [[i16; 2]],
     frac: f64,
     gain_inv: [f32; 3],
+    /// A flow's dot product with it grows as the surface comes nearer
+    /// ([`crate::parallax::nearer_towards`]).
+    toward: [f32; 2],
 }
 
 /// One output row of the morph ([`morph_blend`]), as a [`crate::simd::Kernel`]: runs of
@@ -116,6 +122,7 @@ impl crate::simd::Kernel for MorphRow<'_, '_> {
         // On the stack, once per row: rayon's per-job init would allocate.
         let mut runs = [Run::default(), Run::default()];
         let mut converged = [[false; CHUNK]; 2];
+        let mut nearness = [[0f32; CHUNK]; 2];
         let c2 = (CONVERGED_PX * CONVERGED_PX) as f32;
         let mut x_start = 0;
         while x_start < w {
@@ -146,6 +153,10 @@ impl crate::simd::Kernel for MorphRow<'_, '_> {
                 for i in 0..CHUNK {
                     let (ex, ey) = (sx[i] - px[i], sy[i] - py[i]);
                     converged[s][i] = ex * ex + ey * ey < c2;
+                    let u = flow[nearest_cell(sx[i], sy[i], iw, ih).min(last)];
+                    nearness[s][i] = (f32::from(u[0]) * sd.toward[0]
+                        + f32::from(u[1]) * sd.toward[1])
+                        * crate::parallax::FLOW_UNIT;
                 }
                 run.sx = sx.map(f64::from);
                 run.sy = sy.map(f64::from);
@@ -154,24 +165,12 @@ impl crate::simd::Kernel for MorphRow<'_, '_> {
             let [ra, rb] = &runs;
             let (ga, gb) = (sides[0].gain_inv, sides[1].gain_inv);
             for i in 0..n {
-                let (ia, ib) = (ra.state[i] == state::INSIDE, rb.state[i] == state::INSIDE);
-                let (mut wa, mut wb) = (1.0 - frac, frac);
-                // Outside its image a view gives its replicated edge, used only where neither
-                // view sees.
-                if ia != ib {
-                    (wa, wb) = (ia as u8 as f32, ib as u8 as f32);
-                } else if converged[0][i] != converged[1][i] {
-                    wa *= if converged[0][i] {
-                        1.0
-                    } else {
-                        UNCONVERGED_WEIGHT
-                    };
-                    wb *= if converged[1][i] {
-                        1.0
-                    } else {
-                        UNCONVERGED_WEIGHT
-                    };
-                }
+                let (wa, wb) = morph_weights(
+                    frac,
+                    [ra.state[i] == state::INSIDE, rb.state[i] == state::INSIDE],
+                    [converged[0][i], converged[1][i]],
+                    [nearness[0][i], nearness[1][i]],
+                );
                 let norm = 1.0 / (wa + wb);
                 let x = x_start + i;
                 for k in 0..3 {
