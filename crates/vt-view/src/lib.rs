@@ -170,8 +170,14 @@ impl Viewer {
                 let mut renderer = renderer;
                 // A panic in the renderer must not freeze the video: say so and start again.
                 for _ in 0..100 {
+                    // On this thread, not on a rayon worker: the loop lives as long as the server
+                    // and waits between frames, and a worker parked in it is one the rest of
+                    // the process cannot use. On 2 cores that deadlocked the page's own
+                    // rendering (vt view's start hung in rayon's join, one worker asleep in
+                    // this loop and the other waiting on a latch), so the renderer's passes
+                    // queue through the global pool like any other caller's.
                     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                        rayon::scope(|_| render_loop(&scene, &mut renderer, &shared, fps, quality))
+                        render_loop(&scene, &mut renderer, &shared, fps, quality)
                     }));
                     if run.is_ok() {
                         return;
