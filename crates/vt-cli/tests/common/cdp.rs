@@ -29,10 +29,22 @@ pub fn vt_server(args: &[&str]) -> (Kill, String) {
             .spawn()
             .unwrap(),
     );
-    let mut line = String::new();
-    BufReader::new(server.0.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    // The line is read on a thread of its own so that a server that never prints it fails the
+    // test within CALL_DEADLINE instead of hanging the run.
+    let stdout = server.0.stdout.take().unwrap();
+    let (send, recv) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = BufReader::new(stdout).read_line(&mut line);
+        let _ = send.send(line);
+    });
+    let line = recv.recv_timeout(CALL_DEADLINE).unwrap_or_else(|_| {
+        panic!(
+            "vt {}: no line printed within {} s",
+            args.join(" "),
+            CALL_DEADLINE.as_secs()
+        )
+    });
     let url = line
         .split_whitespace()
         .find(|w| w.starts_with("http://127.0.0.1:"))
