@@ -1,6 +1,10 @@
 //! Diagnostic: per test view, the covered pixels of the new view by how many photos' confirmed
 //! depths put its surface point on a surface (within TOL voxels), and the share of each group
 //! inside the test silhouette.
+//! The unsupported pixels (no photo's depth on their surface) are then split by what the
+//! photos' depths say of their surface point: some photo sees past it (a depth more than TOL
+//! voxels deeper: free space a carving missed), every photo with a depth there sees a nearer
+//! surface (hidden), or no photo has a depth there.
 //! `cargo run --release -p vt-fv --example support_diag -- DATA TESTFILE [TOL]`
 use std::path::Path;
 
@@ -19,6 +23,8 @@ fn main() {
     let vs = model.grid.voxel_size().min();
     let view = ViewParams::default();
     let mut total = [[0usize; 2]; 5];
+    // Unsupported pixels: [seen past, hidden, no depth] x [outside, inside].
+    let mut unsupported = [[0usize; 2]; 3];
     for (i, cam) in test.cams.iter().enumerate() {
         let (w, h) = test.images[i].dimensions();
         let v = novel_view_in(
@@ -60,6 +66,7 @@ fn main() {
                 }
                 let p = c + a * nalgebra::Vector3::new(x as f64, y as f64, 1.0) * d;
                 let mut s = 0;
+                let (mut past, mut nearer) = (false, false);
                 for (pc, map) in train.cams.iter().zip(&model.depths) {
                     let q = pc.projection() * p.push(1.0);
                     if q.z <= 0.0 {
@@ -69,6 +76,18 @@ fn main() {
                     if dd.is_finite() && (dd - q.z).abs() <= tol * vs {
                         s += 1;
                     }
+                    past |= dd.is_finite() && dd > q.z + tol * vs;
+                    nearer |= dd.is_finite() && dd < q.z - tol * vs;
+                }
+                if s == 0 {
+                    let class = if past {
+                        0
+                    } else if nearer {
+                        1
+                    } else {
+                        2
+                    };
+                    unsupported[class][sil.get(x, y) as usize] += 1;
                 }
                 let k = s.min(4);
                 counts[k][sil.get(x, y) as usize] += 1;
@@ -81,6 +100,12 @@ fn main() {
         }
     }
     println!("{:>14}: {}", "all", groups(&total));
+    for (name, c) in ["seen past", "hidden", "no depth"].iter().zip(&unsupported) {
+        println!(
+            "unsupported, {name:>9}: {} outside the silhouette, {} inside",
+            c[0], c[1]
+        );
+    }
 }
 
 /// Each support group's pixel count and its share inside the test silhouette.

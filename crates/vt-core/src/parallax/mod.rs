@@ -26,9 +26,11 @@
 //!
 //! # Morph ([`morph`])
 //! Each output pixel is traced back into both views by a fixed point along the fields, and the
-//! two samples blended `(1 - f, f)`, the view whose trace converged preferred where only one
-//! did (near an occluding edge, the view that sees the surface behind converges; the other's
-//! trace jumps between the two surfaces).
+//! two samples blended `(1 - f, f)` ([`morph_weights`]): the view whose trace converged
+//! preferred where only one did (near an occluding edge, the view that sees the surface behind
+//! converges; the other's trace jumps between the two surfaces); the nearer surface alone
+//! where both converged on surfaces more than [`OCCLUSION_PX`] apart (beside an occluding edge
+//! one view still sees the surface behind, which the edge hides at the new viewpoint).
 
 use image::{GrayImage, RgbImage};
 use rayon::prelude::*;
