@@ -21,8 +21,8 @@ use crate::parallax::{morph_weights, CONVERGED_PX, FIXED_POINT_STEPS as MORPH_ST
 /// `(1 - frac, frac)` (one view alone where the other's sample falls outside its image; both
 /// from their replicated edges where neither sees; the nearer surface alone where both traces
 /// converged on different ones; the view whose trace converged preferred where only one did:
-/// [`crate::parallax::morph_weights`], as in [`crate::parallax::morph`]). Rows in parallel; written to `out` and
-/// `copy` when given.
+/// [`crate::parallax::morph_weights`], as in [`crate::parallax::morph`]). Rows in parallel;
+/// written to `out` and `copy` when given.
 pub(super) fn morph_blend(
     images: [&Padded; 2],
     par: &crate::parallax::PairParallax,
