@@ -70,7 +70,7 @@ pub struct TextureTruth {
     pub gains: Vec<f64>,
     /// `H_(p,p+1)` of the object plane, row-major, for p = 0..M-2.
     pub homographies_next: Vec<[[f64; 3]; 3]>,
-    /// Ground-truth renders of intermediate viewpoints (noise-free, gain 1).
+    /// Ground-truth renders of intermediate viewpoints (noise-free, at the exposure of a camera there).
     pub renders: Vec<TruthRender>,
 }
 

@@ -412,10 +412,11 @@ impl TextureScene {
     }
 
     /// Ground truth at viewpoint `q` with the object at integer phase `phase` (frames): no noise,
-    /// gain 1.
+    /// the exposure of a camera at q ([`exposure_at`]).
     pub fn truth(&self, q: f64, phase: usize) -> RgbImage {
         let img = self.render(&self.camera(q), phase as f64 / self.params.period as f64);
-        to_rgb(self.params.width, self.params.height, &img, |_, v| v)
+        let gain = exposure_at(&self.gains, q);
+        to_rgb(self.params.width, self.params.height, &img, |_, v| v * gain)
     }
 
     /// Frame `frame` of view `view` as the camera records it: with its exposure gain and noise.
@@ -431,6 +432,21 @@ impl TextureScene {
             v * gain + sigma * n
         })
     }
+}
+
+/// The exposure gain of a camera at `q` on the line: its two neighbouring views' gains
+/// interpolated in log (view p's own at q = p), as vt's renderer shows a view between two takes
+/// (`vt_core::render::Renderer::exposure_at`). Real line rigs agree: Middlebury's odd views lie
+/// at their neighbours' exposure, not at the mean of all views.
+pub fn exposure_at(gains: &[f64], q: f64) -> f64 {
+    let last = gains.len().saturating_sub(1);
+    let q = q.clamp(0.0, last as f64);
+    let (f, c) = (q.floor() as usize, q.ceil() as usize);
+    if f == c {
+        return gains[f];
+    }
+    let t = q - f as f64;
+    ((1.0 - t) * gains[f].ln() + t * gains[c].ln()).exp()
 }
 
 fn to_rgb(w: u32, h: u32, img: &[[f64; 3]], f: impl Fn(usize, f64) -> f64 + Sync) -> RgbImage {

@@ -504,14 +504,15 @@ impl RealScene {
         )
     }
 
-    /// The ideal view at q of source frame `source_frame` (gain 1).
+    /// The ideal view at q of source frame `source_frame`, at the exposure of a camera at q
+    /// ([`crate::exposure_at`]).
     pub fn ideal(&self, q: f64, source_frame: usize) -> RgbImage {
         warp(
             &self.source[source_frame % self.source.len()],
             &self.ideal_homography(q),
             self.width,
             self.height,
-            1.0,
+            crate::exposure_at(&self.gains, q),
         )
     }
 

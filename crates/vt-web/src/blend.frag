@@ -1,6 +1,7 @@
-// Eq. (3): B_q from the views f and c through H_(p,q), weights (c - q, q - f) times inverse gains,
-// renormalised over the views whose sample falls inside their image (vt_core::render's
-// blend_warps); where neither sees, both from their replicated edges.
+// Eq. (3): B_q from the views f and c through H_(p,q), weights (c - q, q - f) times inverse gains
+// (each view's gain against the exposure at q), renormalised over the views whose sample falls
+// inside their image (vt_core::render's blend_warps); where neither sees, both from their
+// replicated edges.
 uniform sampler2D bg0;
 uniform sampler2D bg1;
 uniform mat3 h0;

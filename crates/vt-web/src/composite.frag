@@ -1,8 +1,9 @@
 // The object (or dynamic region) of one frame over the frame (vt_core::render's composite): the
 // output pixel mapped by H^-1 into the frame's box, colour sampled bilinearly from object pixels
 // only (mask-weighted, kept where the coverage is >= 0.5; nearest: the nearest pixel must be
-// object), divided by the view's gain; the view's dynamic-region alpha at the nearest source
-// pixel scales the opacity where it is set. Written with blending (alpha, 1 - alpha).
+// object), divided by the view's gain against the exposure at q; the view's dynamic-region alpha
+// at the nearest source pixel scales the opacity where it is set. Written with blending (alpha,
+// 1 - alpha).
 uniform sampler2D rgb;
 // Or the picture as I420 planes (yuv set): BT.601 limited range, each chroma sample for its 2x2
 // block (vt's own 4:2:0 conversion, so the store's frames come back closest: 52 dB on a tree

@@ -1,9 +1,9 @@
 // The background beyond the plane (vt_core::render's morph_blend): each output pixel is traced
 // into both views (x0 = H_(p,q)^-1 z, then the fixed point x = x0 - frac u(x) along the view's
-// parallax field, nearest cell), sampled bilinearly, divided by the view's gain and blended with
-// weights (1 - frac, frac); one view alone where only it sees; the nearer surface alone where
-// both traces converged on different ones; the converged trace preferred where only one
-// converged (vt_core::parallax::morph_weights).
+// parallax field, nearest cell), sampled bilinearly, divided by the view's gain (against q's
+// exposure) and blended with weights (1 - frac, frac); one view alone where only it sees; the
+// nearer surface alone where both traces converged on different ones; the converged trace
+// preferred where only one converged (vt_core::parallax::morph_weights).
 uniform sampler2D bg0;
 uniform sampler2D bg1;
 uniform isampler2D flow0;

@@ -224,10 +224,26 @@
     return [[dirs[0] * s, dirs[1] * s], [dirs[2] * s, dirs[3] * s]];
   }
 
+  // The exposure at q: q's pair's gains interpolated in log, view p's own at q = p (as
+  // vt_core's Renderer::exposure_at, in f32).
+  function exposureAt(q) {
+    const { floor: f, ceil: c } = splitQ(q);
+    if (f === c) return S.views[f].gain;
+    const t = q - f;
+    return S.views[f].gain.map((g, k) =>
+      Math.fround(Math.exp((1 - t) * Math.log(g) + t * Math.log(S.views[c].gain[k]))));
+  }
+
+  // View p's gain against the exposure at q: what its samples are divided by.
+  function gainAt(p, q) {
+    const e = exposureAt(q);
+    return S.views[p].gain.map((g, k) => Math.fround(g / e[k]));
+  }
+
   // Eq. (3), or the morph for a pair with stored parallax, into `fb`.
   function drawBackground(q, fb) {
     const { floor: f, ceil: c } = splitQ(q);
-    const gi = (p) => S.views[p].gain.map((g) => 1 / g);
+    const gi = (p) => gainAt(p, q).map((g) => 1 / g);
     gl.disable(gl.BLEND);
     const flow = f !== c ? tex.flow[f] : null;
     if (flow) {
@@ -299,7 +315,7 @@
     gl.uniform4f(loc.box, box[0], box[1], box[2], box[3]);
     const origin = tex.video[v] ? tex.origin[v] : box;
     gl.uniform2i(loc.rgbOrigin, origin[0], origin[1]);
-    gl.uniform3fv(loc.gain, S.views[v].gain);
+    gl.uniform3fv(loc.gain, gainAt(v, q));
     gl.uniform1f(loc.alpha, alpha);
     gl.uniform1i(loc.nearest, P.nearest ? 1 : 0);
     draw(fb);

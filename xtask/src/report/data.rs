@@ -171,7 +171,12 @@ fn build_synth_a(ctx: &mut Ctx) -> Result<SynthA> {
         .map(|p| {
             (0..tp.period)
                 .map(|phase| {
-                    let with = scene.truth(p as f64, phase);
+                    // Gain 1, as the background truth: the object alone makes the difference.
+                    let with = to_rgb(
+                        tp.width,
+                        tp.height,
+                        &scene.render(&scene.camera(p as f64), phase as f64 / tp.period as f64),
+                    );
                     let bg = &background_truth[p];
                     Mask::from_index_fn(tp.width, tp.height, |i| {
                         let (a, b) = (

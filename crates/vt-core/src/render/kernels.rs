@@ -17,12 +17,12 @@ use crate::parallax::{morph_weights, CONVERGED_PX, FIXED_POINT_STEPS as MORPH_ST
 /// The background beyond the plane (the morph of [`crate::parallax`]) at fraction `frac` of
 /// the pair: each output pixel `z` is traced into both views (`x0 = H_(p,q)^-1 z`, then the
 /// fixed point `x = x0 - frac u(x)` along that view's parallax field; `1 - frac` from the
-/// other), sampled bilinearly, divided by the view's gain and blended with weights
-/// `(1 - frac, frac)` (one view alone where the other's sample falls outside its image; both
-/// from their replicated edges where neither sees; the nearer surface alone where both traces
-/// converged on different ones; the view whose trace converged preferred where only one did:
-/// [`crate::parallax::morph_weights`], as in [`crate::parallax::morph`]). Rows in parallel;
-/// written to `out` and `copy` when given.
+/// other), sampled bilinearly, divided by the view's gain (against q's exposure) and blended
+/// with weights `(1 - frac, frac)` (one view alone where the other's sample falls outside its
+/// image; both from their replicated edges where neither sees; the nearer surface alone where
+/// both traces converged on different ones; the view whose trace converged preferred where only
+/// one did: [`crate::parallax::morph_weights`], as in [`crate::parallax::morph`]). Rows in
+/// parallel; written to `out` and `copy` when given.
 pub(super) fn morph_blend(
     images: [&Padded; 2],
     par: &crate::parallax::PairParallax,
