@@ -197,7 +197,7 @@ fn call(
                 && session.is_some()
                 && v["params"]["sessionId"].as_str() == session;
             assert!(
-                !(ours && event == "Inspector.targetCrashed") && !detached,
+                !(detached || ours && event == "Inspector.targetCrashed"),
                 "the page crashed or closed during {method}: {v}"
             );
         }
