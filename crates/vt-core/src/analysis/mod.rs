@@ -491,7 +491,8 @@ pub struct Timings {
     /// The dense parallax between neighbouring backgrounds.
     pub parallax: Duration,
     /// Measuring the camera's shake ([`crate::stabilize::measure`]; warping the frames of a
-    /// steadied view counts as decoding).
+    /// steadied view counts as decoding). The first pass's probe runs on a thread of its own
+    /// beside the pass ([`crate::stabilize::Probing`]): its time overlaps the others'.
     pub shake: Duration,
 }
 

@@ -302,6 +302,11 @@ fn proxy_factor((w, h): (u32, u32)) -> u32 {
     w.max(h).div_ceil(PROXY_SIDE).max(1)
 }
 
+/// Whether the probe tracks frame `i`, probing every `every`-th: frame 0 and its multiples.
+fn probes(i: usize, every: usize) -> bool {
+    i == 0 || i.is_multiple_of(every)
+}
+
 /// A frame's luma, reduced by `f` in both directions (box means; the remainder columns and
 /// rows dropped). A 4:2:0 frame's own Y plane; RGB frames' [`grey`].
 fn proxy(frame: FrameRef<'_>, f: u32) -> GrayImage {
@@ -715,16 +720,31 @@ impl Probe {
 
     /// Takes frame `i` of the clip `name` (frames in order from 0).
     pub fn frame(&mut self, name: &str, i: usize, frame: FrameRef<'_>) -> Result<()> {
-        if self.untextured || (i > 0 && !i.is_multiple_of(self.params.probe_every)) {
+        if !self.wants(i) || self.untextured {
+            return Ok(());
+        }
+        let full = frame.dimensions();
+        let factor = proxy_factor(full);
+        self.take(name, i, proxy(frame, factor), full)
+    }
+
+    /// Whether frame `i` is one the probe tracks.
+    fn wants(&self, i: usize) -> bool {
+        probes(i, self.params.probe_every)
+    }
+
+    /// Tracks frame `i` (one it [`Probe::wants`]) from its luma proxy `g`, the frame
+    /// `full` pixels large (reduced by [`proxy_factor`]).
+    fn take(&mut self, name: &str, i: usize, g: GrayImage, full: (u32, u32)) -> Result<()> {
+        if self.untextured {
             return Ok(());
         }
         let t = std::time::Instant::now();
         let reg = &self.params.register;
         if i == 0 {
-            self.full = frame.dimensions();
-            self.factor = proxy_factor(self.full);
+            self.full = full;
+            self.factor = proxy_factor(full);
         }
-        let g = proxy(frame, self.factor);
         match &self.reference {
             None => {
                 let r = Reference::new(g, reg);

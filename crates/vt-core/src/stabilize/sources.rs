@@ -7,7 +7,8 @@ use super::*;
 use crate::yuv::Yuv420Image;
 
 /// A frame source whose first pass also probes the camera ([`Probe`]): the analysis's first
-/// pass carries the measurement, so a still camera costs no decoding of its own. When the
+/// pass carries the measurement, so a still camera costs no decoding of its own, and the probe
+/// tracks its frames on a thread of its own while the pass goes on. When the
 /// probe finds the camera moving, that pass ends in an error and [`Probing::moved`] is true:
 /// the caller measures the clip in full ([`measure`]) and starts again through [`Steady`].
 pub struct Probing<'a> {
@@ -85,9 +86,12 @@ impl FrameSource for Probing<'_> {
         }
         let name = self.source.name().to_string();
         let probe = self.probe.as_mut().expect("probing");
-        let n = self.source.for_each_frame(&mut |i, rgb| {
-            probe.frame(&name, i, FrameRef::Rgb(rgb))?;
-            f(i, rgb)
+        let source = &mut *self.source;
+        let n = carry(probe, &name, |hook| {
+            source.for_each_frame(&mut |i, rgb| {
+                hook(i, FrameRef::Rgb(rgb));
+                f(i, rgb)
+            })
         })?;
         self.first(n)
     }
@@ -101,12 +105,53 @@ impl FrameSource for Probing<'_> {
         }
         let name = self.source.name().to_string();
         let probe = self.probe.as_mut().expect("probing");
-        let n = self.source.for_each_native(&mut |i, frame| {
-            probe.frame(&name, i, frame)?;
-            f(i, frame)
+        let source = &mut *self.source;
+        let n = carry(probe, &name, |hook| {
+            source.for_each_native(&mut |i, frame| {
+                hook(i, frame);
+                f(i, frame)
+            })
         })?;
         self.first(n)
     }
+}
+
+/// Runs `pass` (a decoding pass that calls its hook with every frame before using it) with
+/// `probe` tracking the frames it wants on a thread of its own: the pass hands over each such
+/// frame's luma proxy (two in flight) and goes on, so the tracking overlaps the pass's own work
+/// instead of holding it up. A frame the probe cannot register ends it with that error, which
+/// comes first (it is at a frame the pass had reached).
+fn carry(
+    probe: &mut Probe,
+    name: &str,
+    pass: impl FnOnce(&mut dyn FnMut(usize, FrameRef<'_>)) -> Result<usize>,
+) -> Result<usize> {
+    std::thread::scope(|scope| {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, GrayImage, (u32, u32))>(2);
+        let every = probe.params.probe_every;
+        let mut factor = None;
+        let mut hook = |i: usize, frame: FrameRef<'_>| {
+            if probes(i, every) {
+                let full = frame.dimensions();
+                let f = *factor.get_or_insert_with(|| proxy_factor(full));
+                // A probe that stopped (its error is returned below) takes no more.
+                let _ = tx.send((i, proxy(frame, f), full));
+            }
+        };
+        let worker = scope.spawn(move || -> Result<()> {
+            for (i, g, full) in rx {
+                probe.take(name, i, g, full)?;
+            }
+            Ok(())
+        });
+        let n = pass(&mut hook);
+        drop(hook);
+        drop(tx);
+        worker
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e))?;
+        n
+    })
 }
 
 /// A frame source made still: each frame warped by its map (frame pixels to output pixels) into
