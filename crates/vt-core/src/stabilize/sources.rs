@@ -145,7 +145,6 @@ fn carry(
             Ok(())
         });
         let n = pass(&mut hook);
-        drop(hook);
         drop(tx);
         worker
             .join()
