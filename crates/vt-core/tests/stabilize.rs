@@ -4,7 +4,7 @@
 use image::RgbImage;
 use nalgebra::Matrix3;
 use vt_core::analysis::{FrameSource, MemorySource};
-use vt_core::stabilize::{crop_maps, measure, StabilizeParams, Steady, Verdict};
+use vt_core::stabilize::{crop_maps, measure, Probing, StabilizeParams, Steady, Verdict};
 use vt_core::warp::{warp_rgb, Interpolation};
 use vt_core::{Homography, Point};
 
@@ -209,4 +209,48 @@ fn a_pan_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("moves too far"), "{e}");
+}
+
+/// The analysis's first pass carries the probe ([`Probing`]), which tracks on a thread of its own
+/// (inside the pass on a rayon worker): either way a still clip comes out still, a shaken one
+/// moving, and a cut is refused naming the frame, as `measure` says.
+#[test]
+fn the_first_pass_probes_alike_on_its_own_thread_and_on_a_rayon_worker() {
+    let photo = load("graf1.png");
+    let still = vec![warp_rgb(&photo, &shake(0.0, 0.0, 0.0), W, H, Interpolation::Bilinear); 20];
+    let (shaken, _) = shaken(&photo, 20);
+    let other = load("middlebury-line/Dolls/view0.png");
+    let other = image::imageops::resize(&other, 800, 640, image::imageops::FilterType::Triangle);
+    let mut cut = shaken.clone();
+    cut.splice(12.., self::shaken(&other, 20).0.into_iter().skip(12));
+    let first_pass = |frames: &Vec<RgbImage>| {
+        let mut src = MemorySource {
+            name: "clip.mp4".into(),
+            frames: frames.clone(),
+        };
+        let mut probing = Probing::new(&mut src, &StabilizeParams::default());
+        let mut seen = 0;
+        let r = probing.for_each_native(&mut |_, _| {
+            seen += 1;
+            Ok(())
+        });
+        let verdict = probing.shake().map(|s| s.verdict);
+        (r.map_err(|e| e.to_string()), probing.moved(), verdict, seen)
+    };
+    let run_all = || [&still, &shaken, &cut].map(first_pass);
+    let own_thread = run_all();
+    let on_worker = rayon::scope(|_| {
+        assert!(rayon::current_thread_index().is_some());
+        run_all()
+    });
+    for outcome in [&own_thread, &on_worker] {
+        let [s, m, c] = outcome;
+        assert_eq!(
+            (&s.0, s.1, s.2, s.3),
+            (&Ok(20), false, Some(Verdict::Still), 20)
+        );
+        assert!(m.0.is_err() && m.1 && m.2.is_none(), "{m:?}");
+        let e = c.0.as_ref().unwrap_err();
+        assert!(e.contains("clip.mp4") && e.contains("frame 16"), "{e}");
+    }
 }

@@ -120,12 +120,22 @@ impl FrameSource for Probing<'_> {
 /// `probe` tracking the frames it wants on a thread of its own: the pass hands over each such
 /// frame's luma proxy (two in flight) and goes on, so the tracking overlaps the pass's own work
 /// instead of holding it up. A frame the probe cannot register ends it with that error, which
-/// comes first (it is at a frame the pass had reached).
+/// comes first (it is at a frame the pass had reached). On a rayon worker the probe runs inside
+/// the pass as before: a worker must not wait on a thread whose tracking needs the pool.
 fn carry(
     probe: &mut Probe,
     name: &str,
     pass: impl FnOnce(&mut dyn FnMut(usize, FrameRef<'_>)) -> Result<usize>,
 ) -> Result<usize> {
+    if rayon::current_thread_index().is_some() {
+        let mut failed = None;
+        let n = pass(&mut |i, frame| {
+            if failed.is_none() {
+                failed = probe.frame(name, i, frame).err();
+            }
+        });
+        return failed.map_or(n, Err);
+    }
     std::thread::scope(|scope| {
         let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, GrayImage, (u32, u32))>(2);
         let every = probe.params.probe_every;
