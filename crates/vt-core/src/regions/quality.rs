@@ -94,6 +94,7 @@ pub(super) fn mad_rect(
 ) -> (f64, f64) {
     let (ra, rb) = (a.as_raw(), b.as_raw());
     let (mut s, mut n) = (0u64, 0u64);
+    // A row's sums fit a u32 up to 22,000 pixels; tiles are at most 256.
     for y in y0..y1 {
         let r = 3 * (y * w + x0)..3 * (y * w + x1);
         let (pa, pb, pw) = (&ra[r.clone()], &rb[r.clone()], &wt3[r]);
@@ -244,6 +245,14 @@ where
         Some(a) => a.as_raw().iter().flat_map(|&v| [v; 3]).collect(),
         None => vec![255; 3 * (w * h) as usize],
     };
+    // Every tile's step from `a` to `b` in one parallel pass.
+    let tile_steps_of = |a: &RgbImage, b: &RgbImage| -> Vec<(f64, f64)> {
+        rects
+            .par_iter()
+            .map(|&r| mad_rect(a, b, r, w as usize, &wt8))
+            .collect()
+    };
+    let sum = |v: &[(f64, f64)]| v.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
     let l = rl.length;
     let (cols, _) = rl.grid;
     let tile_px = tile_pixels(rl, w, h);
@@ -299,15 +308,9 @@ where
     for t in 0..l {
         make(t + 1, &mut next);
         let (a, b) = (&prev, &next);
-        // Every tile's step in one parallel pass; the frame's is their sum (the tiles
-        // partition it).
-        let tile_steps: Vec<(f64, f64)> = rects
-            .par_iter()
-            .map(|&r| mad_rect(a, b, r, w as usize, &wt8))
-            .collect();
-        let (s, n) = tile_steps
-            .iter()
-            .fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        // The frame's step is the sum of its tiles' (they partition it).
+        let tile_steps = tile_steps_of(a, b);
+        let (s, n) = sum(&tile_steps);
         steps.push(s / n.max(1e-9));
         // The frame's gradient energy, summed from its tiles' (every tile, counted or not).
         let energy = full.then(|| {
@@ -366,10 +369,7 @@ where
         std::mem::swap(&mut prev, &mut next);
     }
     if let Some(first) = second.as_ref().filter(|_| l >= 1) {
-        let (s, n) = rects
-            .par_iter()
-            .map(|&r| mad_rect(&prev, first, r, w as usize, &wt8))
-            .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        let (s, n) = sum(&tile_steps_of(&prev, first));
         steps.push(s / n.max(1e-9));
     } else {
         steps.push(0.0);
