@@ -83,6 +83,7 @@ fn apply_model(k: &str, v: &str, model: &mut ModelParams) -> bool {
         "unseen" => st.unseen_keep = (f() >= 0.0).then(|| f() as usize),
         "texture" => st.min_texture = f(),
         "colour" => st.colour = f() > 0.0,
+        "fine" => st.fine = f() as usize,
         "grid" => model.grid = f() as usize,
         "stereo" => model.stereo = f() > 0.0,
         _ => return false,

@@ -8,7 +8,9 @@
 //! perturbations that shrink every iteration. A second round starts from the first's planes and
 //! docks each source's score for how far the point, carried into the source by the plane and
 //! back by the source's own first-round depth, lands from where it started (geometric
-//! consistency, as COLMAP's PatchMatch stereo).
+//! consistency, as COLMAP's PatchMatch stereo). The rounds measure a cell every
+//! `pixel_step` pixels; [`StereoParams::fine`] then carries each cell's plane to the pixels
+//! around it and iterates there, with the geometric term, so the map holds every pixel.
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -20,6 +22,13 @@ use super::{
 use crate::camera::Camera;
 use crate::hull::VoxelGrid;
 use crate::silhouette::Mask;
+
+/// Largest photo whose depth map [`StereoParams::fine`] measures at every pixel (4.2 million
+/// pixels: a cell's window and plane take about 150 bytes while it is measured).
+const FINE_PHOTO_PIXELS: usize = 1 << 22;
+/// Most pixels all photos together may hold for [`StereoParams::fine`] (33.5 million: half what
+/// a model file's depth maps may hold).
+const FINE_TOTAL_PIXELS: usize = 1 << 25;
 
 /// One cell's plane: camera depth at the cell's pixel, unit normal in camera axes (facing the
 /// camera), and the plane's score (mean NCC of the best sources; `-inf` when unscored).
@@ -352,11 +361,45 @@ pub(super) fn patchmatch_all(
     let (maps, first): (Vec<DepthMap>, Vec<Vec<Hyp>>) = (0..cams.len())
         .map(|i| patchmatch_map(i, grid, cams, planes, masks, centre, p, None, None))
         .unzip();
-    if p.geo_iters == 0 {
+    let (maps, last) = if p.geo_iters == 0 {
+        (maps, first)
+    } else {
+        (0..cams.len())
+            .map(|i| {
+                patchmatch_map(
+                    i,
+                    grid,
+                    cams,
+                    planes,
+                    masks,
+                    centre,
+                    p,
+                    Some(&first[i]),
+                    Some((&maps, p.geo_weight)),
+                )
+            })
+            .unzip()
+    };
+    let pixels: Vec<usize> = planes.iter().map(|pl| pl.w * pl.h).collect();
+    if p.fine == 0
+        || p.pixel_step == 1
+        || pixels.iter().any(|&n| n > FINE_PHOTO_PIXELS)
+        || pixels.iter().sum::<usize>() > FINE_TOTAL_PIXELS
+    {
         return maps;
     }
+    // Every pixel from its nearest cell's plane, then `fine` iterations there with the
+    // geometric term against the rounds' maps; numbered on from the rounds' iterations, so the
+    // random refinement keeps shrinking.
+    let fine = StereoParams {
+        pixel_step: 1,
+        patchmatch: p.patchmatch + p.geo_iters,
+        geo_iters: p.fine,
+        ..*p
+    };
     (0..cams.len())
         .map(|i| {
+            let start = upsample(&last[i], &maps[i], &cams[i], planes[i].w, planes[i].h);
             patchmatch_map(
                 i,
                 grid,
@@ -364,11 +407,40 @@ pub(super) fn patchmatch_all(
                 planes,
                 masks,
                 centre,
-                p,
-                Some(&first[i]),
+                &fine,
+                Some(&start),
                 Some((&maps, p.geo_weight)),
             )
             .0
+        })
+        .collect()
+}
+
+/// A plane for every pixel of a `w x h` photo: the nearest cell's of `map`'s grid (`hyps`), its
+/// depth carried along the plane to the pixel's ray (unscored where the cell has none).
+fn upsample(hyps: &[Hyp], map: &DepthMap, cam: &Camera, w: usize, h: usize) -> Vec<Hyp> {
+    let kinv = cam
+        .k
+        .try_inverse()
+        .expect("K is invertible: checked by Camera::new");
+    let ray = |x: usize, y: usize| kinv * Vector3::new(x as f64, y as f64, 1.0);
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (cx, cy) = map.cell(x as f64, y as f64);
+            let cx = cx.clamp(0, map.w as i64 - 1) as usize;
+            let cy = cy.clamp(0, map.h as i64 - 1) as usize;
+            let hyp = hyps[cy * map.w + cx];
+            let den = hyp.n.dot(&ray(x, y));
+            if !hyp.score.is_finite() || den > -1e-6 {
+                return Hyp {
+                    score: f64::NEG_INFINITY,
+                    ..hyp
+                };
+            }
+            let d = hyp.d * hyp.n.dot(&ray(cx * map.step, cy * map.step)) / den;
+            Hyp { d, ..hyp }
         })
         .collect()
 }

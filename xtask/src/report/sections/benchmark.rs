@@ -183,6 +183,11 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
                 StereoParams { pixel_step: 1, ..d },
             ),
             (
+                "no fine iterations (depth every 2 pixels)".into(),
+                StereoParams { fine: 0, ..d },
+            ),
+            ("1 fine iteration".into(), StereoParams { fine: 1, ..d }),
+            (
                 "plane sweep, not PatchMatch".into(),
                 StereoParams { patchmatch: 0, ..d },
             ),
