@@ -280,6 +280,13 @@ fn settings_out_of_range_are_refused_by_name() {
             },
             "stereo_coarse",
         ),
+        (
+            StereoParams {
+                fine: 17,
+                ..Default::default()
+            },
+            "stereo_fine",
+        ),
     ] {
         let e = depth_maps(&vh, &d.cameras, &d.photos, &d.masks, &p)
             .unwrap_err()

@@ -113,8 +113,9 @@ pub struct StereoParams {
     /// pixel in every round, `pixel_step` 1, 22.03 at 6x the model time), the model about 1.8
     /// times as long; kettle leave-one-out 24.75 -> 24.73 inside the silhouette, 23.53 ->
     /// 23.58 over it and the view's own coverage; templeSparseRing 22.19 -> 22.23, 21.25 ->
-    /// 21.30 (its worst view's lead over the blurred rough render +0.16 -> +0.07). Skipped for photos over 4.2 million pixels,
-    /// or 33.5 million all together (the cells' memory, the model file's size).
+    /// 21.30 (its worst view's lead over the blurred rough render +0.16 -> +0.07). Skipped for
+    /// photos over 4.2 million pixels, or 33.5 million all together (the cells' memory, the
+    /// model file's size).
     pub fine: usize,
 }
 
