@@ -5,7 +5,8 @@
 //! carving's `sources`, `best`, `radius`, `stride`, `step_v` (depth step in voxels), `coarse`,
 //! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations,
 //! 0: the sweep), `geo` (geometric round's iterations), `geow` (its weight), `conf`
-//! (confirmations), `unseen` (-1: off), `texture`, `grid`, `stereo` (0: off); the clip:
+//! (confirmations), `unseen` (-1: off), `texture`, `colour`, `fine` (iterations at every
+//! pixel), `grid`, `stereo` (0: off); the clip:
 //! `grow`, `slack`, `close`, `exact` (0: never raw silhouettes), `before`, `behind`; the depth clip: `dclip` (0: off), `dmargin`, `dprotect`,
 //! `dthrough`.
 
