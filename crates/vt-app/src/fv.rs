@@ -111,6 +111,16 @@ pub fn unseen_words(model: &VoxelModel) -> String {
     )
 }
 
+/// The spacing of the model's depth maps, in words, after a comma (empty without maps): every
+/// pixel when the fine iterations ran, else every `pixel_step` pixels.
+pub fn depth_words(model: &VoxelModel) -> String {
+    match model.depths.first().map(|m| m.step) {
+        Some(1) => ", depth maps at every pixel".into(),
+        Some(s) => format!(", depth maps every {s} pixels"),
+        None => String::new(),
+    }
+}
+
 /// The model a view is made from: built here from every view, or read from a model file (checked
 /// against the data folder), with one line saying which and how long it took.
 pub struct ModelUsed {
@@ -126,10 +136,11 @@ fn model_for(data: &FvData, d: &Dataset, progress: &mut dyn Progress) -> Result<
     let Some(f) = &data.model_file else {
         let (model, s) = build(d, None, &data.model, progress)?;
         let line = format!(
-            "model: built, {} surface voxels ({} passes, {}) in {:.2} s",
+            "model: built, {} surface voxels ({} passes, {}{}) in {:.2} s",
             s.surface_voxels,
             s.photo_hull_passes,
             unseen_words(&model),
+            depth_words(&model),
             s.visual_hull_secs + s.photo_hull_secs
         );
         return Ok(ModelUsed {
@@ -146,11 +157,12 @@ fn read_used(f: &Path, d: &Dataset) -> Result<ModelUsed> {
     let t = Instant::now();
     let (model, h) = read_model(f, d)?;
     let line = format!(
-        "model: read from {} in {:.2} s ({} surface voxels, {}; building it took {:.2} s)",
+        "model: read from {} in {:.2} s ({} surface voxels, {}{}; building it took {:.2} s)",
         f.display(),
         t.elapsed().as_secs_f64(),
         model.surface.len(),
         unseen_words(&model),
+        depth_words(&model),
         h.build_secs
     );
     Ok(ModelUsed {

@@ -92,6 +92,9 @@ fn synth_object_hull_render_eval() {
         sum["photo_hull_voxels"].as_u64().unwrap(),
     );
     assert!(vh >= ph && ph > 0, "{sum}");
+    // The stereo carving's depth maps hold every pixel (the fine iterations ran), and say so.
+    assert_eq!(sum["depth_step"], 1, "{sum}");
+    assert!(out.contains("from depth maps at every pixel"), "{out}");
     let verts: usize = ply
         .lines()
         .find_map(|l| l.strip_prefix("element vertex "))

@@ -317,6 +317,9 @@ pub struct BuildSummary {
     pub photo_hull_removed: usize,
     /// Voxels the stereo carving removed before the photo hull (free space and unseen).
     pub stereo_carved: usize,
+    /// Pixels between the kept depth maps' cells (1: every pixel, the fine iterations ran;
+    /// `None` without stereo).
+    pub depth_step: Option<usize>,
     /// Seconds for the photo hull.
     pub photo_hull_secs: f64,
     /// Surface voxels.
@@ -354,6 +357,7 @@ pub fn build_summarised(
         photo_hull_passes: model.passes,
         photo_hull_removed: model.removed,
         stereo_carved: model.stereo.as_ref().map_or(0, |s| s.carved + s.unseen),
+        depth_step: model.depths.first().map(|m| m.step),
         photo_hull_secs: t.elapsed().as_secs_f64(),
         surface_voxels: model.surface.len(),
         surface_unseen: model.surface.iter().filter(|v| v.seen_by == 0).count(),
@@ -441,8 +445,13 @@ impl std::fmt::Display for BuildSummary {
         if s.stereo_carved > 0 {
             writeln!(
                 f,
-                "(the photo hull's time includes the stereo carving, which removed {} voxels first)",
-                s.stereo_carved
+                "(the photo hull's time includes the stereo carving, which removed {} voxels first{})",
+                s.stereo_carved,
+                match s.depth_step {
+                    Some(1) => ", from depth maps at every pixel".to_string(),
+                    Some(k) => format!(", from depth maps every {k} pixels"),
+                    None => String::new(),
+                }
             )?;
         }
         writeln!(
