@@ -358,26 +358,27 @@ pub(super) fn patchmatch_all(
     centre: &Vector3<f64>,
     p: &StereoParams,
 ) -> Vec<DepthMap> {
-    let (maps, first): (Vec<DepthMap>, Vec<Vec<Hyp>>) = (0..cams.len())
-        .map(|i| patchmatch_map(i, grid, cams, planes, masks, centre, p, None, None))
-        .unzip();
+    // Photo i's map and planes under settings q, from start, against the maps geo.
+    let run = |i: usize, q: &StereoParams, start: Option<&[Hyp]>, geo: Option<&[DepthMap]>| {
+        patchmatch_map(
+            i,
+            grid,
+            cams,
+            planes,
+            masks,
+            centre,
+            q,
+            start,
+            geo.map(|m| (m, p.geo_weight)),
+        )
+    };
+    let (maps, first): (Vec<DepthMap>, Vec<Vec<Hyp>>) =
+        (0..cams.len()).map(|i| run(i, p, None, None)).unzip();
     let (maps, last) = if p.geo_iters == 0 {
         (maps, first)
     } else {
         (0..cams.len())
-            .map(|i| {
-                patchmatch_map(
-                    i,
-                    grid,
-                    cams,
-                    planes,
-                    masks,
-                    centre,
-                    p,
-                    Some(&first[i]),
-                    Some((&maps, p.geo_weight)),
-                )
-            })
+            .map(|i| run(i, p, Some(&first[i]), Some(&maps)))
             .unzip()
     };
     let pixels: Vec<usize> = planes.iter().map(|pl| pl.w * pl.h).collect();
@@ -400,18 +401,7 @@ pub(super) fn patchmatch_all(
     (0..cams.len())
         .map(|i| {
             let start = upsample(&last[i], &maps[i], &cams[i], planes[i].w, planes[i].h);
-            patchmatch_map(
-                i,
-                grid,
-                cams,
-                planes,
-                masks,
-                centre,
-                &fine,
-                Some(&start),
-                Some((&maps, p.geo_weight)),
-            )
-            .0
+            run(i, &fine, Some(&start), Some(&maps)).0
         })
         .collect()
 }
