@@ -114,11 +114,9 @@ pub fn unseen_words(model: &VoxelModel) -> String {
 /// The spacing of the model's depth maps, in words, after a comma (empty without maps): every
 /// pixel when the fine iterations ran, else every `pixel_step` pixels.
 pub fn depth_words(model: &VoxelModel) -> String {
-    match model.depths.first().map(|m| m.step) {
-        Some(1) => ", depth maps at every pixel".into(),
-        Some(s) => format!(", depth maps every {s} pixels"),
-        None => String::new(),
-    }
+    model.depths.first().map_or(String::new(), |m| {
+        format!(", {}", vt_fv::dataset::depth_spacing(m.step))
+    })
 }
 
 /// The model a view is made from: built here from every view, or read from a model file (checked

@@ -296,6 +296,16 @@ impl ModelParams {
     }
 }
 
+/// How a model's depth maps are spaced, in words: `depth maps at every pixel` (the fine
+/// iterations ran) or `depth maps every k pixels`.
+pub fn depth_spacing(step: usize) -> String {
+    if step == 1 {
+        "depth maps at every pixel".into()
+    } else {
+        format!("depth maps every {step} pixels")
+    }
+}
+
 /// Timings and counts of a model build (the `summary.json` of `vt fv hull`, flattened).
 #[derive(Debug, Serialize, Clone, PartialEq)]
 pub struct BuildSummary {
@@ -448,8 +458,7 @@ impl std::fmt::Display for BuildSummary {
                 "(the photo hull's time includes the stereo carving, which removed {} voxels first{})",
                 s.stereo_carved,
                 match s.depth_step {
-                    Some(1) => ", from depth maps at every pixel".to_string(),
-                    Some(k) => format!(", from depth maps every {k} pixels"),
+                    Some(k) => format!(", from {}", depth_spacing(k)),
                     None => String::new(),
                 }
             )?;
