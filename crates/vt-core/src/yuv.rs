@@ -478,10 +478,178 @@ impl crate::simd::Kernel for MaskedRowKernel<'_> {
     }
 }
 
+/// One row's luma for [`ToYuvKernel`], in blocks of [`BLOCK`] pixels: the channels split into
+/// arrays first, so the sums vectorise. A function, not a closure, so that it is inlined into
+/// the dispatched kernel.
+#[inline(always)]
+fn to_luma(src: &[u8], dst: &mut [u8]) {
+    const HALF: i32 = 1 << 15;
+    // 0.299, 0.587, 0.114 (x 2^16): at most 255 x 2^16 in all, so no clamp.
+    const Y: [i32; 3] = [19595, 38470, 7471];
+    for (p, y) in src.chunks_exact(3 * BLOCK).zip(dst.chunks_exact_mut(BLOCK)) {
+        let p: &[u8; 3 * BLOCK] = p.try_into().expect("a block");
+        let y: &mut [u8; BLOCK] = y.try_into().expect("a block");
+        for k in 0..BLOCK {
+            let v =
+                Y[0] * p[3 * k] as i32 + Y[1] * p[3 * k + 1] as i32 + Y[2] * p[3 * k + 2] as i32;
+            y[k] = ((v + HALF) >> 16) as u8;
+        }
+    }
+    let done = src.len() / (3 * BLOCK) * BLOCK;
+    for (p, y) in src[3 * done..].chunks_exact(3).zip(&mut dst[done..]) {
+        let v = Y[0] * p[0] as i32 + Y[1] * p[1] as i32 + Y[2] * p[2] as i32;
+        *y = ((v + HALF) >> 16) as u8;
+    }
+}
+
+/// RGB to full-range BT.601 4:2:0, the object store's pictures (JPEG's matrix, all 256 levels:
+/// a limited range would cost a quantisation of its own): luma per pixel, chroma from each 2x2
+/// block's mean colour. `rgb` is `width` x `height` with even sides; `out` gets the Y, U and V
+/// planes. Integer arithmetic with the coefficients in 1/2^16 (each level within one of the
+/// exact matrix's rounding), two rows at a time through [`crate::simd::dispatch`]; the inverse
+/// is [`masked_full_range_row_to_rgb`]. Panics when `rgb` is not `width` x `height` or a
+/// side is odd.
+pub fn rgb_to_full_range_yuv420(rgb: &[u8], width: usize, height: usize, out: &mut Vec<u8>) {
+    assert!(
+        rgb.len() == 3 * width * height && width % 2 == 0 && height % 2 == 0,
+        "an RGB picture of even sides"
+    );
+    let (cw, ch) = (width / 2, height / 2);
+    out.clear();
+    out.resize(width * height + 2 * cw * ch, 0);
+    let (luma, chroma) = out.split_at_mut(width * height);
+    let (u_plane, v_plane) = chroma.split_at_mut(cw * ch);
+    let stride = 3 * width;
+    for (((rows, l), us), vs) in rgb
+        .chunks_exact(2 * stride.max(1))
+        .zip(luma.chunks_exact_mut(2 * width.max(1)))
+        .zip(u_plane.chunks_exact_mut(cw.max(1)))
+        .zip(v_plane.chunks_exact_mut(cw.max(1)))
+    {
+        crate::simd::dispatch(ToYuvKernel { rows, l, us, vs });
+    }
+}
+
+/// Two rows of [`rgb_to_full_range_yuv420`]: `rows` their RGB, `l` their luma, `us` and `vs`
+/// their chroma row.
+struct ToYuvKernel<'a> {
+    rows: &'a [u8],
+    l: &'a mut [u8],
+    us: &'a mut [u8],
+    vs: &'a mut [u8],
+}
+
+impl crate::simd::Kernel for ToYuvKernel<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        const S: i32 = 16;
+        const HALF: i32 = 1 << (S - 1);
+        // -0.168736, -0.331264, 0.5; 0.5, -0.418688, -0.081312 (x 2^16).
+        const U: [i32; 3] = [-11058, -21710, 32768];
+        const V: [i32; 3] = [32768, -27440, -5328];
+        let ToYuvKernel { rows, l, us, vs } = self;
+        let stride = rows.len() / 2;
+        let (r0, r1) = rows.split_at(stride);
+        let (l0, l1) = l.split_at_mut(stride / 3);
+        to_luma(r0, l0);
+        to_luma(r1, l1);
+        // Sums of each block's four pixels per channel: the mean is the sum / 4, folded into
+        // the shift.
+        #[inline(always)]
+        fn round(c: i32) -> u8 {
+            (((c + (HALF << 2)) >> (S + 2)) + 128).clamp(0, 255) as u8
+        }
+        const HB: usize = BLOCK / 2;
+        let full = us.len() / HB * HB;
+        for (((a, b), u), v) in r0
+            .chunks_exact(6 * HB)
+            .zip(r1.chunks_exact(6 * HB))
+            .zip(us.chunks_exact_mut(HB))
+            .zip(vs.chunks_exact_mut(HB))
+        {
+            let a: &[u8; 6 * HB] = a.try_into().expect("a block");
+            let b: &[u8; 6 * HB] = b.try_into().expect("a block");
+            let u: &mut [u8; HB] = u.try_into().expect("a block");
+            let v: &mut [u8; HB] = v.try_into().expect("a block");
+            let mut m = [[0i32; HB]; 3];
+            for k in 0..HB {
+                for (c, mc) in m.iter_mut().enumerate() {
+                    mc[k] = a[6 * k + c] as i32
+                        + a[6 * k + 3 + c] as i32
+                        + b[6 * k + c] as i32
+                        + b[6 * k + 3 + c] as i32;
+                }
+            }
+            for k in 0..HB {
+                u[k] = round(U[0] * m[0][k] + U[1] * m[1][k] + U[2] * m[2][k]);
+                v[k] = round(V[0] * m[0][k] + V[1] * m[1][k] + V[2] * m[2][k]);
+            }
+        }
+        for (((a, b), u), v) in r0[6 * full..]
+            .chunks_exact(6)
+            .zip(r1[6 * full..].chunks_exact(6))
+            .zip(&mut us[full..])
+            .zip(&mut vs[full..])
+        {
+            let m =
+                [0, 1, 2].map(|k| a[k] as i32 + a[k + 3] as i32 + b[k] as i32 + b[k + 3] as i32);
+            *u = round(U[0] * m[0] + U[1] * m[1] + U[2] * m[2]);
+            *v = round(V[0] * m[0] + V[1] * m[1] + V[2] * m[2]);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::rng::Rng;
+
+    #[test]
+    fn rgb_to_store_yuv_is_the_full_range_matrix() {
+        // Every level within one of the exact matrix, rounded (corners of the cube included); 38
+        // pixels a row: two blocks and a tail.
+        for (w, h) in [(10usize, 6usize), (38, 4)] {
+            check_to_yuv(w, h);
+        }
+    }
+
+    fn check_to_yuv(w: usize, h: usize) {
+        let mut rng = Rng::new(7);
+        let mut rgb: Vec<u8> = (0..3 * w * h).map(|_| rng.next_u64() as u8).collect();
+        rgb[..6].copy_from_slice(&[255, 255, 255, 0, 0, 0]);
+        rgb[3 * w..3 * w + 6].copy_from_slice(&[255, 0, 0, 0, 0, 255]);
+        let mut out = Vec::new();
+        rgb_to_full_range_yuv420(&rgb, w, h, &mut out);
+        assert_eq!(out.len(), w * h * 3 / 2);
+        let near = |got: u8, want: f64, what: &str| {
+            assert!(
+                (got as f64 - want.clamp(0.0, 255.0)).abs() <= 1.0,
+                "{what}: {got} vs {want}"
+            );
+        };
+        for i in 0..w * h {
+            let p = &rgb[3 * i..3 * i + 3];
+            let y = 0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64;
+            near(out[i], y, &format!("Y {i}"));
+        }
+        for cy in 0..h / 2 {
+            for cx in 0..w / 2 {
+                let mut m = [0f64; 3];
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    for k in 0..3 {
+                        m[k] += 0.25 * rgb[3 * ((2 * cy + dy) * w + 2 * cx + dx) + k] as f64;
+                    }
+                }
+                let u = 128.0 - 0.168_736 * m[0] - 0.331_264 * m[1] + 0.5 * m[2];
+                let v = 128.0 + 0.5 * m[0] - 0.418_688 * m[1] - 0.081_312 * m[2];
+                let c = cy * w / 2 + cx;
+                near(out[w * h + c], u, &format!("U {c}"));
+                near(out[w * h + w * h / 4 + c], v, &format!("V {c}"));
+            }
+        }
+    }
 
     fn random(w: u32, h: u32, matrix: YuvMatrix, range: YuvRange, seed: u64) -> Yuv420Image {
         let mut rng = Rng::new(seed);

@@ -2,54 +2,6 @@
 
 use super::*;
 
-/// RGB to full-range BT.601 4:2:0 (JPEG's matrix, all 256 levels: a limited range would cost
-/// a quantisation of its own): luma per pixel, chroma from each 2x2 block's mean colour.
-/// `rgb` is `width` x `height` with even sides; `out` gets the Y, U and V planes. Integer
-/// arithmetic with the coefficients in 1/2^16 (each level within one of the exact matrix's
-/// rounding; two rows at a time, so the chroma of a row pair reads pixels already in cache).
-pub(super) fn rgb_to_yuv420(rgb: &[u8], width: usize, height: usize, out: &mut Vec<u8>) {
-    const S: i32 = 16;
-    const HALF: i32 = 1 << (S - 1);
-    // 0.299, 0.587, 0.114; -0.168736, -0.331264, 0.5; 0.5, -0.418688, -0.081312 (x 2^16).
-    const Y: [i32; 3] = [19595, 38470, 7471];
-    const U: [i32; 3] = [-11058, -21710, 32768];
-    const V: [i32; 3] = [32768, -27440, -5328];
-    let (cw, ch) = (width / 2, height / 2);
-    out.clear();
-    out.resize(width * height + 2 * cw * ch, 0);
-    let (luma, chroma) = out.split_at_mut(width * height);
-    let (u_plane, v_plane) = chroma.split_at_mut(cw * ch);
-    let stride = 3 * width;
-    for cy in 0..ch {
-        let rows = &rgb[2 * cy * stride..(2 * cy + 2) * stride];
-        let (r0, r1) = rows.split_at(stride);
-        let (l0, l1) = luma[2 * cy * width..(2 * cy + 2) * width].split_at_mut(width);
-        for (src, dst) in [(r0, l0), (r1, l1)] {
-            for (p, y) in src.chunks_exact(3).zip(dst.iter_mut()) {
-                let v = Y[0] * p[0] as i32 + Y[1] * p[1] as i32 + Y[2] * p[2] as i32;
-                *y = ((v + HALF) >> S).clamp(0, 255) as u8;
-            }
-        }
-        let us = &mut u_plane[cy * cw..(cy + 1) * cw];
-        let vs = &mut v_plane[cy * cw..(cy + 1) * cw];
-        for (((a, b), u), v) in r0
-            .chunks_exact(6)
-            .zip(r1.chunks_exact(6))
-            .zip(us.iter_mut())
-            .zip(vs.iter_mut())
-        {
-            // Sums of the four pixels per channel: the mean is the sum / 4, folded into the shift.
-            let m =
-                [0, 1, 2].map(|k| a[k] as i32 + a[k + 3] as i32 + b[k] as i32 + b[k + 3] as i32);
-            let cu = U[0] * m[0] + U[1] * m[1] + U[2] * m[2];
-            let cv = V[0] * m[0] + V[1] * m[1] + V[2] * m[2];
-            let round = |c: i32| (((c + (HALF << 2)) >> (S + 2)) + 128).clamp(0, 255) as u8;
-            *u = round(cu);
-            *v = round(cv);
-        }
-    }
-}
-
 /// Version 2's encoder state.
 pub(super) struct Encoding {
     encoder: openh264::encoder::Encoder,
@@ -334,7 +286,7 @@ fn pad_to_yuv420(raw: &RgbImage, padded: &mut Vec<u8>, planes: &mut Vec<u8>) {
     let (pw, ph) = padded_size(raw.width(), raw.height());
     let src = raw.as_raw();
     if (pw, ph) == (w, h) {
-        rgb_to_yuv420(src, pw, ph, planes);
+        vt_core::yuv::rgb_to_full_range_yuv420(src, pw, ph, planes);
         return;
     }
     padded.clear();
@@ -345,5 +297,5 @@ fn pad_to_yuv420(raw: &RgbImage, padded: &mut Vec<u8>, planes: &mut Vec<u8>) {
             padded.extend_from_slice(&row[3 * (w - 1)..]);
         }
     }
-    rgb_to_yuv420(padded, pw, ph, planes);
+    vt_core::yuv::rgb_to_full_range_yuv420(padded, pw, ph, planes);
 }

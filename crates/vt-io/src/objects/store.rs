@@ -456,7 +456,7 @@ impl ObjectStore {
                 *m = bits >> j & 1;
             }
         }
-        // [`rgb_to_yuv420`]'s inverse, row by row (RGB 0 where the mask is).
+        // [`vt_core::yuv::rgb_to_full_range_yuv420`]'s inverse, row by row (RGB 0 where the mask is).
         for (r, (mask, rgb)) in patch
             .mask
             .chunks_exact(bw)
