@@ -78,7 +78,7 @@ impl Integral {
     }
 
     /// Sum of the (2 BOX_HALF + 1)^2 box centred at (x, y) (inside the image by the caller).
-    #[inline]
+    #[inline(always)]
     fn box_sum(&self, x: i32, y: i32) -> u32 {
         let (x0, y0) = ((x - BOX_HALF) as usize, (y - BOX_HALF) as usize);
         let (x1, y1) = ((x + BOX_HALF + 1) as usize, (y + BOX_HALF + 1) as usize);
@@ -104,20 +104,43 @@ fn orientation(img: &GrayImage, x: u32, y: u32) -> f32 {
     (m01 as f32).atan2(m10 as f32)
 }
 
+/// The steered BRIEF descriptor of the feature at (x, y) with `angle`, through
+/// [`crate::simd::dispatch`]: its rounding then compiles to an instruction rather than a call
+/// (the same bits on every path).
 fn descriptor(ii: &Integral, x: i32, y: i32, angle: f32) -> [u64; 4] {
-    let (s, c) = angle.sin_cos();
-    let at = |u: f32, v: f32| {
-        let px = x + (c * u - s * v).round() as i32;
-        let py = y + (s * u + c * v).round() as i32;
-        ii.box_sum(px, py)
-    };
-    let mut d = [0u64; 4];
-    for (i, t) in pattern().iter().enumerate() {
-        if at(t[0], t[1]) < at(t[2], t[3]) {
-            d[i / 64] |= 1 << (i % 64);
+    crate::simd::dispatch(Descriptor { ii, x, y, angle })
+}
+
+struct Descriptor<'a> {
+    ii: &'a Integral,
+    x: i32,
+    y: i32,
+    angle: f32,
+}
+
+impl crate::simd::Kernel for Descriptor<'_> {
+    type Output = [u64; 4];
+
+    #[inline(always)]
+    fn run(self) -> [u64; 4] {
+        let Descriptor { ii, x, y, angle } = self;
+        let (s, c) = angle.sin_cos();
+        let mut d = [0u64; 4];
+        for (i, t) in pattern().iter().enumerate() {
+            let a = ii.box_sum(
+                x + (c * t[0] - s * t[1]).round() as i32,
+                y + (s * t[0] + c * t[1]).round() as i32,
+            );
+            let b = ii.box_sum(
+                x + (c * t[2] - s * t[3]).round() as i32,
+                y + (s * t[2] + c * t[3]).round() as i32,
+            );
+            if a < b {
+                d[i / 64] |= 1 << (i % 64);
+            }
         }
+        d
     }
-    d
 }
 
 /// Detects up to `params.max_features` oriented features with steered BRIEF descriptors.
