@@ -12,10 +12,11 @@
 //! 2. **What holds still** is chosen jointly over the frames ([`still_anchors`]): per frame, a
 //!    registration fits whatever moves most, which in a tree in wind is the tree; over time,
 //!    only the background follows one map in every frame.
-//! 3. **Probe.** Every [`StabilizeParams::probe_every`]-th frame is tracked first. When the
-//!    still anchors' median motion stays within [`StabilizeParams::still_px`] in each, or
-//!    [`IN_PLACE`] corners never leave their place, the camera is still and nothing is warped: a
-//!    tripod clip costs one decoding pass and a few patch searches.
+//! 3. **Probe.** Every [`StabilizeParams::probe_every`]-th frame is tracked first, at a
+//!    spacing that doubles from the 8th probe on each time the frame index does ([`probes`]).
+//!    When the still anchors' median motion stays within [`StabilizeParams::still_px`] in each,
+//!    or [`IN_PLACE`] corners never leave their place, the camera is still and nothing is
+//!    warped: a tripod clip costs one decoding pass and a few patch searches.
 //! 4. **Every frame** is tracked otherwise, each from the one before, and one model is selected
 //!    for the clip by GRIC on the still anchors ([`crate::model::select_model`]: translation,
 //!    similarity, affine or homography), with GRIC's noise taken from the residuals.
@@ -78,7 +79,8 @@ pub struct StabilizeParams {
     pub mode: StabilizeMode,
     /// A camera whose frame corners move at most this many pixels is still (0.5).
     pub still_px: f64,
-    /// Frames probed for motion: every this many (8).
+    /// Frames probed for motion: every this many (8) for the first 8 probes, then a spacing
+    /// that doubles each time the frame index does.
     pub probe_every: usize,
     /// Least fraction of the frame's width and of its height the crop keeps (0.6); a camera
     /// that moves farther (a pan) is refused.
@@ -302,9 +304,22 @@ fn proxy_factor((w, h): (u32, u32)) -> u32 {
     w.max(h).div_ceil(PROXY_SIDE).max(1)
 }
 
-/// Whether the probe tracks frame `i`, probing every `every`-th: frame 0 and its multiples.
+/// Probes at the first spacing ([`probes`]).
+const FIRST_PROBES: usize = 8;
+
+/// Whether the probe tracks frame `i`: every `every`-th of the first `FIRST_PROBES` of them,
+/// then a spacing that doubles each time the frame index does (for `every` 8: 0, 8, ..., 56,
+/// then 64, 80, 96, 112, then 128, 160, 192, 224, then 256, 320, ...). A camera that moves
+/// shows in the frames of any stretch of the clip, so a long clip's probes grow with the log
+/// of its length (23 for 800 frames, against 100 at one spacing), not with it.
 fn probes(i: usize, every: usize) -> bool {
-    i == 0 || i.is_multiple_of(every)
+    let span = FIRST_PROBES * every;
+    // The spacing doubles at span, 2 span, 4 span, ...
+    let doublings = match i / span {
+        0 => 0,
+        k => k.ilog2() + 1,
+    };
+    i.is_multiple_of(every << doublings)
 }
 
 /// A frame's luma, reduced by `f` in both directions (box means; the remainder columns and

@@ -145,3 +145,27 @@ fn the_cubic_warp_keeps_integer_shifts_exact_and_ramps_straight() {
         }
     }
 }
+
+#[test]
+fn probes_thin_out_as_the_clip_grows() {
+    let probed =
+        |n: usize, every: usize| -> Vec<usize> { (0..n).filter(|&i| probes(i, every)).collect() };
+    // Every 8th of the first 8 probes, then the spacing doubles with the frame index.
+    assert_eq!(
+        probed(300, 8),
+        [0, 8, 16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256]
+    );
+    // Between any frame past the first span and its double, the same number of probes: the
+    // count grows with the log of the length.
+    for k in 0..6 {
+        let from = 64 << k;
+        assert_eq!(
+            (from..2 * from).filter(|&i| probes(i, 8)).count(),
+            4,
+            "{from}"
+        );
+    }
+    assert_eq!(probed(800, 8).len(), 23);
+    // Every frame at spacing 1 for the first 8, then thinning the same way.
+    assert_eq!(probed(20, 1), [0, 1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16]);
+}
