@@ -104,8 +104,9 @@ fn real_size_table(ctx: &mut Ctx) -> Result<Table> {
              (decoded twice, memory bounded: about 320 MB at 960x720 against 820 for 720 frames \
              cached; a stream's median sample is every k-th frame, k a power of two, a cache's \
              the middle of equal spans, hence its own background error). The default measures \
-             the camera's shake first (a decoding pass and every 8th frame's corners looked \
-             for; the clip is still, so nothing is warped); the last row skips that.",
+             the camera's shake during the first pass (frame 0's corners looked for in every \
+             8th frame, the spacing doubling past frame 64; the clip is still, so nothing is \
+             warped); the last row skips that.",
             vt_core::analysis::DEFAULT_MEDIAN_FRAMES,
             vt_core::analysis::DEFAULT_CACHE_MB
         ),
