@@ -185,7 +185,7 @@ impl Yuv420Image {
 impl Yuv420Image {
     /// Pixel `(x, y)` in RGB, byte for byte what [`Yuv420Image::to_rgb_into`] gives there (for
     /// readers that need a few pixels of many frames, not whole frames).
-    #[inline]
+    #[inline(always)]
     pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
         let (w, h) = (self.width as usize, self.height as usize);
         let (x, y) = (x as usize, y as usize);
@@ -275,7 +275,7 @@ impl Coefficients {
 }
 
 /// One pixel's luma and chroma in RGB, as the row conversion makes it.
-#[inline]
+#[inline(always)]
 pub(crate) fn yuv_to_rgb(matrix: YuvMatrix, range: YuvRange, y: u8, u: u8, v: u8) -> [u8; 3] {
     let c = Coefficients::of(matrix, range);
     let (uu, vv) = (u as i32 - 128, v as i32 - 128);

@@ -118,42 +118,88 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
         img.par_chunks_mut(3 * w as usize)
             .enumerate()
             .for_each(|(y, row)| {
-                let by = self.by[y];
-                for x in 0..w as usize {
-                    let i = 3 * x;
-                    let mut acc = [0f32; 3];
-                    for (tile, wt) in tile_weights(self.bx[x], by, cols) {
-                        if wt > 0.0 {
-                            let (f, s, e, r) = shown[tile];
-                            let p = frames.px(f, x as u32, y as u32);
-                            if inline && r != 0.0 {
-                                let a = frames.px(s, x as u32, y as u32);
-                                let b = frames.px(e, x as u32, y as u32);
-                                for c in 0..3 {
-                                    acc[c] += wt * (p[c] as f32 + r * (b[c] as f32 - a[c] as f32));
-                                }
-                            } else {
-                                for c in 0..3 {
-                                    acc[c] += wt * p[c] as f32;
-                                }
-                            }
-                        }
-                    }
-                    if let Some(corr) = &corr {
-                        let k = 3 * (y * w as usize + x);
-                        for c in 0..3 {
-                            acc[c] += corr[k + c];
-                        }
-                    }
-                    for c in 0..3 {
-                        row[i + c] = acc[c].round().clamp(0.0, 255.0) as u8;
-                    }
-                }
+                crate::simd::dispatch(BakeRow {
+                    frames,
+                    shown: &shown,
+                    bx: &self.bx,
+                    by: self.by[y],
+                    cols,
+                    inline,
+                    corr: corr
+                        .as_deref()
+                        .map(|c| &c[3 * y * w as usize..3 * (y + 1) * w as usize]),
+                    y: y as u32,
+                    row,
+                })
             });
         Mask::from_fn(w, h, |x, y| {
             let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
             self.masks[f].get(x, y)
         })
+    }
+}
+
+/// One row of [`Bake::frame_into`], as a [`crate::simd::Kernel`]: the frames' pixels read and
+/// mixed in a function compiled for the CPU at hand, their rounding an instruction.
+struct BakeRow<'a, F: ?Sized> {
+    frames: &'a F,
+    /// Per tile: the frame shown, its wrap's two frames and the correction's share ([`ramps`]).
+    shown: &'a [(usize, usize, usize, f32)],
+    bx: &'a [(usize, usize, f32)],
+    by: (usize, usize, f32),
+    cols: usize,
+    /// Whether the unsmoothed correction is added pixel by pixel.
+    inline: bool,
+    /// The row's smoothed correction, 3 values a pixel (None: none).
+    corr: Option<&'a [f32]>,
+    y: u32,
+    row: &'a mut [u8],
+}
+
+impl<F: Frames + ?Sized> crate::simd::Kernel for BakeRow<'_, F> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let BakeRow {
+            frames,
+            shown,
+            bx,
+            by,
+            cols,
+            inline,
+            corr,
+            y,
+            row,
+        } = self;
+        for (x, out) in row.chunks_exact_mut(3).enumerate() {
+            let mut acc = [0f32; 3];
+            for (tile, wt) in tile_weights(bx[x], by, cols) {
+                if wt > 0.0 {
+                    let (f, s, e, r) = shown[tile];
+                    let p = frames.px(f, x as u32, y);
+                    if inline && r != 0.0 {
+                        let a = frames.px(s, x as u32, y);
+                        let b = frames.px(e, x as u32, y);
+                        for c in 0..3 {
+                            acc[c] += wt * (p[c] as f32 + r * (b[c] as f32 - a[c] as f32));
+                        }
+                    } else {
+                        for c in 0..3 {
+                            acc[c] += wt * p[c] as f32;
+                        }
+                    }
+                }
+            }
+            if let Some(corr) = corr {
+                for c in 0..3 {
+                    acc[c] += corr[3 * x + c];
+                }
+            }
+            for c in 0..3 {
+                out[c] = acc[c].round().clamp(0.0, 255.0) as u8;
+            }
+        }
     }
 }
 
@@ -263,6 +309,7 @@ pub(super) fn tile_pixels(rl: &RegionLoop, w: u32, h: u32) -> Vec<Vec<usize>> {
 
 /// The four tiles a pixel mixes and their weights, from its column's and row's
 /// [`axis_blend`] entries, on a grid `cols` tiles wide.
+#[inline(always)]
 fn tile_weights(
     (cx, ox, ax): (usize, usize, f32),
     (cy, oy, ay): (usize, usize, f32),

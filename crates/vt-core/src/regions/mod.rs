@@ -217,7 +217,7 @@ impl Frames for [crate::analysis::Frame] {
     fn dimensions(&self) -> (u32, u32) {
         self[0].as_ref().dimensions()
     }
-    #[inline]
+    #[inline(always)]
     fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
         match &self[f] {
             crate::analysis::Frame::Rgb(img) => img.get_pixel(x, y).0,
