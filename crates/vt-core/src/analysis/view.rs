@@ -61,6 +61,8 @@ pub(super) fn analyze_view(
     let every_frame = params.median_frames == 0;
     let mut cache: Option<Vec<Frame>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
+    // One frame's bytes as the source gives it.
+    let mut native_bytes = 0usize;
     let mut streamed = Streamed {
         noise: params
             .noise
@@ -103,7 +105,8 @@ pub(super) fn analyze_view(
             Some(s) if *s != dims => return Err(size_err(label(&format!(" frame {i}")), *s, dims)),
             _ => {}
         }
-        cached_bytes += frame.byte_len();
+        native_bytes = frame.byte_len();
+        cached_bytes += native_bytes;
         match cache.as_mut() {
             Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.to_owned()),
             _ => {
@@ -250,7 +253,17 @@ pub(super) fn analyze_view(
     // stays for the per-region loop's window, or the frames decoded once more.
     let blur = GaussianBlur::new(&params.blur)?;
     let (w, h) = bg_blur.dimensions();
-    let chunk = (4 * rayon::current_num_threads()).max(8).min(n1);
+    // Cached frames in chunks of 4 per thread; streamed ones in as many as keep the chunks'
+    // buffers (an RGB frame, its blur and the next chunk's, and the frame as decoded, per frame)
+    // within STREAM_CHUNK_BYTES, and 2 at least: streaming is for frames over the cache.
+    let chunk = match &cache {
+        Some(_) => (4 * rayon::current_num_threads()).max(8),
+        None => {
+            let slot = 3 * 3 * w as usize * h as usize + native_bytes;
+            (STREAM_CHUNK_BYTES / slot.max(1)).clamp(2, (4 * rayon::current_num_threads()).max(8))
+        }
+    }
+    .min(n1);
     let buffers = || -> Vec<RgbImage> { (0..chunk).map(|_| RgbImage::new(w, h)).collect() };
     let (mut ready, mut spare) = (buffers(), buffers());
     // Blur buffers, one per frame of a chunk (one chunk is computed at a time).
@@ -597,6 +610,9 @@ pub(super) fn analyze_view(
         shake: None,
     })
 }
+
+/// What the second pass's chunk buffers may take when frames stream (see `analyze_view`).
+const STREAM_CHUNK_BYTES: usize = 48 << 20;
 
 /// Frames a packed per-region window holds past the thesis's loop (a cached window holds up to
 /// [`crate::regions::RegionParams::max_frames`]).
