@@ -342,15 +342,23 @@ impl VideoSource {
         let err_thread = crate::video::drain(child.stderr.take().expect("stderr was piped"));
         let mut stdout = child.stdout.take().expect("stdout was piped");
         // Whole frames come through `full` (an error ends them; a short last read is a
-        // truncation); their buffers go back through `spent` for the next reads.
-        let (full, frames) =
-            std::sync::mpsc::sync_channel::<Result<Vec<u8>, String>>(read_ahead(frame_bytes));
+        // truncation); the buffers, all made here (a thread's own allocations would stay in an
+        // allocator arena of its own once freed), go round through `spent`, so the reader
+        // runs at most that many frames ahead.
+        let ahead = read_ahead(frame_bytes);
+        let (full, frames) = std::sync::mpsc::sync_channel::<Result<Vec<u8>, String>>(ahead + 1);
         let (spent, empty) = std::sync::mpsc::channel::<Vec<u8>>();
+        for _ in 0..=ahead {
+            let _ = spent.send(vec![0u8; frame_bytes]);
+        }
         let mut n = 0usize;
         let result: vt_core::Result<()> = std::thread::scope(|scope| {
             scope.spawn(move || {
                 for k in 0.. {
-                    let mut buf = empty.try_recv().unwrap_or_else(|_| vec![0u8; frame_bytes]);
+                    // No buffer back: the caller stopped.
+                    let Ok(mut buf) = empty.recv() else {
+                        return;
+                    };
                     let mut filled = 0;
                     while filled < frame_bytes {
                         match stdout.read(&mut buf[filled..]) {
@@ -390,12 +398,12 @@ impl VideoSource {
                     }
                 }
             };
-            // On an error the reader may be blocked in a read or a send: ffmpeg killed ends
-            // the read, the frames dropped end the send.
+            // On an error the reader may be blocked in a read, a send or waiting for a buffer:
+            // ffmpeg killed ends the read, the frames and buffers dropped end the others.
             if result.is_err() {
                 let _ = child.kill();
             }
-            drop(frames);
+            drop((frames, spent));
             result
         });
         let status = child

@@ -61,8 +61,6 @@ pub(super) fn analyze_view(
     let every_frame = params.median_frames == 0;
     let mut cache: Option<Vec<Frame>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
-    // One frame's bytes as the source gives it.
-    let mut native_bytes = 0usize;
     let mut streamed = Streamed {
         noise: params
             .noise
@@ -105,8 +103,7 @@ pub(super) fn analyze_view(
             Some(s) if *s != dims => return Err(size_err(label(&format!(" frame {i}")), *s, dims)),
             _ => {}
         }
-        native_bytes = frame.byte_len();
-        cached_bytes += native_bytes;
+        cached_bytes += frame.byte_len();
         match cache.as_mut() {
             Some(c) if cached_bytes <= params.cache_bytes => c.push(frame.to_owned()),
             _ => {
@@ -247,120 +244,119 @@ pub(super) fn analyze_view(
     observer.start(Stage::Masks, Some(p), Some(n1 as u64));
     let t = Instant::now();
     let mut masks = Vec::with_capacity(n1);
-    // Frames in chunks: each chunk's frames converted, blurred and masked in parallel (one frame
-    // per thread, buffers reused) while the previous chunk goes to the observer in order (object
-    // store writes, the motion tally) on this thread. The chunks are the frame cache's, which
-    // stays for the per-region loop's window, or the frames decoded once more.
-    let blur = GaussianBlur::new(&params.blur)?;
-    let (w, h) = bg_blur.dimensions();
-    // Cached frames in chunks of 4 per thread; streamed ones in as many as keep the chunks'
-    // buffers (an RGB frame, its blur and the next chunk's, and the frame as decoded, per frame)
-    // within STREAM_CHUNK_BYTES, and 2 at least: streaming is for frames over the cache.
-    let chunk = match &cache {
-        Some(_) => (4 * rayon::current_num_threads()).max(8),
-        None => {
-            let slot = 3 * 3 * w as usize * h as usize + native_bytes;
-            (STREAM_CHUNK_BYTES / slot.max(1)).clamp(2, (4 * rayon::current_num_threads()).max(8))
-        }
-    }
-    .min(n1);
-    let buffers = || -> Vec<RgbImage> { (0..chunk).map(|_| RgbImage::new(w, h)).collect() };
-    let (mut ready, mut spare) = (buffers(), buffers());
-    // Blur buffers, one per frame of a chunk (one chunk is computed at a time).
-    let mut blurs: Vec<(BlurScratch, RgbImage)> = (0..chunk)
-        .map(|_| (BlurScratch::default(), RgbImage::new(w, h)))
-        .collect();
-    // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
-    // with `prev`, the previous chunk's last frame and mask.
-    type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
-    let compute = |part: &[Frame],
-                   rgb: &mut Vec<RgbImage>,
-                   blurs: &mut Vec<(BlurScratch, RgbImage)>,
-                   prev: Option<(&RgbImage, &Mask)>|
-     -> Result<Computed> {
-        let masks: Vec<(Mask, Option<Thumb>)> = part
-            .par_iter()
-            .zip(rgb.par_iter_mut())
-            .zip(blurs.par_iter_mut())
-            .map(|((f, out), (scratch, blurred))| {
-                f.as_ref().to_rgb_into(out);
-                blur.apply_into(out, blurred, scratch)?;
-                let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
-                Ok((mask_of(blurred)?, thumb))
-            })
-            .collect::<Result<_>>()?;
-        let rgb: &[RgbImage] = rgb;
-        let change = (0..masks.len())
-            .into_par_iter()
-            .map(|k| {
-                let before = match k {
-                    0 => prev,
-                    _ => Some((&rgb[k - 1], &masks[k - 1].0)),
-                };
-                before.map_or((0, 0), |(f0, m0)| {
-                    pair_change(f0, m0, &rgb[k], &masks[k].0, &background, alpha)
-                })
-            })
-            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-        Ok((masks, change))
-    };
-    // The chunk computed last, its frames in `ready`, not yet handed to the observer.
-    let mut pending: Vec<(Mask, Option<Thumb>)> = Vec::new();
-    let mut i = 0;
-    // Computes `part` while the pending chunk goes to the observer; an empty part flushes.
-    let mut step = |part: &[Frame]| -> Result<()> {
-        let last_mask = pending.last().map(|(m, _)| m.clone());
-        let prev = pending
-            .len()
-            .checked_sub(1)
-            .map(|k| &ready[k])
-            .zip(last_mask.as_ref());
-        let (next, flushed) = std::thread::scope(|scope| {
-            let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
-            let mut flush = || -> Result<()> {
-                for ((m, thumb), f) in pending.drain(..).zip(&ready) {
-                    observer.object_frame(p, i, &shown(&m), f)?;
-                    masks.push(m);
-                    thumbs.extend(thumb);
-                    observer.tick();
-                    i += 1;
-                }
-                Ok(())
-            };
-            let flushed = flush();
-            (worker.join(), flushed)
-        });
-        flushed?;
-        let (next, change) = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
-        kept.add(change);
-        pending = next;
-        std::mem::swap(&mut ready, &mut spare);
-        Ok(())
-    };
+    let mut inside = Duration::ZERO;
     if let Some(frames) = cache.as_deref() {
-        for part in frames.chunks(chunk) {
-            step(part)?;
+        // Frames in chunks: each chunk's frames converted, blurred and masked in parallel (one
+        // frame per thread, buffers reused) while the previous chunk goes to the observer in
+        // order (object store writes, the motion tally) on this thread. The cache stays for
+        // the per-region loop's window.
+        let blur = GaussianBlur::new(&params.blur)?;
+        let (w, h) = bg_blur.dimensions();
+        let chunk = (4 * rayon::current_num_threads()).max(8);
+        let buffers = || -> Vec<RgbImage> {
+            (0..chunk.min(frames.len()))
+                .map(|_| RgbImage::new(w, h))
+                .collect()
+        };
+        let (mut ready, mut spare) = (buffers(), buffers());
+        // Blur buffers, one per frame of a chunk (one chunk is computed at a time).
+        let mut blurs: Vec<(BlurScratch, RgbImage)> = (0..ready.len())
+            .map(|_| (BlurScratch::default(), RgbImage::new(w, h)))
+            .collect();
+        // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
+        // with `prev`, the previous chunk's last frame and mask.
+        type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
+        let compute = |part: &[Frame],
+                       rgb: &mut Vec<RgbImage>,
+                       blurs: &mut Vec<(BlurScratch, RgbImage)>,
+                       prev: Option<(&RgbImage, &Mask)>|
+         -> Result<Computed> {
+            let masks: Vec<(Mask, Option<Thumb>)> = part
+                .par_iter()
+                .zip(rgb.par_iter_mut())
+                .zip(blurs.par_iter_mut())
+                .map(|((f, out), (scratch, blurred))| {
+                    f.as_ref().to_rgb_into(out);
+                    blur.apply_into(out, blurred, scratch)?;
+                    let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
+                    Ok((mask_of(blurred)?, thumb))
+                })
+                .collect::<Result<_>>()?;
+            let rgb: &[RgbImage] = rgb;
+            let change = (0..masks.len())
+                .into_par_iter()
+                .map(|k| {
+                    let before = match k {
+                        0 => prev,
+                        _ => Some((&rgb[k - 1], &masks[k - 1].0)),
+                    };
+                    before.map_or((0, 0), |(f0, m0)| {
+                        pair_change(f0, m0, &rgb[k], &masks[k].0, &background, alpha)
+                    })
+                })
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+            Ok((masks, change))
+        };
+        let mut parts = frames.chunks(chunk);
+        let (mut pending, change) = compute(
+            parts.next().unwrap_or_default(),
+            &mut ready,
+            &mut blurs,
+            None,
+        )?;
+        kept.add(change);
+        let mut i = 0;
+        while !pending.is_empty() {
+            let part = parts.next().unwrap_or_default();
+            let last_mask = pending.last().map(|(m, _)| m.clone());
+            let prev = pending
+                .len()
+                .checked_sub(1)
+                .map(|k| &ready[k])
+                .zip(last_mask.as_ref());
+            let (next, flushed) = std::thread::scope(|scope| {
+                let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
+                let mut flush = || -> Result<()> {
+                    for ((m, thumb), f) in pending.drain(..).zip(&ready) {
+                        observer.object_frame(p, i, &shown(&m), f)?;
+                        masks.push(m);
+                        thumbs.extend(thumb);
+                        observer.tick();
+                        i += 1;
+                    }
+                    Ok(())
+                };
+                let flushed = flush();
+                (worker.join(), flushed)
+            });
+            flushed?;
+            let (next, change) = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+            kept.add(change);
+            pending = next;
+            std::mem::swap(&mut ready, &mut spare);
         }
-        step(&[])?;
         timings.masks += t.elapsed();
     } else {
-        let mut part: Vec<Frame> = Vec::with_capacity(chunk);
-        let mut inside = Duration::ZERO;
+        let mut blurred = RgbImage::new(bg_blur.width(), bg_blur.height());
         let t_pass = Instant::now();
-        let n2 = src.for_each_native(&mut |i, frame| {
+        let n2 = src.for_each_frame(&mut |i, frame| {
             let t = Instant::now();
-            if frame.dimensions() != (w, h) {
+            if frame.dimensions() != bg_blur.dimensions() {
                 return Err(size_err(
                     label(&format!(" frame {i}")),
-                    (w, h),
+                    bg_blur.dimensions(),
                     frame.dimensions(),
                 ));
             }
-            part.push(frame.to_owned());
-            if part.len() == chunk {
-                step(&part)?;
-                part.clear();
+            gaussian_blur_into(frame, &params.blur, &mut blurred)?;
+            let m = mask_of(&blurred)?;
+            if with_thumbs {
+                thumbs.push(change_thumb(&blurred, &bg_blur, factor));
             }
+            observer.object_frame(p, i, &shown(&m), frame)?;
+            kept.push(frame, &m, &background, alpha);
+            masks.push(m);
+            observer.tick();
             inside += t.elapsed();
             Ok(())
         })?;
@@ -370,10 +366,6 @@ pub(super) fn analyze_view(
                 message: format!("gave {n1} frames on the first read and {n2} on the second"),
             });
         }
-        let t = Instant::now();
-        step(&part)?;
-        step(&[])?;
-        inside += t.elapsed();
         timings.decode += t_pass.elapsed().saturating_sub(inside);
         timings.masks += inside;
     }
@@ -611,9 +603,6 @@ pub(super) fn analyze_view(
     })
 }
 
-/// What the second pass's chunk buffers may take when frames stream (see `analyze_view`).
-const STREAM_CHUNK_BYTES: usize = 48 << 20;
-
 /// Frames a packed per-region window holds past the thesis's loop (a cached window holds up to
 /// [`crate::regions::RegionParams::max_frames`]).
 const PACKED_SLACK: usize = 8;
@@ -638,7 +627,7 @@ impl crate::regions::Frames for Window<'_> {
             Window::Packed(f) => crate::regions::Frames::dimensions(*f),
         }
     }
-    #[inline(always)]
+    #[inline]
     fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
         match self {
             Window::Cached(w) => w.px(f, x, y),
