@@ -627,7 +627,7 @@ impl crate::regions::Frames for Window<'_> {
             Window::Packed(f) => crate::regions::Frames::dimensions(*f),
         }
     }
-    #[inline]
+    #[inline(always)]
     fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3] {
         match self {
             Window::Cached(w) => w.px(f, x, y),
