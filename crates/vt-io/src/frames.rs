@@ -20,12 +20,6 @@ pub const VIDEO_EXTENSIONS: [&str; 6] = ["mp4", "avi", "mov", "mkv", "webm", "m4
 /// Frame image extensions in folders.
 pub const FRAME_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
 
-/// Decoded frames read ahead of their use: at most 3, and at most 16 MiB of them (one frame
-/// whatever its size).
-fn read_ahead(frame_bytes: usize) -> usize {
-    ((16 << 20) / frame_bytes.max(1)).clamp(1, 3)
-}
-
 fn has_ext(path: &Path, exts: &[&str]) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
@@ -306,9 +300,7 @@ impl VideoSource {
     }
 
     /// Runs ffmpeg to decode every frame as raw `pix_fmt` of `frame_bytes` bytes, calling
-    /// `on_frame(index, bytes)` for each; returns the frame count. A thread of its own reads
-    /// the pipe a few frames ahead ([`read_ahead`]), so ffmpeg decodes the next frames while
-    /// `on_frame` works instead of waiting on a full pipe.
+    /// `on_frame(index, bytes)` for each; returns the frame count.
     fn decode(
         &self,
         pix_fmt: &str,
@@ -341,71 +333,35 @@ impl VideoSource {
             .map_err(|e| self.src_err(missing_tool("ffmpeg", &self.path, e).to_string()))?;
         let err_thread = crate::video::drain(child.stderr.take().expect("stderr was piped"));
         let mut stdout = child.stdout.take().expect("stdout was piped");
-        // Whole frames come through `full` (an error ends them; a short last read is a
-        // truncation); the buffers, all made here (a thread's own allocations would stay in an
-        // allocator arena of its own once freed), go round through `spent`, so the reader
-        // runs at most that many frames ahead.
-        let ahead = read_ahead(frame_bytes);
-        let (full, frames) = std::sync::mpsc::sync_channel::<Result<Vec<u8>, String>>(ahead + 1);
-        let (spent, empty) = std::sync::mpsc::channel::<Vec<u8>>();
-        for _ in 0..=ahead {
-            let _ = spent.send(vec![0u8; frame_bytes]);
-        }
+        let mut buf = vec![0u8; frame_bytes];
         let mut n = 0usize;
-        let result: vt_core::Result<()> = std::thread::scope(|scope| {
-            scope.spawn(move || {
-                for k in 0.. {
-                    // No buffer back: the caller stopped.
-                    let Ok(mut buf) = empty.recv() else {
-                        return;
-                    };
-                    let mut filled = 0;
-                    while filled < frame_bytes {
-                        match stdout.read(&mut buf[filled..]) {
-                            Ok(0) => break,
-                            Ok(got) => filled += got,
-                            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                            Err(e) => {
-                                let _ = full.send(Err(format!("reading decoded frames: {e}")));
-                                return;
-                            }
-                        }
-                    }
-                    let sent = match filled {
-                        0 => return,
-                        f if f < frame_bytes => full.send(Err(format!(
-                            "truncated: frame {k} has {filled} of {frame_bytes} bytes"
-                        ))),
-                        _ => full.send(Ok(buf)),
-                    };
-                    // The caller stopped (an error of its own), or the frame was the last.
-                    if sent.is_err() || filled < frame_bytes {
-                        return;
-                    }
+        let result: vt_core::Result<()> = loop {
+            let mut filled = 0;
+            while filled < frame_bytes {
+                match stdout.read(&mut buf[filled..]) {
+                    Ok(0) => break,
+                    Ok(k) => filled += k,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(self.src_err(format!("reading decoded frames: {e}"))),
                 }
-            });
-            let result = loop {
-                match frames.recv() {
-                    // The reader ended: the stream's end.
-                    Err(_) => break Ok(()),
-                    Ok(Err(m)) => break Err(self.src_err(m)),
-                    Ok(Ok(mut buf)) => {
-                        if let Err(e) = on_frame(n, &mut buf) {
-                            break Err(e);
-                        }
-                        n += 1;
-                        let _ = spent.send(buf);
-                    }
-                }
-            };
-            // On an error the reader may be blocked in a read, a send or waiting for a buffer:
-            // ffmpeg killed ends the read, the frames and buffers dropped end the others.
-            if result.is_err() {
-                let _ = child.kill();
             }
-            drop((frames, spent));
-            result
-        });
+            if filled == 0 {
+                break Ok(());
+            }
+            if filled < frame_bytes {
+                break Err(self.src_err(format!(
+                    "truncated: frame {n} has {filled} of {frame_bytes} bytes"
+                )));
+            }
+            if let Err(e) = on_frame(n, &mut buf) {
+                break Err(e);
+            }
+            n += 1;
+        };
+        drop(stdout);
+        if result.is_err() {
+            let _ = child.kill();
+        }
         let status = child
             .wait()
             .map_err(|e| self.src_err(format!("waiting for ffmpeg: {e}")))?;
