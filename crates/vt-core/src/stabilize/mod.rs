@@ -313,7 +313,7 @@ const FIRST_PROBES: usize = 8;
 /// shows in the frames of any stretch of the clip, so a long clip's probes grow with the log
 /// of its length (23 for 800 frames, against 100 at one spacing), not with it.
 fn probes(i: usize, every: usize) -> bool {
-    let span = FIRST_PROBES * every;
+    let span = FIRST_PROBES.saturating_mul(every);
     // The spacing doubles at span, 2 span, 4 span, ...
     let doublings = match i / span {
         0 => 0,
