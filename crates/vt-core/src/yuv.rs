@@ -511,7 +511,7 @@ fn to_luma(src: &[u8], dst: &mut [u8]) {
 /// side is odd.
 pub fn rgb_to_full_range_yuv420(rgb: &[u8], width: usize, height: usize, out: &mut Vec<u8>) {
     assert!(
-        rgb.len() == 3 * width * height && width % 2 == 0 && height % 2 == 0,
+        rgb.len() == 3 * width * height && width.is_multiple_of(2) && height.is_multiple_of(2),
         "an RGB picture of even sides"
     );
     let (cw, ch) = (width / 2, height / 2);
