@@ -352,63 +352,91 @@ impl SeamSampling {
 /// direction (a switch renders its fade twice over: as shown and as replaced), on its rows.
 pub fn measure_seams(
     scene: &Arc<RenderScene>,
-    objects: &dyn ObjectFrames,
+    objects: &(dyn ObjectFrames + Sync),
     params: RenderParams,
     sampling: SeamSampling,
 ) -> Result<Vec<ViewSeams>> {
-    let samples = sampling.steps;
-    if samples == 0 {
+    if sampling.steps == 0 {
         return Err(Error::InvalidParameter {
             name: "samples",
             value: "0".into(),
             why: "at least one step must be measured".into(),
         });
     }
+    let views = 0..scene.views.len();
+    let (w, h) = scene
+        .views
+        .first()
+        .map_or((0, 0), |v| v.background.dimensions());
+    // Each view measured with its own renderer, buffers and memo; views at once where that
+    // working set is small (its five frames and the memo's eight), so the peak memory of an
+    // HD analysis, measured here, does not grow.
+    if (w as usize * h as usize) <= PARALLEL_PIXELS {
+        use rayon::prelude::*;
+        views
+            .into_par_iter()
+            .map(|p| view_seams(scene, objects, params, sampling, p))
+            .collect()
+    } else {
+        views
+            .map(|p| view_seams(scene, objects, params, sampling, p))
+            .collect()
+    }
+}
+
+/// Frame size in pixels up to which [`measure_seams`] measures views at once (640x480).
+const PARALLEL_PIXELS: usize = 640 * 480;
+
+/// [`measure_seams`] of view `p`.
+fn view_seams(
+    scene: &Arc<RenderScene>,
+    objects: &dyn ObjectFrames,
+    params: RenderParams,
+    sampling: SeamSampling,
+    p: usize,
+) -> Result<ViewSeams> {
     let (mut renderer, fade, mut bufs) = measuring(scene, params)?;
     let every = sampling.every(renderer.size().1);
     renderer.sample_rows(every);
     let memo = Memo::new(objects);
     let objects = &memo;
     let views = &scene.views;
-    let mut out = Vec::with_capacity(views.len());
-    for (p, v) in views.iter().enumerate() {
-        let (m, n) = (v.loop_start, v.loop_end);
-        let q = p as f64;
-        // Ordinary steps i -> i + 1 for i in m+1..n.
-        let [a, b, ..] = &mut bufs;
-        let mut ordinary = Vec::new();
-        for i in sample_steps(m + 1, n, samples, objects.group(p)) {
-            renderer.render_plain_into(objects, q, p, i, a)?;
-            renderer.render_plain_into(objects, q, p, i + 1, b)?;
-            ordinary.push(frame_step_rows(a, b, every));
-        }
-        let unit = median(&mut ordinary);
-        let wrap = if n > m {
-            renderer.render_plain_into(objects, q, p, n, a)?;
-            renderer.render_plain_into(objects, q, p, m + 1, b)?;
-            Some(ratio(frame_step_rows(a, b, every), unit))
-        } else {
-            None
-        };
-        let count = sampling.switches;
-        let mut switch = |to: usize, q: f64| -> Result<Option<f64>> {
-            let (r, b) = (&mut renderer, &mut bufs);
-            let scores = direction_switches(r, scene, fade, objects, (p, to), q, count, b, None)?;
-            Ok((!scores.is_empty()).then(|| scores.iter().sum::<f64>() / scores.len() as f64))
-        };
-        let to_next = if p + 1 < views.len() {
-            switch(p + 1, q + 0.5)?
-        } else {
-            None
-        };
-        let to_prev = if p > 0 { switch(p - 1, q - 0.5)? } else { None };
-        out.push(ViewSeams {
-            wrap,
-            to_next,
-            to_prev,
-        });
+    let v = &views[p];
+    let (m, n) = (v.loop_start, v.loop_end);
+    let q = p as f64;
+    // Ordinary steps i -> i + 1 for i in m+1..n.
+    let [a, b, ..] = &mut bufs;
+    let mut ordinary = Vec::new();
+    for i in sample_steps(m + 1, n, sampling.steps, objects.group(p)) {
+        renderer.render_plain_into(objects, q, p, i, a)?;
+        renderer.render_plain_into(objects, q, p, i + 1, b)?;
+        ordinary.push(frame_step_rows(a, b, every));
     }
-    Ok(out)
+    let unit = median(&mut ordinary);
+    let wrap = if n > m {
+        renderer.render_plain_into(objects, q, p, n, a)?;
+        renderer.render_plain_into(objects, q, p, m + 1, b)?;
+        Some(ratio(frame_step_rows(a, b, every), unit))
+    } else {
+        None
+    };
+    let count = sampling.switches;
+    let mut switch = |to: usize, q: f64| -> Result<Option<f64>> {
+        let (r, b) = (&mut renderer, &mut bufs);
+        let scores = direction_switches(r, scene, fade, objects, (p, to), q, count, b, None)?;
+        Ok((!scores.is_empty()).then(|| scores.iter().sum::<f64>() / scores.len() as f64))
+    };
+    let to_next = if p + 1 < views.len() {
+        switch(p + 1, q + 0.5)?
+    } else {
+        None
+    };
+    let to_prev = if p > 0 { switch(p - 1, q - 0.5)? } else { None };
+    Ok(ViewSeams {
+        wrap,
+        to_next,
+        to_prev,
+    })
 }
 
 /// The renderer seams are measured with: `params` without crossfade and dissolve (they act on
