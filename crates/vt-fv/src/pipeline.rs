@@ -349,7 +349,10 @@ pub fn novel_view_in(
             };
             let t = Instant::now();
             let base = grown.as_ref().unwrap_or(&rough);
-            let tex = texture_view(model, cams, images, cam, base, &p.texture)?;
+            let backdrop = silhouettes
+                .and_then(|m| crate::silhouette::colour_outside(images, m))
+                .unwrap_or([0; 3]);
+            let tex = texture_view(model, cams, images, cam, base, &p.texture, backdrop)?;
             times.push(("texturing", t.elapsed().as_secs_f64()));
             (tex.image, tex.references, p.refine)
         }

@@ -205,6 +205,38 @@ fn radius(frac: f64, short: u32) -> u32 {
     ((frac * short as f64).round() as u32).max(1)
 }
 
+/// The photos' backdrop: the per-channel median colour of the pixels outside their silhouettes
+/// (every 4th pixel, row-major), `None` when no pixel lies outside. Photos with an alpha channel
+/// were composited over the data's background, which this gives back exactly.
+pub fn colour_outside(images: &[RgbImage], masks: &[Mask]) -> Option<[u8; 3]> {
+    let mut hist = [[0u64; 256]; 3];
+    for (img, m) in images.iter().zip(masks) {
+        if img.dimensions() != (m.width(), m.height()) {
+            continue;
+        }
+        let raw = img.as_raw();
+        for i in (0..raw.len() / 3).step_by(4) {
+            if !bit(m, i) {
+                for c in 0..3 {
+                    hist[c][raw[3 * i + c] as usize] += 1;
+                }
+            }
+        }
+    }
+    let n: u64 = hist[0].iter().sum();
+    (n > 0).then(|| {
+        hist.map(|h| {
+            let mut acc = 0;
+            h.iter()
+                .position(|&k| {
+                    acc += k;
+                    2 * acc > n
+                })
+                .unwrap_or(0) as u8
+        })
+    })
+}
+
 /// Median brightness of the border band of a photo and the largest channel's median there:
 /// what decides between the dark-backdrop threshold and [`backdrop_silhouette`].
 pub fn border_level(img: &RgbImage, p: &BackdropParams) -> f64 {
@@ -523,6 +555,26 @@ pub(crate) fn check_masks(masks: &[Mask], sizes: &[(u32, u32)], names: &[&str]) 
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn the_backdrop_is_the_median_colour_outside_the_silhouettes() {
+        // Two 8x8 photos: a red square inside each silhouette, white outside but for a few
+        // dark pixels (a shadow), which the median ignores.
+        let sil = Mask::from_fn(8, 8, |x, y| (2..6).contains(&x) && (2..6).contains(&y));
+        let photo = |shadow: u32| {
+            RgbImage::from_fn(8, 8, |x, y| match (sil.get(x, y), y * 8 + x < shadow) {
+                (true, _) => image::Rgb([200, 0, 0]),
+                (false, true) => image::Rgb([10, 10, 10]),
+                (false, false) => image::Rgb([250, 251, 252]),
+            })
+        };
+        let both = [photo(4), photo(0)];
+        let masks = [sil.clone(), sil.clone()];
+        assert_eq!(colour_outside(&both, &masks), Some([250, 251, 252]));
+        // No pixel outside: unknown.
+        let full = Mask::from_fn(8, 8, |_, _| true);
+        assert_eq!(colour_outside(&both[..1], &[full]), None);
+    }
 
     fn naive(m: &Mask, r: i64, erode: bool) -> Mask {
         Mask::from_fn(m.width(), m.height(), |x, y| {

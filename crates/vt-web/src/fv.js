@@ -454,15 +454,17 @@
     vec4 v = texelFetch(fine, px, 0);
     outColour = v.a > 0.0 ? v : texelFetch(coarse, px / 2, 0);
   }`;
-  // The textured view over the object region: known colours, holes filled, black outside;
-  // alpha the softening (1 where no photo gave the colour).
+  // The textured view over the object region: known colours, holes filled, the photos'
+  // backdrop outside (only the softening's blur reads it); alpha the softening (1 where no
+  // photo gave the colour).
   const FILL_FS = `#version 300 es
   precision highp float;
   uniform sampler2D sharp; uniform sampler2D filled; uniform sampler2D region; uniform sampler2D depth;
+  uniform vec3 backdrop;
   out vec4 outColour;
   void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    if (texelFetch(region, px, 0).r < 0.5) { outColour = vec4(0.0); return; }
+    if (texelFetch(region, px, 0).r < 0.5) { outColour = vec4(backdrop, 0.0); return; }
     if (texelFetch(depth, px, 0).r < ${FAR / 10}) { outColour = texelFetch(sharp, px, 0); return; }
     vec4 f = texelFetch(filled, px, 0);
     outColour = vec4(floor(f.rgb + 0.5) / 255.0, 1.0);
@@ -901,6 +903,8 @@
     for (let k = last - 1; k >= 0; k--) {
       quad(pull, L[k].filledFb, [['fine', L[k].own], ['coarse', L[k + 1].filled]], [L[k].w, L[k].h]);
     }
+    gl.useProgram(progs.fill.p);
+    gl.uniform3fv(progs.fill.u.backdrop, (T.backdrop || [0, 0, 0]).map((x) => x / 255));
     quad(progs.fill, targets.texturedFb, [['sharp', targets.sharp], ['filled', L[0].filled], ['region', targets.region], ['depth', depth]]);
     const soften = T.soften_sigma > 0;
     if (soften) {

@@ -175,6 +175,7 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
             "sweep_window": t.sweep_window,
             "full_fade": FULL_FADE,
             "fill_radius": t.fill_radius,
+            "backdrop": vt_fv::silhouette::colour_outside(m.images, m.masks).unwrap_or([0; 3]),
         },
     });
     let mut meta = meta;
