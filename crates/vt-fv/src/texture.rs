@@ -85,10 +85,10 @@ pub struct TextureParams {
     /// region's pixels, so nothing from outside it bleeds into the rim. By default the photos'
     /// backdrop bleeds there, as it does in the photos ([`texture_view`]'s `backdrop`); against
     /// that, lego 8-view 22.02 -> 22.00 dB, kettle leave-one-out inside the silhouette 24.74 ->
-    /// 24.88 but over silhouette + own coverage 24.51 -> 24.33. It was measured better than black bleeding on a
-    /// light backdrop (kettle, agree_sd 32: 24.44 -> 24.55 dB inside the silhouette, 22.82 ->
-    /// 23.57 over silhouette + own coverage) and worse on a black one, which the bled rim
-    /// matches (temple 21.73 -> 21.67, 20.19 -> 19.83).
+    /// 24.88 but over silhouette + own coverage 24.51 -> 24.33. It was measured better than
+    /// black bleeding on a light backdrop (kettle, agree_sd 32: 24.44 -> 24.55 dB inside the
+    /// silhouette, 22.82 -> 23.57 over silhouette + own coverage) and worse on a black one,
+    /// which the bled rim matches (temple 21.73 -> 21.67, 20.19 -> 19.83).
     pub soften_within: bool,
 }
 
