@@ -368,43 +368,29 @@ pub fn measure_seams(
         .views
         .first()
         .map_or((0, 0), |v| v.background.dimensions());
-    let pixels = w as usize * h as usize;
     // Each view measured with its own renderer, buffers and memo; views at once where that
     // working set is small (its five frames and the memo's eight), so the peak memory of an
     // HD analysis, measured here, does not grow.
-    if pixels <= PARALLEL_PIXELS && views.len() > 1 {
+    if (w as usize * h as usize) <= PARALLEL_PIXELS {
         use rayon::prelude::*;
-        return views
+        views
             .into_par_iter()
-            .map(|p| view_seams(scene, objects, None, params, sampling, p))
-            .collect();
-    }
-    // One view at a time: its ordinary steps in two halves at once, the second half read by a
-    // second reader (a decoder of its own) where the frames are at most 1280x720. Not from a
-    // rayon worker, which would wait on a thread that needs the pool.
-    let fork = if pixels <= FORK_PIXELS && rayon::current_thread_index().is_none() {
-        objects.fork()
+            .map(|p| view_seams(scene, objects, params, sampling, p))
+            .collect()
     } else {
-        None
-    };
-    views
-        .map(|p| view_seams(scene, objects, fork.as_deref(), params, sampling, p))
-        .collect()
+        views
+            .map(|p| view_seams(scene, objects, params, sampling, p))
+            .collect()
+    }
 }
 
 /// Frame size in pixels up to which [`measure_seams`] measures views at once (640x480).
 const PARALLEL_PIXELS: usize = 640 * 480;
 
-/// Frame size in pixels up to which [`measure_seams`] reads a view's frames with a second
-/// decoder (1280x720).
-const FORK_PIXELS: usize = 1280 * 720;
-
-/// [`measure_seams`] of view `p`; with `second`, its ordinary steps split between `objects`
-/// on this thread and `second` on another.
+/// [`measure_seams`] of view `p`.
 fn view_seams(
     scene: &Arc<RenderScene>,
     objects: &dyn ObjectFrames,
-    second: Option<&(dyn ObjectFrames + Send + Sync)>,
     params: RenderParams,
     sampling: SeamSampling,
     p: usize,
@@ -419,25 +405,14 @@ fn view_seams(
     let (m, n) = (v.loop_start, v.loop_end);
     let q = p as f64;
     // Ordinary steps i -> i + 1 for i in m+1..n.
-    let steps = sample_steps(m + 1, n, sampling.steps, objects.group(p));
-    let mut ordinary = match second {
-        Some(other) if steps.len() >= 2 => {
-            let (lo, hi) = steps.split_at(steps.len() / 2);
-            std::thread::scope(|s| {
-                let far = s.spawn(|| -> Result<Vec<f64>> {
-                    let (mut r, _, mut b) = measuring(scene, params)?;
-                    r.sample_rows(every);
-                    plain_steps(&mut r, &Memo::new(other), p, hi, &mut b, every)
-                });
-                let mut near = plain_steps(&mut renderer, objects, p, lo, &mut bufs, every)?;
-                near.extend(far.join().unwrap_or_else(|e| std::panic::resume_unwind(e))?);
-                Ok::<_, Error>(near)
-            })?
-        }
-        _ => plain_steps(&mut renderer, objects, p, &steps, &mut bufs, every)?,
-    };
-    let unit = median(&mut ordinary);
     let [a, b, ..] = &mut bufs;
+    let mut ordinary = Vec::new();
+    for i in sample_steps(m + 1, n, sampling.steps, objects.group(p)) {
+        renderer.render_plain_into(objects, q, p, i, a)?;
+        renderer.render_plain_into(objects, q, p, i + 1, b)?;
+        ordinary.push(frame_step_rows(a, b, every));
+    }
+    let unit = median(&mut ordinary);
     let wrap = if n > m {
         renderer.render_plain_into(objects, q, p, n, a)?;
         renderer.render_plain_into(objects, q, p, m + 1, b)?;
@@ -462,25 +437,6 @@ fn view_seams(
         to_next,
         to_prev,
     })
-}
-
-/// The rendered steps of view `p` from each frame of `from` to the next, at `p`.
-fn plain_steps(
-    renderer: &mut Renderer,
-    objects: &dyn ObjectFrames,
-    p: usize,
-    from: &[usize],
-    bufs: &mut [RgbImage; 5],
-    every: usize,
-) -> Result<Vec<f64>> {
-    let [a, b, ..] = bufs;
-    let mut out = Vec::with_capacity(from.len());
-    for &i in from {
-        renderer.render_plain_into(objects, p as f64, p, i, a)?;
-        renderer.render_plain_into(objects, p as f64, p, i + 1, b)?;
-        out.push(frame_step_rows(a, b, every));
-    }
-    Ok(out)
 }
 
 /// The renderer seams are measured with: `params` without crossfade and dissolve (they act on

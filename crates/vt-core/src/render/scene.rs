@@ -157,11 +157,4 @@ pub trait ObjectFrames {
     fn group(&self, _view: usize) -> usize {
         1
     }
-
-    /// A second reader of the same frames that decodes beside this one (a decoder of its own),
-    /// for measuring two runs of frames at once; `None` when there is no such thing (frames
-    /// held in memory cost nothing to read twice).
-    fn fork(&self) -> Option<Box<dyn ObjectFrames + Send + Sync>> {
-        None
-    }
 }

@@ -284,10 +284,4 @@ impl vt_core::render::ObjectFrames for SceneObjects {
     fn group(&self, view: usize) -> usize {
         self.stores.get(view).map_or(1, ObjectStore::group)
     }
-
-    fn fork(&self) -> Option<Box<dyn vt_core::render::ObjectFrames + Send + Sync>> {
-        Some(Box::new(SceneObjects {
-            stores: self.stores.iter().map(ObjectStore::fork).collect(),
-        }))
-    }
 }

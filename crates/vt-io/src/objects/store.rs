@@ -85,29 +85,6 @@ impl Index {
 }
 
 impl ObjectStore {
-    /// A second reader of this store: the same bytes and index (nothing read or checked again),
-    /// with a decoding thread of its own (started on its first decode), so two runs of frames
-    /// decode at once.
-    pub fn fork(&self) -> Self {
-        Self {
-            path: self.path.clone(),
-            width: self.width,
-            height: self.height,
-            bytes: self.bytes.clone(),
-            index: self.index.clone(),
-            codec: self.codec.as_ref().map(|c| Decoding {
-                gop: c.gop,
-                qp: c.qp,
-                shared: std::sync::Arc::new(Shared {
-                    queue: Default::default(),
-                    changed: Default::default(),
-                }),
-                worker: Default::default(),
-                scratch: Default::default(),
-            }),
-        }
-    }
-
     /// Loads and validates a store: version 1 whole, version 2's index only (its records are
     /// read when decoded; each is read once here to check it).
     pub fn load(path: &Path) -> Result<Self> {

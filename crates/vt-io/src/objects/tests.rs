@@ -312,46 +312,6 @@ fn a_second_decoder_starts_only_for_interleaved_runs() {
 }
 
 #[test]
-fn a_forked_store_decodes_the_same_frames_beside_its_original() {
-    let dir = tempfile::tempdir().unwrap();
-    let frames = moving_frames(48, 32, 40);
-    let path = dir.path().join("o.bin");
-    let mut writer = ObjectWriter::create_with_encoder(
-        &path,
-        48,
-        32,
-        StoreQuality::default(),
-        H264Encoder::OpenH264,
-    )
-    .unwrap();
-    for (m, raw) in &frames {
-        writer.push(m, raw).unwrap();
-    }
-    writer.finish().unwrap();
-    let decode = |store: &ObjectStore, i: usize| {
-        let mut patch = vt_core::render::ObjectPatch::default();
-        store.decode_into(i, &mut patch).unwrap();
-        (patch.x0, patch.y0, patch.width, patch.height, patch.rgb.clone(), patch.mask.clone())
-    };
-    let store = ObjectStore::load(&path).unwrap();
-    let want: Vec<_> = (0..frames.len()).map(|i| decode(&store, i)).collect();
-    let fork = store.fork();
-    // Both read at once, on two threads, in different orders: each gets its own decoder.
-    std::thread::scope(|s| {
-        let there = s.spawn(|| {
-            for i in (0..frames.len()).rev() {
-                assert_eq!(decode(&fork, i), want[i], "forked, frame {i}");
-            }
-        });
-        for i in 0..frames.len() {
-            assert_eq!(decode(&store, i), want[i], "original, frame {i}");
-        }
-        there.join().unwrap();
-    });
-    assert_eq!(fork.decoders_started(), 1);
-}
-
-#[test]
 fn access_units_split_at_their_delimiters() {
     // Two units behind delimiters (4- and 3-byte start codes), split across reads.
     let stream: Vec<u8> = [
