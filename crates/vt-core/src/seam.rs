@@ -363,23 +363,29 @@ pub fn measure_seams(
             why: "at least one step must be measured".into(),
         });
     }
+    let (mut renderer, fade, mut bufs) = measuring(scene, params)?;
+    let (w, h) = renderer.size();
+    let every = sampling.every(h);
+    renderer.sample_rows(every);
     let views = 0..scene.views.len();
-    let (w, h) = scene
-        .views
-        .first()
-        .map_or((0, 0), |v| v.background.dimensions());
-    // Each view measured with its own renderer, buffers and memo; views at once where that
-    // working set is small (its five frames and the memo's eight), so the peak memory of an
-    // HD analysis, measured here, does not grow.
+    // Views at once where a renderer's working set is small (its five frames and the memo's
+    // eight), each on a clone of the one prepared here; else one at a time on it, so the peak
+    // memory of an HD analysis, measured here, does not grow.
     if (w as usize * h as usize) <= PARALLEL_PIXELS {
         use rayon::prelude::*;
         views
             .into_par_iter()
-            .map(|p| view_seams(scene, objects, params, sampling, p))
+            .map_init(
+                || (renderer.clone(), bufs.clone()),
+                |(r, b), p| view_seams(scene, objects, r, fade, b, sampling, every, p),
+            )
             .collect()
     } else {
         views
-            .map(|p| view_seams(scene, objects, params, sampling, p))
+            .map(|p| {
+                let (r, b) = (&mut renderer, &mut bufs);
+                view_seams(scene, objects, r, fade, b, sampling, every, p)
+            })
             .collect()
     }
 }
@@ -387,17 +393,18 @@ pub fn measure_seams(
 /// Frame size in pixels up to which [`measure_seams`] measures views at once (640x480).
 const PARALLEL_PIXELS: usize = 640 * 480;
 
-/// [`measure_seams`] of view `p`.
+/// [`measure_seams`] of view `p`, on `renderer` (from [`measuring`], rows sampled `every`).
+#[allow(clippy::too_many_arguments)]
 fn view_seams(
     scene: &Arc<RenderScene>,
     objects: &dyn ObjectFrames,
-    params: RenderParams,
+    renderer: &mut Renderer,
+    fade: usize,
+    bufs: &mut [RgbImage; 5],
     sampling: SeamSampling,
+    every: usize,
     p: usize,
 ) -> Result<ViewSeams> {
-    let (mut renderer, fade, mut bufs) = measuring(scene, params)?;
-    let every = sampling.every(renderer.size().1);
-    renderer.sample_rows(every);
     let memo = Memo::new(objects);
     let objects = &memo;
     let views = &scene.views;
@@ -405,7 +412,7 @@ fn view_seams(
     let (m, n) = (v.loop_start, v.loop_end);
     let q = p as f64;
     // Ordinary steps i -> i + 1 for i in m+1..n.
-    let [a, b, ..] = &mut bufs;
+    let [a, b, ..] = bufs;
     let mut ordinary = Vec::new();
     for i in sample_steps(m + 1, n, sampling.steps, objects.group(p)) {
         renderer.render_plain_into(objects, q, p, i, a)?;
@@ -422,7 +429,7 @@ fn view_seams(
     };
     let count = sampling.switches;
     let mut switch = |to: usize, q: f64| -> Result<Option<f64>> {
-        let (r, b) = (&mut renderer, &mut bufs);
+        let (r, b) = (&mut *renderer, &mut *bufs);
         let scores = direction_switches(r, scene, fade, objects, (p, to), q, count, b, None)?;
         Ok((!scores.is_empty()).then(|| scores.iter().sum::<f64>() / scores.len() as f64))
     };

@@ -171,7 +171,9 @@ impl Default for RenderParams {
         }
     }
 }
-/// Renders output frames; owns every buffer it needs.
+/// Renders output frames; owns every buffer it needs. A clone renders alike from its own
+/// buffers (the gains are estimated once).
+#[derive(Clone)]
 pub struct Renderer {
     scene: std::sync::Arc<RenderScene>,
     params: RenderParams,
