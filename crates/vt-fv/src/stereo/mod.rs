@@ -291,28 +291,6 @@ impl Plane {
             v,
         }
     }
-
-    /// Bilinear sample of every channel into `out`; `None` outside the image.
-    #[inline]
-    fn sample(&self, x: f64, y: f64, out: &mut [f32]) -> Option<()> {
-        if !(x >= 0.0 && y >= 0.0) {
-            return None;
-        }
-        let (x0, y0) = (x as usize, y as usize);
-        if x0 + 1 >= self.w || y0 + 1 >= self.h {
-            return None;
-        }
-        let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
-        let (c, row) = (self.c, self.w * self.c);
-        let i = (y0 * self.w + x0) * c;
-        for (ch, o) in out.iter_mut().enumerate() {
-            let j = i + ch;
-            let a = self.v[j] + (self.v[j + c] - self.v[j]) * fx;
-            let b = self.v[j + row] + (self.v[j + row + c] - self.v[j + row]) * fx;
-            *o = a + (b - a) * fy;
-        }
-        Some(())
-    }
 }
 
 /// The map from a reference pixel at camera depth `d` to a source pixel:
@@ -345,7 +323,7 @@ fn setup(
     cams: &[Camera],
     centre: &Vector3<f64>,
     p: &StereoParams,
-) -> (Matrix3<f64>, Vec<Transfer>, Vec<(i32, i32)>) {
+) -> (Matrix3<f64>, Vec<Transfer>, Window) {
     let kinv = cams[i]
         .k
         .try_inverse()
@@ -361,7 +339,7 @@ fn setup(
         .step_by(stride)
         .flat_map(|dy| (-r..=r).step_by(stride).map(move |dx| (dx, dy)))
         .collect();
-    (kinv, transfers, offsets)
+    (kinv, transfers, Window::new(offsets))
 }
 
 /// The reference window at pixel `(x, y)` into `refv` (`offsets.len()` times the channels,
@@ -392,42 +370,108 @@ fn reference_window(
     (var, ((var / refv.len() as f32) as f64).sqrt())
 }
 
-/// NCC of the centred reference window `refv` (energy `var`) against photo `src` at the
-/// window's points there, `point(k)` (homogeneous pixel coordinates), each channel centred;
-/// `None` when a point lies behind the source camera or outside its photo. `srcv` is scratch
-/// of `refv`'s size.
+/// The window's sample offsets ([`setup`]) and the four corners of their lattice: the
+/// offsets span a square lattice, so a map that is linear (or projective with a positive
+/// denominator) over the square reaches its extremes at these corners.
+pub(super) struct Window {
+    offsets: Vec<(i32, i32)>,
+    corners: [(i32, i32); 4],
+}
+
+impl Window {
+    fn new(offsets: Vec<(i32, i32)>) -> Self {
+        let x0 = offsets.iter().map(|o| o.0).min().unwrap_or(0);
+        let x1 = offsets.iter().map(|o| o.0).max().unwrap_or(0);
+        let y0 = offsets.iter().map(|o| o.1).min().unwrap_or(0);
+        let y1 = offsets.iter().map(|o| o.1).max().unwrap_or(0);
+        Window {
+            offsets,
+            corners: [(x0, y0), (x1, y0), (x0, y1), (x1, y1)],
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.offsets.len()
+    }
+}
+
+/// NCC of the centred reference window `refv` (energy `var`) against photo `src` through the
+/// homography `h` (columns): the window's sample at offset `(dx, dy)` lands at the homogeneous
+/// source pixel `h0 dx + h1 dy + h2`, each channel centred. `None` when the window reaches
+/// behind the source camera or out of its photo; both are decided at the lattice's corners
+/// (the image of the window's square under a homography whose denominator stays positive is
+/// the convex quadrilateral of the corners' images), so the samples themselves need no test.
 #[inline]
-fn ncc(
-    src: &Plane,
-    refv: &[f32],
-    var: f32,
-    srcv: &mut [f32],
-    point: impl Fn(usize) -> Vector3<f64>,
-) -> Option<f32> {
-    let c = src.c;
-    let mut smean = [0f32; 3];
-    for (k, sv) in srcv.chunks_exact_mut(c).enumerate() {
-        let q = point(k);
+fn ncc(src: &Plane, refv: &[f32], var: f32, window: &Window, h: [Vector3<f64>; 3]) -> Option<f32> {
+    let at = |dx: f64, dy: f64| h[0] * dx + h[1] * dy + h[2];
+    let (wmax, hmax) = ((src.w - 1) as f64, (src.h - 1) as f64);
+    for &(dx, dy) in &window.corners {
+        let q = at(dx as f64, dy as f64);
         if q.z <= 1e-9 {
             return None;
         }
-        src.sample(q.x / q.z, q.y / q.z, sv)?;
-        for ch in 0..c {
-            smean[ch] += sv[ch];
+        let (x, y) = (q.x / q.z, q.y / q.z);
+        // Strictly inside: a bilinear sample needs the pixel to its right and below.
+        if !(x >= 0.0 && y >= 0.0 && x < wmax && y < hmax) {
+            return None;
         }
     }
-    let n = (srcv.len() / c) as f32;
-    let (mut cov, mut svar) = (0.0f32, 0.0f32);
-    for (j, (r, sv)) in refv.iter().zip(srcv.iter()).enumerate() {
-        let s = sv - smean[j % c] / n;
-        cov += r * s;
-        svar += s * s;
+    // The samples in f32, relative to the window's centre (coordinates of a few pixels).
+    let h: [[f32; 3]; 3] = h.map(|c| [c.x as f32, c.y as f32, c.z as f32]);
+    match src.c {
+        1 => Some(ncc_lattice::<1>(src, refv, var, window, &h)),
+        _ => Some(ncc_lattice::<3>(src, refv, var, window, &h)),
     }
-    Some(if svar > 1e-6 {
+}
+
+/// [`ncc`]'s samples and sums for `C` channels, in one pass: the reference is centred, so the
+/// covariance is the plain sum of products, and each source channel's energy is its sum of
+/// squares less its mean's share, taken about the first sample (no cancellation).
+#[inline]
+fn ncc_lattice<const C: usize>(
+    src: &Plane,
+    refv: &[f32],
+    var: f32,
+    window: &Window,
+    h: &[[f32; 3]; 3],
+) -> f32 {
+    let row = src.w * C;
+    let (xmax, ymax) = (src.w - 2, src.h - 2);
+    let (mut cov, mut sum, mut sq) = (0f32, [0f32; C], [0f32; C]);
+    let mut pivot = [0f32; C];
+    for (k, (&(dx, dy), r)) in window.offsets.iter().zip(refv.chunks_exact(C)).enumerate() {
+        let (dx, dy) = (dx as f32, dy as f32);
+        let iz = 1.0 / (h[0][2] * dx + h[1][2] * dy + h[2][2]);
+        let x = ((h[0][0] * dx + h[1][0] * dy + h[2][0]) * iz).max(0.0);
+        let y = ((h[0][1] * dx + h[1][1] * dy + h[2][1]) * iz).max(0.0);
+        // The corners bound every sample; the clamps only absorb f32 rounding at the rim.
+        let (x0, y0) = ((x as usize).min(xmax), (y as usize).min(ymax));
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let i = y0 * row + x0 * C;
+        let top = &src.v[i..i + 2 * C];
+        let bottom = &src.v[i + row..i + row + 2 * C];
+        for ch in 0..C {
+            let a = top[ch] + (top[ch + C] - top[ch]) * fx;
+            let b = bottom[ch] + (bottom[ch + C] - bottom[ch]) * fx;
+            let v = a + (b - a) * fy;
+            if k == 0 {
+                pivot[ch] = v;
+            }
+            let s = v - pivot[ch];
+            cov += r[ch] * s;
+            sum[ch] += s;
+            sq[ch] += s * s;
+        }
+    }
+    let n = window.len() as f32;
+    let svar: f32 = (0..C)
+        .map(|ch| (sq[ch] - sum[ch] * sum[ch] / n).max(0.0))
+        .sum();
+    if svar > 1e-6 {
         cov / (var * svar).sqrt()
     } else {
         0.0
-    })
+    }
 }
 
 /// The mean of the `best` highest scores (sorted in place); `-inf` with fewer.
@@ -497,7 +541,7 @@ fn sweep(
     let cam = &cams[i];
     let plane = &planes[i];
     let (w, h) = (plane.w, plane.h);
-    let (kinv, transfers, offsets) = setup(i, cams, centre, p);
+    let (kinv, transfers, window) = setup(i, cams, centre, p);
     let vs = grid.voxel_size().min();
     let step = p.pixel_step;
     let (mw, mh) = (w.div_ceil(step), h.div_ceil(step));
@@ -506,8 +550,7 @@ fn sweep(
         .map(|my| {
             let y = my * step;
             let mut row = vec![f32::NAN; mw];
-            let mut refv = vec![0f32; offsets.len() * plane.c];
-            let mut srcv = vec![0f32; offsets.len() * plane.c];
+            let mut refv = vec![0f32; window.len() * plane.c];
             let mut scores = Vec::with_capacity(transfers.len());
             let mut samples: Vec<(f64, f64)> = Vec::new();
             let r = p.radius as usize;
@@ -516,7 +559,7 @@ fn sweep(
                 if !masks[i].get(x as u32, y as u32) || x < r || y < r || x + r >= w || y + r >= h {
                     continue;
                 }
-                let (var, spread) = reference_window(plane, x, y, &offsets, &mut refv);
+                let (var, spread) = reference_window(plane, x, y, &window.offsets, &mut refv);
                 if spread < p.min_texture {
                     continue;
                 }
@@ -531,13 +574,10 @@ fn sweep(
                 let mut score = |d: f64| -> f64 {
                     scores.clear();
                     for tr in &transfers {
+                        // Fronto-parallel at depth d: the offsets map affinely.
                         let base = tr.a * Vector3::new(x as f64, y as f64, 1.0) * d + tr.b;
-                        let (ax, ay) = (tr.a.column(0) * d, tr.a.column(1) * d);
-                        let at = |k: usize| {
-                            let (dx, dy) = offsets[k];
-                            base + ax * dx as f64 + ay * dy as f64
-                        };
-                        if let Some(v) = ncc(&planes[tr.src], &refv, var, &mut srcv, at) {
+                        let h = [tr.a.column(0) * d, tr.a.column(1) * d, base];
+                        if let Some(v) = ncc(&planes[tr.src], &refv, var, &window, h) {
                             scores.push(v);
                         }
                     }

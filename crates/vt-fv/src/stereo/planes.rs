@@ -17,7 +17,8 @@ use rayon::prelude::*;
 use vt_core::rng::{hash, Rng};
 
 use super::{
-    best_mean, hull_interval, ncc, reference_window, setup, DepthMap, Plane, StereoParams, Transfer,
+    best_mean, hull_interval, ncc, reference_window, setup, DepthMap, Plane, StereoParams,
+    Transfer, Window,
 };
 use crate::camera::Camera;
 use crate::hull::VoxelGrid;
@@ -59,7 +60,7 @@ struct Scorer<'a> {
     /// The other photos' depth maps from a first round, and the weight of the forward-backward
     /// reprojection error (pixels, capped at 3, scaled to 0..1) taken off each source's NCC.
     geo: Option<(&'a [DepthMap], f64)>,
-    offsets: Vec<(i32, i32)>,
+    window: Window,
     kinv: Matrix3<f64>,
     best: usize,
 }
@@ -67,41 +68,31 @@ struct Scorer<'a> {
 impl Scorer<'_> {
     /// Mean NCC of the best sources for plane `(d, n)` at `cell`; `-inf` when the plane is
     /// seen edge-on or too few sources see the window.
-    fn score(
-        &self,
-        cell: &Cell,
-        d: f64,
-        n: &Vector3<f64>,
-        dq: &mut [f64],
-        srcv: &mut [f32],
-        scores: &mut Vec<f32>,
-    ) -> f64 {
+    fn score(&self, cell: &Cell, d: f64, n: &Vector3<f64>, scores: &mut Vec<f32>) -> f64 {
         let nr = n.dot(&cell.ray);
         if nr > -1e-3 {
             return f64::NEG_INFINITY;
         }
-        let (nkx, nky) = (n.dot(&self.kinv.column(0)), n.dot(&self.kinv.column(1)));
+        // The plane's depth along the ray of pixel p is c / (g . p), g = K^-T n: every window
+        // point must lie in front of the camera, which the lattice's corners decide (g . p is
+        // linear in the offset).
+        let g = self.kinv.transpose() * n;
         let c = d * nr;
-        for (k, &(dx, dy)) in self.offsets.iter().enumerate() {
-            let den = nr + nkx * dx as f64 + nky * dy as f64;
-            if den > -1e-6 {
+        for &(dx, dy) in &self.window.corners {
+            if nr + g.x * dx as f64 + g.y * dy as f64 > -1e-6 {
                 return f64::NEG_INFINITY;
             }
-            dq[k] = c / den;
         }
         scores.clear();
+        let centre = Vector3::new(cell.x, cell.y, 1.0);
         for (t, tr) in self.transfers.iter().enumerate() {
-            let base = tr.a * Vector3::new(cell.x, cell.y, 1.0);
-            let (ax, ay) = (tr.a.column(0).into_owned(), tr.a.column(1).into_owned());
-            let at = |k: usize| {
-                let (dx, dy) = self.offsets[k];
-                (base + ax * dx as f64 + ay * dy as f64) * dq[k] + tr.b
-            };
-            let Some(mut ncc) = ncc(&self.planes[tr.src], &cell.refv, cell.var, srcv, at) else {
+            let h = plane_homography(tr, &g, c, &centre);
+            let src = &self.planes[tr.src];
+            let Some(mut ncc) = ncc(src, &cell.refv, cell.var, &self.window, h) else {
                 continue;
             };
             if let Some((maps, weight)) = self.geo {
-                let q0 = base * d + tr.b;
+                let q0 = tr.a * centre * d + tr.b;
                 let (u, v) = (q0.x / q0.z, q0.y / q0.z);
                 let ds = maps[tr.src].nearest(u, v) as f64;
                 let err = if ds.is_finite() {
@@ -117,6 +108,24 @@ impl Scorer<'_> {
         }
         best_mean(scores, self.best)
     }
+}
+
+/// The homography a plane induces from the reference to a source, on a window's offsets: the
+/// plane meets the ray of reference pixel `p` at camera depth `c / (g . p)` (`g = K^-T n`, `c`
+/// the depth at the window's centre times `n . ray`), so `x_s ~ (A + b g^T / c) p`; returned as
+/// the columns acting on `(dx, dy, 1)` about pixel `centre`.
+fn plane_homography(
+    tr: &Transfer,
+    g: &Vector3<f64>,
+    c: f64,
+    centre: &Vector3<f64>,
+) -> [Vector3<f64>; 3] {
+    let m = tr.a + tr.b * (g.transpose() / c);
+    [
+        m.column(0).into_owned(),
+        m.column(1).into_owned(),
+        m * centre,
+    ]
 }
 
 /// A random unit normal facing the camera along `ray` (at most about 80 degrees off it).
@@ -165,7 +174,7 @@ pub(super) fn patchmatch_map(
     let cam = &cams[i];
     let plane = &planes[i];
     let (w, h) = (plane.w, plane.h);
-    let (kinv, transfers, offsets) = setup(i, cams, centre, p);
+    let (kinv, transfers, window) = setup(i, cams, centre, p);
     let backs: Vec<Transfer> = transfers
         .iter()
         .map(|tr| Transfer::new(&cams[tr.src], cam, i))
@@ -175,11 +184,11 @@ pub(super) fn patchmatch_map(
         transfers,
         backs,
         geo,
-        offsets,
+        window,
         kinv,
         best: p.best,
     };
-    let nk = scorer.offsets.len();
+    let nk = scorer.window.len();
     let nv = nk * plane.c;
     let step = p.pixel_step;
     let (mw, mh) = (w.div_ceil(step), h.div_ceil(step));
@@ -193,7 +202,7 @@ pub(super) fn patchmatch_map(
                 return None;
             }
             let mut refv = vec![0f32; nv];
-            let (var, spread) = reference_window(plane, x, y, &scorer.offsets, &mut refv);
+            let (var, spread) = reference_window(plane, x, y, &scorer.window.offsets, &mut refv);
             if spread < p.min_texture {
                 return None;
             }
@@ -220,25 +229,22 @@ pub(super) fn patchmatch_map(
     let mut hyps: Vec<Hyp> = cells
         .par_iter()
         .enumerate()
-        .map_init(
-            || (vec![0.0; nk], vec![0.0f32; nv], Vec::new()),
-            |(dq, sv, sc), (ci, c)| {
-                let Some(c) = c else { return unscored };
-                let mut rng = Rng::new(hash(&[seed, ci as u64, u64::MAX]));
-                let (d, n) = match start {
-                    Some(h) if h[ci].score.is_finite() => (h[ci].d, h[ci].n),
-                    _ => (
-                        c.near + rng.f64() * (c.far - c.near),
-                        random_normal(&mut rng, &c.ray),
-                    ),
-                };
-                Hyp {
-                    d,
-                    n,
-                    score: scorer.score(c, d, &n, dq, sv, sc),
-                }
-            },
-        )
+        .map_init(Vec::new, |sc, (ci, c)| {
+            let Some(c) = c else { return unscored };
+            let mut rng = Rng::new(hash(&[seed, ci as u64, u64::MAX]));
+            let (d, n) = match start {
+                Some(h) if h[ci].score.is_finite() => (h[ci].d, h[ci].n),
+                _ => (
+                    c.near + rng.f64() * (c.far - c.near),
+                    random_normal(&mut rng, &c.ray),
+                ),
+            };
+            Hyp {
+                d,
+                n,
+                score: scorer.score(c, d, &n, sc),
+            }
+        })
         .collect();
     // The slack a depth may leave the hull's stretch by (a voxel along the ray).
     let slack = |c: &Cell| vs / c.ray.norm();
@@ -263,7 +269,7 @@ pub(super) fn patchmatch_map(
             let updates: Vec<(usize, Hyp)> = (0..mh)
                 .into_par_iter()
                 .flat_map_iter(|cy| {
-                    let (mut dq, mut sv, mut sc) = (vec![0.0; nk], vec![0.0f32; nv], Vec::new());
+                    let mut sc = Vec::new();
                     let mut out = Vec::new();
                     let hyps = &hyps;
                     let cells = &cells;
@@ -278,7 +284,7 @@ pub(super) fn patchmatch_map(
                             if !(d >= lo && d <= hi) {
                                 return;
                             }
-                            let s = scorer.score(c, d, &n, &mut dq, &mut sv, &mut sc);
+                            let s = scorer.score(c, d, &n, &mut sc);
                             if s > best.score {
                                 *best = Hyp { d, n, score: s };
                             }
@@ -433,4 +439,142 @@ fn upsample(hyps: &[Hyp], map: &DepthMap, cam: &Camera, w: usize, h: usize) -> V
             Hyp { d, ..hyp }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::RgbImage;
+
+    /// A textured photo: smooth, aperiodic luma.
+    fn photo(w: u32, h: u32, seed: f64) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let (x, y) = (x as f64, y as f64);
+            let v = 128.0
+                + 60.0 * (0.21 * x + seed).sin() * (0.17 * y).cos()
+                + 40.0 * (0.05 * (x + 2.0 * y) + seed).sin();
+            image::Rgb([v as u8, (255.0 - v) as u8, (v * 0.5) as u8])
+        })
+    }
+
+    fn look(name: &str, from: Vector3<f64>) -> Camera {
+        let k = Matrix3::new(300.0, 0.0, 99.5, 0.0, 300.0, 79.5, 0.0, 0.0, 1.0);
+        Camera::look_at(name, k, from, Vector3::zeros(), Vector3::new(0.0, 0.0, 1.0)).unwrap()
+    }
+
+    /// Brute force: each window sample's ray met with the plane in the reference camera's
+    /// axes, the 3D point projected into the source, sampled bilinearly, NCC in f64.
+    fn brute(
+        r: &Camera,
+        s: &Camera,
+        src: &Plane,
+        refv: &[f32],
+        win: &Window,
+        (x, y): (f64, f64),
+        d: f64,
+        n: &Vector3<f64>,
+    ) -> Option<f64> {
+        let kinv = r.k.try_inverse().unwrap();
+        let ray0 = kinv * Vector3::new(x, y, 1.0);
+        let x0 = ray0 * d; // the cell's point on the plane, camera axes
+        let c = src.c;
+        let mut samples = Vec::new();
+        for &(dx, dy) in &win.offsets {
+            let ray = kinv * Vector3::new(x + dx as f64, y + dy as f64, 1.0);
+            let t = n.dot(&x0) / n.dot(&ray);
+            let world = r.r.transpose() * (ray * t - r.t);
+            let q = s.k * (s.r * world + s.t);
+            let (u, v) = (q.x / q.z, q.y / q.z);
+            if !(q.z > 0.0
+                && u >= 0.0
+                && v >= 0.0
+                && u < (src.w - 1) as f64
+                && v < (src.h - 1) as f64)
+            {
+                return None;
+            }
+            let (ui, vi) = (u.floor() as usize, v.floor() as usize);
+            let (fx, fy) = (u - ui as f64, v - vi as f64);
+            for ch in 0..c {
+                let at = |x: usize, y: usize| src.v[(y * src.w + x) * c + ch] as f64;
+                let a = at(ui, vi) * (1.0 - fx) + at(ui + 1, vi) * fx;
+                let b = at(ui, vi + 1) * (1.0 - fx) + at(ui + 1, vi + 1) * fx;
+                samples.push(a * (1.0 - fy) + b * fy);
+            }
+        }
+        let k = samples.len() / c;
+        let mut mean = vec![0.0; c];
+        for (j, v) in samples.iter().enumerate() {
+            mean[j % c] += v / k as f64;
+        }
+        let (mut cov, mut rv, mut sv) = (0.0, 0.0, 0.0);
+        for (j, (v, r)) in samples.iter().zip(refv).enumerate() {
+            let s = v - mean[j % c];
+            cov += *r as f64 * s;
+            rv += (*r as f64).powi(2);
+            sv += s * s;
+        }
+        Some(cov / (rv * sv).sqrt())
+    }
+
+    #[test]
+    fn plane_homography_ncc_matches_projecting_each_sample() {
+        let r = look("r", Vector3::new(6.0, 0.5, 1.0));
+        let s = look("s", Vector3::new(4.5, 4.0, 2.0));
+        for colour in [false, true] {
+            let (rp, sp) = (
+                Plane::of(&photo(200, 160, 0.0), colour),
+                Plane::of(&photo(200, 160, 1.3), colour),
+            );
+            let win = Window::new(
+                (-3..=3)
+                    .step_by(2)
+                    .flat_map(|dy| (-3..=3).step_by(2).map(move |dx| (dx, dy)))
+                    .collect(),
+            );
+            let kinv = r.k.try_inverse().unwrap();
+            let tr = Transfer::new(&r, &s, 1);
+            let (mut checked, mut outside) = (0, 0);
+            for (i, (x, y)) in [
+                (100usize, 80usize),
+                (40, 30),
+                (160, 120),
+                (20, 140),
+                (180, 20),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let mut refv = vec![0f32; win.len() * rp.c];
+                let (var, _) = reference_window(&rp, x, y, &win.offsets, &mut refv);
+                let ray = kinv * Vector3::new(x as f64, y as f64, 1.0);
+                for (j, tilt) in [0.0, 0.4, -0.7].into_iter().enumerate() {
+                    let n = (-ray.normalize()
+                        + Vector3::new(tilt, 0.5 * tilt, 0.2 * (i as f64 - j as f64)))
+                    .normalize();
+                    let d = 5.0 + 0.3 * i as f64;
+                    let g = kinv.transpose() * n;
+                    let centre = Vector3::new(x as f64, y as f64, 1.0);
+                    let h = plane_homography(&tr, &g, d * n.dot(&ray), &centre);
+                    let fast = ncc(&sp, &refv, var, &win, h);
+                    let slow = brute(&r, &s, &sp, &refv, &win, (x as f64, y as f64), d, &n);
+                    match (fast, slow) {
+                        (Some(a), Some(b)) => {
+                            assert!(
+                                (a as f64 - b).abs() < 2e-3,
+                                "{colour} ({x}, {y}) tilt {tilt}: {a} vs {b}"
+                            );
+                            checked += 1;
+                        }
+                        (None, None) => outside += 1,
+                        other => panic!("{colour} ({x}, {y}) tilt {tilt}: {other:?}"),
+                    }
+                }
+            }
+            assert!(
+                checked >= 8,
+                "only {checked} windows inside the source ({outside} outside)"
+            );
+        }
+    }
 }
