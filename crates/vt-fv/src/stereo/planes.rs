@@ -289,12 +289,7 @@ pub(super) fn patchmatch_map(
                                 *best = Hyp { d, n, score: s };
                             }
                         };
-                        // Neighbours' planes, carried to this cell's ray; a plane already
-                        // scored here (the cell's own, or another neighbour's: planes spread)
-                        // would score the same and is skipped.
-                        let mut tried: [(f64, Vector3<f64>); 9] = [(f64::NAN, Vector3::zeros()); 9];
-                        tried[0] = (best.d, best.n);
-                        let mut n_tried = 1;
+                        // Neighbours' planes, carried to this cell's ray.
                         for (dx, dy) in neighbours {
                             let (nx, ny) = (cx as i64 + dx, cy as i64 + dy);
                             if nx < 0 || ny < 0 || nx >= mw as i64 || ny >= mh as i64 {
@@ -312,14 +307,6 @@ pub(super) fn patchmatch_map(
                                 continue;
                             }
                             let d = nb.d * nb.n.dot(&nc.ray) / den;
-                            let same = |(td, tn): &(f64, Vector3<f64>)| {
-                                *tn == nb.n && (td - d).abs() <= 1e-9 * d.abs()
-                            };
-                            if tried[..n_tried].iter().any(same) {
-                                continue;
-                            }
-                            tried[n_tried] = (d, nb.n);
-                            n_tried += 1;
                             try_plane(d, nb.n, &mut best);
                         }
                         // Random refinement around the best so far, then a fresh guess.
