@@ -378,6 +378,9 @@ fn reference_window(
 /// denominator) over the square reaches its extremes at these corners.
 pub(super) struct Window {
     offsets: Vec<(i32, i32)>,
+    /// The offsets' coordinates as floats, apart.
+    dx: Vec<f32>,
+    dy: Vec<f32>,
     corners: [(i32, i32); 4],
 }
 
@@ -388,6 +391,8 @@ impl Window {
         let y0 = offsets.iter().map(|o| o.1).min().unwrap_or(0);
         let y1 = offsets.iter().map(|o| o.1).max().unwrap_or(0);
         Window {
+            dx: offsets.iter().map(|o| o.0 as f32).collect(),
+            dy: offsets.iter().map(|o| o.1 as f32).collect(),
             offsets,
             corners: [(x0, y0), (x1, y0), (x0, y1), (x1, y1)],
         }
@@ -439,31 +444,63 @@ fn ncc_lattice<const C: usize>(
     h: &[[f32; 3]; 3],
 ) -> f32 {
     let row = src.w * C;
-    let (xmax, ymax) = (src.w - 2, src.h - 2);
+    // The corners bound every sample; the clamps only absorb f32 rounding at the rim.
+    let (xmax, ymax) = ((src.w - 2) as u32, (src.h - 2) as u32);
     let (mut cov, mut sum, mut sq) = (0f32, [0f32; C], [0f32; C]);
     let mut pivot = [0f32; C];
-    for (k, (&(dx, dy), r)) in window.offsets.iter().zip(refv.chunks_exact(C)).enumerate() {
-        let (dx, dy) = (dx as f32, dy as f32);
-        let iz = 1.0 / (h[0][2] * dx + h[1][2] * dy + h[2][2]);
-        let x = ((h[0][0] * dx + h[1][0] * dy + h[2][0]) * iz).max(0.0);
-        let y = ((h[0][1] * dx + h[1][1] * dy + h[2][1]) * iz).max(0.0);
-        // The corners bound every sample; the clamps only absorb f32 rounding at the rim.
-        let (x0, y0) = ((x as usize).min(xmax), (y as usize).min(ymax));
-        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-        let i = y0 * row + x0 * C;
-        let top = &src.v[i..i + 2 * C];
-        let bottom = &src.v[i + row..i + row + 2 * C];
-        for ch in 0..C {
-            let a = top[ch] + (top[ch + C] - top[ch]) * fx;
-            let b = bottom[ch] + (bottom[ch + C] - bottom[ch]) * fx;
-            let v = a + (b - a) * fy;
-            if k == 0 {
-                pivot[ch] = v;
+    // Sixteen samples at a time: where each lands (the top-left pixel's index and the bilinear
+    // weights) for all of them first, a loop with no dependence between samples that runs in
+    // vector registers, then their values.
+    const LANES: usize = 16;
+    let (mut px, mut py) = ([0u32; LANES], [0u32; LANES]);
+    let (mut wx, mut wy) = ([0f32; LANES], [0f32; LANES]);
+    for (chunk, ((dxs, dys), refs)) in window
+        .dx
+        .chunks(LANES)
+        .zip(window.dy.chunks(LANES))
+        .zip(refv.chunks(LANES * C))
+        .enumerate()
+    {
+        let m = dxs.len();
+        for (((((&dx, &dy), x0), y0), fx), fy) in dxs
+            .iter()
+            .zip(dys)
+            .zip(&mut px[..m])
+            .zip(&mut py[..m])
+            .zip(&mut wx[..m])
+            .zip(&mut wy[..m])
+        {
+            let iz = 1.0 / (h[0][2] * dx + h[1][2] * dy + h[2][2]);
+            let x = ((h[0][0] * dx + h[1][0] * dy + h[2][0]) * iz).max(0.0);
+            let y = ((h[0][1] * dx + h[1][1] * dy + h[2][1]) * iz).max(0.0);
+            *x0 = (x as u32).min(xmax);
+            *y0 = (y as u32).min(ymax);
+            *fx = x - *x0 as f32;
+            *fy = y - *y0 as f32;
+        }
+        for (k, ((((&x0, &y0), &fx), &fy), r)) in px[..m]
+            .iter()
+            .zip(&py[..m])
+            .zip(&wx[..m])
+            .zip(&wy[..m])
+            .zip(refs.chunks_exact(C))
+            .enumerate()
+        {
+            let i = y0 as usize * row + x0 as usize * C;
+            let top = &src.v[i..i + 2 * C];
+            let bottom = &src.v[i + row..i + row + 2 * C];
+            for ch in 0..C {
+                let a = top[ch] + (top[ch + C] - top[ch]) * fx;
+                let b = bottom[ch] + (bottom[ch + C] - bottom[ch]) * fx;
+                let v = a + (b - a) * fy;
+                if chunk == 0 && k == 0 {
+                    pivot[ch] = v;
+                }
+                let s = v - pivot[ch];
+                cov += r[ch] * s;
+                sum[ch] += s;
+                sq[ch] += s * s;
             }
-            let s = v - pivot[ch];
-            cov += r[ch] * s;
-            sum[ch] += s;
-            sq[ch] += s * s;
         }
     }
     let n = window.len() as f32;

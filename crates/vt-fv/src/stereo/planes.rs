@@ -526,10 +526,12 @@ mod tests {
                 Plane::of(&photo(200, 160, 0.0), colour),
                 Plane::of(&photo(200, 160, 1.3), colour),
             );
+            // The default 4x4 lattice, and an 11x11 one (several runs of samples).
+            let (half, stride) = if colour { (5, 1) } else { (3, 2) };
             let win = Window::new(
-                (-3..=3)
-                    .step_by(2)
-                    .flat_map(|dy| (-3..=3).step_by(2).map(move |dx| (dx, dy)))
+                (-half..=half)
+                    .step_by(stride)
+                    .flat_map(|dy| (-half..=half).step_by(stride).map(move |dx| (dx, dy)))
                     .collect(),
             );
             let kinv = r.k.try_inverse().unwrap();
