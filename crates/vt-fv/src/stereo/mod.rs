@@ -54,8 +54,8 @@ pub struct StereoParams {
     /// the best (4).
     pub coarse: usize,
     /// Depths are measured every `pixel_step` pixels in both directions (2). Every pixel in
-    /// every round (1, with `fine` 0): lego 8-view 22.02 -> 22.12 dB, the model 15 -> 34 s,
-    /// past the benchmark's 30 s.
+    /// every round (1, with `fine` 0): lego 8-view 22.02 -> 22.12 dB, the model 13.8 -> 28.2 s,
+    /// at the edge of the benchmark's 30 s; not yet measured on the real scenes.
     pub pixel_step: usize,
     /// Least score a depth is kept at (0.4).
     pub min_ncc: f64,
@@ -105,8 +105,9 @@ pub struct StereoParams {
     /// with NCC 0.3, lego 8-view 21.78 -> 21.88 dB (IoU 0.948 -> 0.951), kettle leave-one-out
     /// 24.75 -> 24.79, templeSparseRing leave-one-out (grid 128) 22.19 -> 22.18, the model
     /// 1.5-1.7 times as long (the temple's 38 -> 63 s a view); off: the gain is small for the
-    /// time (the report's stereo table has the row). Measured again with the fine iterations
-    /// and the softening's backdrop: lego 22.02 -> 21.97 dB, the model 15.7 -> 24.0 s.
+    /// time (the report's stereo table has the row). Measured again with the fine iterations,
+    /// the softening's backdrop and the homography kernel: lego 22.02 -> 21.97 dB, the model
+    /// 15.7 -> 24.0 s.
     pub colour: bool,
     /// PatchMatch only: iterations at every pixel after the rounds at `pixel_step`, each pixel
     /// started from its nearest cell's plane (carried along the plane to its own ray), with the
