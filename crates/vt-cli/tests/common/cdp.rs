@@ -159,6 +159,17 @@ fn call(
     method: &str,
     params: Value,
 ) -> Value {
+    try_call(ws, id, session, method, params).unwrap_or_else(|v| panic!("{method}: {v}"))
+}
+
+/// `call`, with the error Chromium answered (its whole reply) as `Err`.
+fn try_call(
+    ws: &mut WebSocket<MaybeTlsStream<TcpStream>>,
+    id: u64,
+    session: Option<&str>,
+    method: &str,
+    params: Value,
+) -> Result<Value, Value> {
     let mut msg = json!({"id": id, "method": method, "params": params});
     if let Some(s) = session {
         msg["sessionId"] = json!(s);
@@ -187,8 +198,10 @@ fn call(
         if let Message::Text(t) = m {
             let v: Value = serde_json::from_str(&t).unwrap();
             if v["id"] == json!(id) {
-                assert!(v.get("error").is_none(), "{method}: {v}");
-                return v["result"].clone();
+                if v.get("error").is_some() {
+                    return Err(v);
+                }
+                return Ok(v["result"].clone());
             }
             // A page that crashed or went away never answers: say so instead of waiting.
             let event = v["method"].as_str().unwrap_or("");
@@ -263,15 +276,37 @@ impl Page {
         r["result"]["value"].clone()
     }
 
-    /// Waits until `expr` is true; fails naming `what` (and `detail`'s value) after 30 s.
+    /// `eval`, except that an evaluation the page's own navigation cut short (Chromium answers
+    /// "Inspected target navigated or closed", or that the execution context was destroyed)
+    /// gives None instead of failing: a page that redirects itself does so at a moment of its
+    /// own choosing.
+    fn eval_across_navigation(&mut self, expr: &str) -> Option<Value> {
+        let params = json!({"expression": expr, "returnByValue": true, "awaitPromise": true});
+        self.id += 1;
+        let session = self.session.clone();
+        match try_call(&mut self.ws, self.id, Some(&session), "Runtime.evaluate", params) {
+            Ok(r) => Some(r["result"]["value"].clone()),
+            Err(v) => {
+                let message = v["error"]["message"].as_str().unwrap_or("");
+                let navigated = message.contains("navigated or closed")
+                    || message.contains("Execution context was destroyed")
+                    || message.contains("Cannot find context");
+                assert!(navigated, "Runtime.evaluate: {v}");
+                None
+            }
+        }
+    }
+
+    /// Waits until `expr` is true; fails naming `what` (and `detail`'s value) after 30 s. The
+    /// page may navigate meanwhile.
     pub fn wait_until(&mut self, expr: &str, what: &str, detail: &str) {
         let start = Instant::now();
         loop {
-            if self.eval(expr).as_bool() == Some(true) {
+            if self.eval_across_navigation(expr).and_then(|v| v.as_bool()) == Some(true) {
                 return;
             }
             if start.elapsed() > Duration::from_secs(30) {
-                let d = self.eval(detail);
+                let d = self.eval_across_navigation(detail).unwrap_or(Value::Null);
                 panic!("timed out waiting for {what}; {detail}: {d}");
             }
             std::thread::sleep(Duration::from_millis(50));
