@@ -284,7 +284,13 @@ impl Page {
         let params = json!({"expression": expr, "returnByValue": true, "awaitPromise": true});
         self.id += 1;
         let session = self.session.clone();
-        match try_call(&mut self.ws, self.id, Some(&session), "Runtime.evaluate", params) {
+        match try_call(
+            &mut self.ws,
+            self.id,
+            Some(&session),
+            "Runtime.evaluate",
+            params,
+        ) {
             Ok(r) => Some(r["result"]["value"].clone()),
             Err(v) => {
                 let message = v["error"]["message"].as_str().unwrap_or("");
