@@ -271,9 +271,8 @@ impl Page {
     /// Evaluates a JavaScript expression (promises awaited) and returns its value (null when it
     /// throws, e.g. while the page is still loading).
     pub fn eval(&mut self, expr: &str) -> Value {
-        let params = json!({"expression": expr, "returnByValue": true, "awaitPromise": true});
-        let r = self.call("Runtime.evaluate", params);
-        r["result"]["value"].clone()
+        self.evaluate(expr)
+            .unwrap_or_else(|v| panic!("Runtime.evaluate: {v}"))
     }
 
     /// `eval`, except that an evaluation the page's own navigation cut short (Chromium answers
@@ -281,17 +280,8 @@ impl Page {
     /// gives None instead of failing: a page that redirects itself does so at a moment of its
     /// own choosing.
     fn eval_across_navigation(&mut self, expr: &str) -> Option<Value> {
-        let params = json!({"expression": expr, "returnByValue": true, "awaitPromise": true});
-        self.id += 1;
-        let session = self.session.clone();
-        match try_call(
-            &mut self.ws,
-            self.id,
-            Some(&session),
-            "Runtime.evaluate",
-            params,
-        ) {
-            Ok(r) => Some(r["result"]["value"].clone()),
+        match self.evaluate(expr) {
+            Ok(v) => Some(v),
             Err(v) => {
                 let message = v["error"]["message"].as_str().unwrap_or("");
                 let navigated = message.contains("navigated or closed")
@@ -301,6 +291,21 @@ impl Page {
                 None
             }
         }
+    }
+
+    /// `Runtime.evaluate` of `expr`: its value, or Chromium's whole error reply.
+    fn evaluate(&mut self, expr: &str) -> Result<Value, Value> {
+        let params = json!({"expression": expr, "returnByValue": true, "awaitPromise": true});
+        self.id += 1;
+        let session = self.session.clone();
+        try_call(
+            &mut self.ws,
+            self.id,
+            Some(&session),
+            "Runtime.evaluate",
+            params,
+        )
+        .map(|r| r["result"]["value"].clone())
     }
 
     /// Waits until `expr` is true; fails naming `what` (and `detail`'s value) after 30 s. The
