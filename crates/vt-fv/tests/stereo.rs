@@ -220,6 +220,25 @@ fn carving_removes_what_is_not_the_object_and_keeps_what_is() {
         "{}",
         lines("default", all)
     );
+    // The last pass's carving in front of the depth maps' holes, filled from around them. A
+    // filled cell holds the nearest depth around the hole, so it also keeps what lies behind
+    // it: on this object it carves less of the surface (measured: 28.4 % against 30.0 %) and
+    // a little less of the empty hull (78.0 % against 80.2 %).
+    let unfilled = carve(&StereoParams {
+        hole_fill: 0,
+        ..Default::default()
+    });
+    eprintln!(
+        "{}\n{}",
+        lines("default", all),
+        lines("no hole filling", unfilled)
+    );
+    assert!(
+        all.2 < unfilled.2 && all.1 > unfilled.1 - 0.05,
+        "{}\n{}",
+        lines("default", all),
+        lines("no hole filling", unfilled)
+    );
 }
 
 #[test]

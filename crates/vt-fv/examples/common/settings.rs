@@ -6,7 +6,7 @@
 //! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations,
 //! 0: the sweep), `geo` (geometric round's iterations), `geow` (its weight), `conf`
 //! (confirmations), `unseen` (-1: off), `texture`, `colour`, `fine` (iterations at every
-//! pixel), `grid`, `stereo` (0: off); the clip:
+//! pixel), `holefill` (0: off), `grid`, `stereo` (0: off); the clip:
 //! `grow`, `slack`, `close`, `exact` (0: never raw silhouettes), `before`, `behind`; the depth clip: `dclip` (0: off), `dmargin`, `dprotect`,
 //! `dthrough`.
 
@@ -85,6 +85,7 @@ fn apply_model(k: &str, v: &str, model: &mut ModelParams) -> bool {
         "texture" => st.min_texture = f(),
         "colour" => st.colour = f() > 0.0,
         "fine" => st.fine = f() as usize,
+        "holefill" => st.hole_fill = f() as usize,
         "grid" => model.grid = f() as usize,
         "stereo" => model.stereo = f() > 0.0,
         _ => return false,

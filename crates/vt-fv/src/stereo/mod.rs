@@ -21,7 +21,8 @@
 //! by more than `margin` voxels, in every confirmed pixel around its projection, is empty space
 //! and is carved, unless another photo's depth puts it on a surface (`protect`). This runs
 //! `passes` times; after the first, what no photo can see beyond `unseen_keep` voxels from
-//! what they see goes too ([`carve_unseen`]).
+//! what they see goes too ([`carve_unseen`]). The last pass also carves in front of the depth
+//! maps' holes, filled from the depths around them ([`StereoParams::hole_fill`]).
 
 use image::RgbImage;
 use nalgebra::{Matrix3, Vector3};
@@ -121,6 +122,16 @@ pub struct StereoParams {
     /// photos over 4.2 million pixels, or 33.5 million all together (the cells' memory, the
     /// model file's size).
     pub fine: usize,
+    /// In the last pass, the free space is also carved in front of the holes of each photo's
+    /// confirmed depth map inside its silhouette, each hole cell taking the nearest of the first
+    /// depths found within this many cells in the eight directions, when three of them find one
+    /// (6; 0: off). PatchMatch leaves holes where the surface is seen edge-on (near the
+    /// outline, where the hull's phantom volume lies) and where it has no texture; the nearest
+    /// of the depths around a hole errs towards the camera, a voxel some photo's confirmed depth
+    /// puts on a surface is still kept, and the model keeps the confirmed maps, not the filled
+    /// ones. Lego 8-view 22.02 -> 22.23 dB, coverage IoU 0.949 -> 0.953, inside the silhouette
+    /// 18.41 -> 18.44 (radius 4: 22.23; 8: 22.21; in every pass, radius 4: 22.19, inside 18.25).
+    pub hole_fill: usize,
 }
 
 impl Default for StereoParams {
@@ -148,6 +159,7 @@ impl Default for StereoParams {
             geo_weight: 0.2,
             colour: false,
             fine: 2,
+            hole_fill: 6,
         }
     }
 }
@@ -185,6 +197,13 @@ impl StereoParams {
         }
         if self.fine > 16 {
             return bad("stereo_fine", self.fine.to_string(), "in 0..=16");
+        }
+        if self.hole_fill > 64 {
+            return bad(
+                "stereo_hole_fill",
+                self.hole_fill.to_string(),
+                "in 0..=64 cells",
+            );
         }
         if !(1..=8).contains(&self.passes) {
             return bad("stereo_passes", self.passes.to_string(), "in 1..=8");
@@ -800,9 +819,22 @@ pub fn carve_by_stereo(
     let mut maps = Vec::new();
     for pass in 0..p.passes {
         // Every pixel's depth only for the last pass's maps: the ones the model keeps.
-        let fine = if pass + 1 == p.passes { p.fine } else { 0 };
+        let last = pass + 1 == p.passes;
+        let fine = if last { p.fine } else { 0 };
         let (m, s) = measure(grid, cams, &planes, masks, &StereoParams { fine, ..*p });
-        let carved = carve_free_space(grid, cams, &m, p.margin, p.protect);
+        // The last pass also carves in front of its maps' holes, filled from around them.
+        let filled: Vec<DepthMap>;
+        let carve_maps = if last && p.hole_fill > 0 {
+            filled = m
+                .par_iter()
+                .zip(masks)
+                .map(|(d, mk)| fill_holes(d, mk, p.hole_fill))
+                .collect();
+            &filled
+        } else {
+            &m
+        };
+        let carved = carve_free_space(grid, cams, &m, carve_maps, p.margin, p.protect);
         maps = m;
         // The last pass's depths (each pass re-measures inside what is left).
         total = StereoSummary {
@@ -822,12 +854,59 @@ pub fn carve_by_stereo(
     Ok((maps, total))
 }
 
+/// Directions an empty cell must find a depth in before [`fill_holes`] fills it (of eight).
+const FILL_SIDES: usize = 3;
+
+/// `map` with each empty cell inside the silhouette `mask` given the nearest of the first
+/// depths found within `radius` cells in each of the eight directions, when at least
+/// [`FILL_SIDES`] directions find one ([`StereoParams::hole_fill`]).
+fn fill_holes(map: &DepthMap, mask: &Mask, radius: usize) -> DepthMap {
+    const DIRECTIONS: [(i64, i64); 8] = [
+        (1, 0),
+        (-1, 0),
+        (0, 1),
+        (0, -1),
+        (1, 1),
+        (1, -1),
+        (-1, 1),
+        (-1, -1),
+    ];
+    let mut out = map.clone();
+    for y in 0..map.h {
+        for x in 0..map.w {
+            if map.depth[y * map.w + x].is_finite() {
+                continue;
+            }
+            let (px, py) = ((x * map.step) as u32, (y * map.step) as u32);
+            if px >= mask.width() || py >= mask.height() || !mask.get(px, py) {
+                continue;
+            }
+            let (mut sides, mut nearest) = (0, f32::INFINITY);
+            for (dx, dy) in DIRECTIONS {
+                let first = (1..=radius as i64)
+                    .map(|k| map.at(x as i64 + dx * k, y as i64 + dy * k))
+                    .find(|d| d.is_finite());
+                if let Some(d) = first {
+                    sides += 1;
+                    nearest = nearest.min(d);
+                }
+            }
+            if sides >= FILL_SIDES {
+                out.depth[y * map.w + x] = nearest;
+            }
+        }
+    }
+    out
+}
+
 /// Carves every voxel that lies more than `margin` voxels in front of the depth at every cell of
-/// its 3x3 neighbourhood in some map that has a depth (at least 5 of the 9); returns how many.
+/// its 3x3 neighbourhood in some map of `carve_maps` that has a depth (at least 5 of the 9),
+/// unless some map of `maps` puts it on a surface (within `protect` voxels); returns how many.
 fn carve_free_space(
     grid: &mut VoxelGrid,
     cams: &[Camera],
     maps: &[DepthMap],
+    carve_maps: &[DepthMap],
     margin: f64,
     protect: f64,
 ) -> usize {
@@ -850,7 +929,7 @@ fn carve_free_space(
                     })
                 });
             !on_surface
-                && cams.iter().zip(maps).any(|(cam, m)| {
+                && cams.iter().zip(carve_maps).any(|(cam, m)| {
                     let Some((u, v, z)) = cam.project(&x) else {
                         return false;
                     };
@@ -960,4 +1039,86 @@ fn first_hit(grid: &VoxelGrid, cam: &Camera, kinv: &Matrix3<f64>, u: f64, v: f64
     occupied_along(grid, cam, kinv, (u, v), 0.0)
         .next()
         .map(|(_, i)| i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 12x10 map at every second pixel of a 24x20 photo: depth 5 everywhere but a hole.
+    fn holed(hole: impl Fn(usize, usize) -> bool) -> DepthMap {
+        let (w, h) = (12, 10);
+        DepthMap {
+            w,
+            h,
+            step: 2,
+            depth: (0..w * h)
+                .map(|i| {
+                    if hole(i % w, i / w) {
+                        f32::NAN
+                    } else {
+                        5.0 + (i % w) as f32 * 0.1
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn holes_take_the_nearest_depth_around_them_inside_the_silhouette_only() {
+        let all = Mask::from_fn(24, 20, |_, _| true);
+        // A 3x3 hole at cells 4..=6: every cell sees depths on every side within 2 cells.
+        let map = holed(|x, y| (4..=6).contains(&x) && (4..=6).contains(&y));
+        let f = fill_holes(&map, &all, 2);
+        for y in 4..=6 {
+            for x in 4..=6 {
+                // The nearest (smallest) depth found: the one towards x = 3 or below.
+                let nearest = (0..8)
+                    .filter_map(|k| {
+                        let (dx, dy) = [
+                            (1, 0),
+                            (-1, 0),
+                            (0, 1),
+                            (0, -1),
+                            (1, 1),
+                            (1, -1),
+                            (-1, 1),
+                            (-1, -1),
+                        ][k];
+                        (1..=2)
+                            .map(|s| map.at(x + dx * s, y + dy * s))
+                            .find(|d| d.is_finite())
+                    })
+                    .fold(f32::INFINITY, f32::min);
+                assert_eq!(f.at(x, y), nearest, "cell ({x}, {y})");
+                assert!(nearest < 5.0 + 0.1 * x as f32, "cell ({x}, {y})");
+            }
+        }
+        // Out of reach: a radius of 1 cell leaves the hole's centre empty (no depth within 1 cell
+        // in any direction), and fills its rim.
+        let f1 = fill_holes(&map, &all, 1);
+        assert!(f1.at(5, 5).is_nan());
+        assert!(f1.at(4, 4).is_finite());
+        // Outside the silhouette nothing is filled.
+        let left = Mask::from_fn(24, 20, |x, _| x < 10);
+        let f2 = fill_holes(&map, &left, 2);
+        assert!(f2.at(4, 5).is_finite() && f2.at(5, 5).is_nan() && f2.at(6, 5).is_nan());
+        // The depths that were there are kept as they were.
+        for (a, b) in map.depth.iter().zip(&f.depth) {
+            assert!(a.is_nan() || a == b);
+        }
+    }
+
+    #[test]
+    fn holes_seen_from_fewer_than_three_sides_stay_empty() {
+        let all = Mask::from_fn(24, 20, |_, _| true);
+        // Every cell with x >= 3 is empty: cell (3, 5) finds depths towards -x only, in three
+        // directions ((-1, 0), (-1, 1), (-1, -1)); cell (4, 5) within 1 cell in none.
+        let map = holed(|x, _| x >= 3);
+        let f = fill_holes(&map, &all, 1);
+        assert!(f.at(3, 5).is_finite());
+        assert!(f.at(4, 5).is_nan());
+        // At the map's corner cell (3, 0) only two of those directions lie inside the map.
+        assert!(f.at(3, 0).is_nan());
+    }
 }

@@ -188,6 +188,10 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             ),
             ("1 fine iteration".into(), StereoParams { fine: 1, ..d }),
             (
+                "no hole filling for the carving".into(),
+                StereoParams { hole_fill: 0, ..d },
+            ),
+            (
                 "plane sweep, not PatchMatch".into(),
                 StereoParams { patchmatch: 0, ..d },
             ),
