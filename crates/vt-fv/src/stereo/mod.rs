@@ -860,20 +860,22 @@ pub fn carve_by_stereo(
 /// Directions an empty cell must find a depth in before [`fill_holes`] fills it (of eight).
 const FILL_SIDES: usize = 3;
 
+/// The eight directions [`fill_holes`] looks in, in cells.
+const DIRECTIONS: [(i64, i64); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+];
+
 /// `map` with each empty cell inside the silhouette `mask` given the nearest of the first
 /// depths found within `radius` cells in each of the eight directions, when at least
 /// [`FILL_SIDES`] directions find one ([`StereoParams::hole_fill`]).
 fn fill_holes(map: &DepthMap, mask: &Mask, radius: usize) -> DepthMap {
-    const DIRECTIONS: [(i64, i64); 8] = [
-        (1, 0),
-        (-1, 0),
-        (0, 1),
-        (0, -1),
-        (1, 1),
-        (1, -1),
-        (-1, 1),
-        (-1, -1),
-    ];
     let mut out = map.clone();
     for y in 0..map.h {
         for x in 0..map.w {
@@ -1076,18 +1078,9 @@ mod tests {
         for y in 4..=6 {
             for x in 4..=6 {
                 // The nearest (smallest) depth found: the one towards x = 3 or below.
-                let nearest = (0..8)
-                    .filter_map(|k| {
-                        let (dx, dy) = [
-                            (1, 0),
-                            (-1, 0),
-                            (0, 1),
-                            (0, -1),
-                            (1, 1),
-                            (1, -1),
-                            (-1, 1),
-                            (-1, -1),
-                        ][k];
+                let nearest = DIRECTIONS
+                    .iter()
+                    .filter_map(|&(dx, dy)| {
                         (1..=2)
                             .map(|s| map.at(x + dx * s, y + dy * s))
                             .find(|d| d.is_finite())
