@@ -306,6 +306,13 @@ fn settings_out_of_range_are_refused_by_name() {
             },
             "stereo_fine",
         ),
+        (
+            StereoParams {
+                hole_fill: 65,
+                ..Default::default()
+            },
+            "stereo_hole_fill",
+        ),
     ] {
         let e = depth_maps(&vh, &d.cameras, &d.photos, &d.masks, &p)
             .unwrap_err()
