@@ -134,6 +134,7 @@ pub struct StereoParams {
     /// the kettle's and templeSparseRing's leave-one-out the same as without (kettle 24.74 dB
     /// inside the silhouette, worst lead over the blurred rough render +0.94 against +0.93,
     /// 24.51 over it and the view's own coverage; temple 22.23, +0.09 against +0.07, 21.30).
+    /// The model's time is the same (lego 18.8 against 18.7 s).
     pub hole_fill: usize,
 }
 
