@@ -5,11 +5,17 @@
 //! photos' depths say of their surface point: some photo sees past it (a depth more than TOL
 //! voxels deeper: free space a carving missed), every photo with a depth there sees a nearer
 //! surface (hidden), or no photo has a depth there.
-//! `cargo run --release -p vt-fv --example support_diag -- DATA TESTFILE [TOL]`
+//! Last, on object pixels, the two nearest photos' depth less the point's depth there: where
+//! the rendered surface lies against the photos' own.
+//! `cargo run --release -p vt-fv --example support_diag -- DATA TESTFILE [TOL [key=value,...]]`
+//! (keys: `common/settings.rs`'s).
 use std::path::Path;
 
 use vt_fv::dataset::{DataOptions, Dataset, ModelParams};
 use vt_fv::pipeline::{novel_view_in, ViewParams};
+
+#[path = "common/settings.rs"]
+mod settings;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -17,11 +23,14 @@ fn main() {
     let tol: f64 = args.get(3).map_or(1.5, |v| v.parse().unwrap());
     let train = Dataset::load(dir, &DataOptions::default()).unwrap();
     let test = Dataset::load_set(&dir.join(&args[2]), &DataOptions::default()).unwrap();
-    let (model, _) = train
-        .build_without(None, &ModelParams::default(), &mut |_, _, _| {})
-        .unwrap();
+    let mut view = ViewParams::default();
+    let mut m = ModelParams::default();
+    settings::apply(args.get(4).map_or("", |s| s.as_str()), &mut view, &mut m);
+    let (model, _) = train.build_without(None, &m, &mut |_, _, _| {}).unwrap();
     let vs = model.grid.voxel_size().min();
-    let view = ViewParams::default();
+    let centre = vt_fv::texture::model_centre(&model);
+    // On object pixels: the two nearest photos' depth less the point's depth there, in voxels.
+    let mut signed: Vec<f64> = Vec::new();
     let mut total = [[0usize; 2]; 5];
     // Unsupported pixels: [seen past, hidden, no depth] x [outside, inside].
     let mut unsupported = [[0usize; 2]; 3];
@@ -42,6 +51,7 @@ fn main() {
         let a = cam.r.transpose() * kinv;
         let c = cam.centre();
         let sil = &test.score_masks[i];
+        let near = vt_fv::texture::nearest_by_direction(&train.cams, cam, &centre, 2);
         let mut counts = [[0usize; 2]; 5];
         if let Ok(d) = std::env::var("SAVE") {
             // Grey: truth and coverage agree; red: covered, not object; blue: object, uncovered.
@@ -67,12 +77,15 @@ fn main() {
                 let p = c + a * nalgebra::Vector3::new(x as f64, y as f64, 1.0) * d;
                 let mut s = 0;
                 let (mut past, mut nearer) = (false, false);
-                for (pc, map) in train.cams.iter().zip(&model.depths) {
+                for (j, (pc, map)) in train.cams.iter().zip(&model.depths).enumerate() {
                     let q = pc.projection() * p.push(1.0);
                     if q.z <= 0.0 {
                         continue;
                     }
                     let dd = map.nearest(q.x / q.z, q.y / q.z) as f64;
+                    if sil.get(x, y) && near.contains(&j) && dd.is_finite() {
+                        signed.push((dd - q.z) / vs);
+                    }
                     if dd.is_finite() && (dd - q.z).abs() <= tol * vs {
                         s += 1;
                     }
@@ -100,10 +113,23 @@ fn main() {
         }
     }
     println!("{:>14}: {}", "all", groups(&total));
+    println!(
+        "covered: {} outside the silhouette, {} inside",
+        total.iter().map(|c| c[0]).sum::<usize>(),
+        total.iter().map(|c| c[1]).sum::<usize>()
+    );
     for (name, c) in ["seen past", "hidden", "no depth"].iter().zip(&unsupported) {
         println!(
             "unsupported, {name:>9}: {} outside the silhouette, {} inside",
             c[0], c[1]
+        );
+    }
+    signed.sort_by(f64::total_cmp);
+    if !signed.is_empty() {
+        let q = |f: f64| signed[((signed.len() - 1) as f64 * f) as usize];
+        println!(
+            "object pixels, the two nearest photos' depth less the point's (voxels): 10 % {:.2}, 25 % {:.2}, median {:.2}, 75 % {:.2}, 90 % {:.2}",
+            q(0.1), q(0.25), q(0.5), q(0.75), q(0.9)
         );
     }
 }
