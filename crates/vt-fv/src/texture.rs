@@ -90,6 +90,14 @@ pub struct TextureParams {
     /// silhouette, 22.82 -> 23.57 over silhouette + own coverage) and worse on a black one,
     /// which the bled rim matches (temple 21.73 -> 21.67, 20.19 -> 19.83).
     pub soften_within: bool,
+    /// Registration to the references' own depth maps, in voxel sizes (8; 0 = off): each
+    /// reference is sampled where the pixel's ray meets that reference's depth map (the model's
+    /// confirmed depths), at the crossing nearest the refined depth within this reach, searched
+    /// every `sweep_step`; else at the refined depth. The voxel surface is only voxel-accurate
+    /// and the refinement needs two references that see the point; a photo's own depths put its
+    /// texture where it saw it. Lego 8-view 22.23 -> 22.37 dB (reach 2 / 4 / 12: 22.29 / 22.34 /
+    /// 22.36).
+    pub snap: f64,
 }
 
 impl Default for TextureParams {
@@ -108,6 +116,7 @@ impl Default for TextureParams {
             reach_deg: 10.0,
             consensus: 0.2,
             soften_within: false,
+            snap: 8.0,
         }
     }
 }
@@ -158,6 +167,9 @@ pub fn nearest_by_direction(
 
 /// Fade at or above which a reference counts fully as a second view for the softening (0.25).
 pub const FULL_FADE: f64 = 0.25;
+
+/// Largest [`TextureParams::snap`] in voxel sizes (64).
+pub const MAX_SNAP: f64 = 64.0;
 
 /// Most references [`fading_references`] blends (16).
 pub const MAX_REFERENCES: usize = 16;
@@ -258,6 +270,51 @@ pub(crate) fn bilinear(img: &RgbImage, u: f64, v: f64) -> [f64; 3] {
     out
 }
 
+/// Where the ray `at(d)` (a world point per depth along the new view's pixel ray) meets
+/// `map`, `r`'s depth map, as `r`'s pixel: the sign change of `r`'s camera depth less the map's
+/// depth (at the nearest cell) nearest `d`, searched outward in steps of `step` up to `steps`
+/// steps each way (the far side first at equal distance), linearly interpolated. `None` where
+/// no crossing lies within reach or it projects outside the photo.
+fn snapped(
+    r: &Reference,
+    map: &crate::stereo::DepthMap,
+    at: &dyn Fn(f64) -> Vector3<f64>,
+    d: f64,
+    step: f64,
+    steps: i64,
+) -> Option<(f64, f64)> {
+    // r's camera depth less the map's there: negative in front of the photo's surface.
+    let gap = |j: i64| -> Option<f64> {
+        let q = r.p * at(d + j as f64 * step).push(1.0);
+        if q.z <= 0.0 {
+            return None;
+        }
+        let z = map.nearest(q.x / q.z, q.y / q.z);
+        z.is_finite().then(|| q.z - z as f64)
+    };
+    let g0 = gap(0);
+    let (mut up, mut down) = (g0, g0);
+    for j in 1..=steps {
+        for (dir, last) in [(1, &mut up), (-1, &mut down)] {
+            let g = gap(dir * j);
+            if let (Some(a), Some(b)) = (*last, g) {
+                if (a < 0.0) != (b < 0.0) {
+                    let t = a / (a - b);
+                    let dd = d + (dir as f64) * ((j - 1) as f64 + t) * step;
+                    let q = r.p * at(dd).push(1.0);
+                    let (u, v) = (q.x / q.z, q.y / q.z);
+                    let (rw, rh) = r.image.dimensions();
+                    let inside =
+                        u >= 0.0 && v >= 0.0 && u <= (rw - 1) as f64 && v <= (rh - 1) as f64;
+                    return inside.then_some((u, v));
+                }
+            }
+            *last = g;
+        }
+    }
+    None
+}
+
 /// Textures the view of `cam` (rendered rough as `rough`, `w x h`) from the reference photos.
 /// `backdrop` is the colour around the object in the photos ([`crate::silhouette::colour_outside`],
 /// black when unknown): the softening's blur sees it beyond the object region, as it would in
@@ -296,6 +353,20 @@ pub fn texture_view(
                 why: "must be > 0".into(),
             });
         }
+    }
+    if !(p.snap >= 0.0 && p.snap <= MAX_SNAP) {
+        return Err(Error::BadParam {
+            name: "snap".into(),
+            value: p.snap.to_string(),
+            why: format!("must be in 0..={MAX_SNAP} voxels"),
+        });
+    }
+    if p.snap > 0.0 && !(p.sweep_step >= 0.01 && p.sweep_step.is_finite()) {
+        return Err(Error::BadParam {
+            name: "sweep_step".into(),
+            value: p.sweep_step.to_string(),
+            why: "must be >= 0.01 voxels when snapping to the depth maps".into(),
+        });
     }
     let (w, h) = rough.image.dimensions();
     let centre = model_centre(model);
@@ -413,6 +484,10 @@ pub fn texture_view(
     } else {
         depth.clone()
     };
+    // Each reference's sample moved to where the pixel's ray meets that reference's own depth
+    // map (the model's, one per camera in `cams`' order; none in a model without them).
+    let maps = (p.snap > 0.0 && model.depths.len() == cams.len()).then_some(&model.depths);
+    let snap_steps = (p.snap / p.sweep_step).round() as i64;
     // Per pixel: Some((colour, softening in [0, 1])) when some reference sees it.
     let samples: Vec<Option<([u8; 3], f64)>> = (0..n)
         .into_par_iter()
@@ -425,6 +500,13 @@ pub fn texture_view(
             // The two largest fades among the references that see the point.
             let mut top = [0.0f64; 2];
             for (k, u, v, wt) in seen(&point(i, d)) {
+                let (u, v) = match maps {
+                    Some(m) => {
+                        let at = |d: f64| point(i, d);
+                        snapped(&refs[k], &m[chosen[k]], &at, d, step, snap_steps).unwrap_or((u, v))
+                    }
+                    None => (u, v),
+                };
                 if fade[k] > top[0] {
                     top = [fade[k], top[0]];
                 } else if fade[k] > top[1] {
@@ -724,6 +806,61 @@ mod tests {
             Vector3::new(0.0, 0.0, -1.0),
         )
         .unwrap()
+    }
+
+    #[test]
+    fn snapping_finds_where_the_ray_meets_the_references_depth_map() {
+        // The wall x = 0.5 seen from 30 degrees round the ring; the new view from 0 degrees.
+        let k = Matrix3::new(500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0);
+        let (cam, rc) = (at(k, 0.0), at(k, 30.0));
+        let (w, h) = (640usize, 480usize);
+        let kinv = k.try_inverse().unwrap();
+        let wall = |c: &Camera, u: f64, v: f64| {
+            let dir = c.r.transpose() * kinv * Vector3::new(u, v, 1.0);
+            let t = (0.5 - c.centre().x) / dir.x;
+            c.centre() + dir * t
+        };
+        let depth: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let x = wall(&rc, (i % w) as f64, (i / w) as f64);
+                (rc.r * x + rc.t).z as f32
+            })
+            .collect();
+        let mut map = crate::stereo::DepthMap {
+            w,
+            h,
+            step: 1,
+            depth,
+        };
+        let image = RgbImage::new(w as u32, h as u32);
+        let r = Reference {
+            p: rc.projection(),
+            centre: rc.centre(),
+            image: &image,
+            depth: Vec::new(),
+        };
+        let (u, v) = (300.0, 200.0);
+        let ray = cam.r.transpose() * kinv * Vector3::new(u, v, 1.0);
+        let at_depth = |d: f64| cam.centre() + ray * d;
+        let truth = wall(&cam, u, v);
+        let d_true = (cam.r * truth + cam.t).z;
+        let (tu, tv, _) = rc.project(&truth).unwrap();
+        // From 0.3 in front or behind, within a reach of 16 steps of 0.05: the wall's pixel (to
+        // a quarter pixel: the map is constant over each pixel), where the unsnapped point
+        // projects pixels away.
+        for off in [-0.3, 0.3] {
+            let (ou, _, _) = rc.project(&at_depth(d_true + off)).unwrap();
+            assert!((ou - tu).abs() > 5.0, "{off}: {ou} against {tu}");
+            let got = snapped(&r, &map, &at_depth, d_true + off, 0.05, 16).unwrap();
+            assert!(
+                (got.0 - tu).abs() < 0.25 && (got.1 - tv).abs() < 0.25,
+                "{off}: {got:?} against ({tu}, {tv})"
+            );
+        }
+        // Out of reach, or no depth in the map: no crossing.
+        assert_eq!(snapped(&r, &map, &at_depth, d_true + 1.0, 0.05, 16), None);
+        map.depth.iter_mut().for_each(|d| *d = f32::NAN);
+        assert_eq!(snapped(&r, &map, &at_depth, d_true + 0.3, 0.05, 16), None);
     }
 
     #[test]

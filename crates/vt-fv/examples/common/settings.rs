@@ -1,7 +1,7 @@
 //! The examples' settings, `key=value,...`, applied to the view's and the model's parameters.
 //!
 //! Texturing: `refs`, `smooth`, `sweep`, `step`, `window`, `fill`, `tol`, `soft`, `agree`,
-//! `reach`, `consensus`, `within`, `eps`; the model: `pthr` (photo threshold), and the stereo
+//! `reach`, `consensus`, `within`, `eps`, `snap`; the model: `pthr` (photo threshold), and the stereo
 //! carving's `sources`, `best`, `radius`, `stride`, `step_v` (depth step in voxels), `coarse`,
 //! `pixel`, `min_ncc`, `agree_v`, `margin`, `protect`, `passes`, `pm` (PatchMatch iterations,
 //! 0: the sweep), `geo` (geometric round's iterations), `geow` (its weight), `conf`
@@ -44,6 +44,7 @@ pub fn apply_view(k: &str, v: &str, view: &mut ViewParams) -> bool {
         "consensus" => t.consensus = f(),
         "within" => t.soften_within = f() > 0.0,
         "eps" => t.eps_deg = f(),
+        "snap" => t.snap = f(),
         "grow" => view.grow = f() as u32,
         "dclip" => view.depth_clip = (f() > 0.0).then(Default::default),
         "dmargin" => view.depth_clip.as_mut().expect("dclip").margin = f(),
