@@ -372,7 +372,46 @@
   const TEXTURE_FS = REFS_GLSL + `
   uniform sampler2D refined; uniform sampler2D rough;
   uniform float eps2; uniform float agree; uniform float fullFade;
+  uniform sampler2DArray maps; uniform vec2 mapSize; uniform float mapStep;
+  uniform int snapSteps; uniform float snapStep;
   out vec4 outColour;
+  // Reference k's camera depth of the ray's point at d less its depth map's there (texture.rs's
+  // snapped: the nearest cell); ok false where the map has none.
+  float gapAt(int k, ivec2 px, float d, out bool ok) {
+    vec4 x = vec4(pointAt(px, d), 1.0);
+    vec3 q = vec3(dot(P0[k], x), dot(P1[k], x), dot(P2[k], x));
+    ok = false;
+    if (q.z <= 0.0) return 0.0;
+    vec2 cell = floor(q.xy / q.z / mapStep + 0.5);
+    if (cell.x < 0.0 || cell.y < 0.0 || cell.x >= mapSize.x || cell.y >= mapSize.y) return 0.0;
+    float z = texelFetch(maps, ivec3(ivec2(cell), layers[k]), 0).r;
+    if (z < 0.0) return 0.0;
+    ok = true;
+    return q.z - z;
+  }
+  // texture.rs's snapped: uv moved to where the ray meets reference k's depth map, the crossing
+  // nearest d searched outward (the far side first), within snapSteps steps each way.
+  void snapped(int k, ivec2 px, float d, inout vec2 uv) {
+    bool ok0; float g0 = gapAt(k, px, d, ok0);
+    bool okU = ok0; bool okD = ok0; float gU = g0; float gD = g0;
+    for (int j = 1; j <= 4096; j++) {
+      if (j > snapSteps) break;
+      for (int s = 0; s < 2; s++) {
+        float dir = s == 0 ? 1.0 : -1.0;
+        bool ok; float g = gapAt(k, px, d + dir * float(j) * snapStep, ok);
+        bool lok = s == 0 ? okU : okD; float lg = s == 0 ? gU : gD;
+        if (lok && ok && ((lg < 0.0) != (g < 0.0))) {
+          float t = lg / (lg - g);
+          vec4 x = vec4(pointAt(px, d + dir * (float(j - 1) + t) * snapStep), 1.0);
+          vec3 q = vec3(dot(P0[k], x), dot(P1[k], x), dot(P2[k], x));
+          vec2 u = q.xy / q.z;
+          if (u.x >= 0.0 && u.y >= 0.0 && u.x <= size.x - 1.0 && u.y <= size.y - 1.0) uv = u;
+          return;
+        }
+        if (s == 0) { okU = ok; gU = g; } else { okD = ok; gD = g; }
+      }
+    }
+  }
   void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     float d = texelFetch(refined, px, 0).r;
@@ -390,6 +429,7 @@
       float wt = fades[k] / (a * a + eps2);
       float f = fades[k];
       if (f > top0) { top1 = top0; top0 = f; } else if (f > top1) { top1 = f; }
+      if (snapSteps > 0) snapped(k, px, d, uv);
       vec3 c = photo(k, uv);
       acc += wt * c; sq += wt * c * c; wsum += wt; m += 1;
     }
@@ -714,16 +754,15 @@
       clipTex.cams = storage(gl.TEXTURE_2D, gl.RGBA32F, [3, N]);
       gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, 3, N, gl.RGBA, gl.FLOAT, rows);
     }
-    const dc = S.depth_clip;
-    if (dc) {
+    if (S.maps) {
       status.textContent = 'loading the depth maps';
       await loadScript('data/depths.js');
-      const [mw, mh] = dc.maps;
+      const [mw, mh] = S.maps;
       const raw = await vtUtil.inflate(bytes(payloads.depths.maps));
       const maps = new Float32Array(raw.buffer, raw.byteOffset, raw.byteLength / 4);
       clipTex.maps = storage(gl.TEXTURE_2D_ARRAY, gl.R32F, [mw, mh, N]);
       gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, 0, mw, mh, N, gl.RED, gl.FLOAT, maps);
-      const [nx, ny, nz] = dc.dims;
+      const [nx, ny, nz] = S.dims;
       const occ = vtUtil.unpackBits(await vtUtil.inflate(bytes(payloads.depths.occupied)), 0, nx * ny * nz);
       payloads.depths = null;
       clipTex.occ = storage(gl.TEXTURE_3D, gl.R8, [nx, ny, nz]);
@@ -817,9 +856,9 @@
         gl.uniform1f(cp.u.vmin, dc.voxel);
         gl.uniform3fv(cp.u.gmin, S.bounds.min);
         gl.uniform3fv(cp.u.gmax, S.bounds.max);
-        gl.uniform3iv(cp.u.dims, dc.dims);
-        gl.uniform2f(cp.u.mapSize, dc.maps[0], dc.maps[1]);
-        gl.uniform1f(cp.u.mapStep, dc.maps[2]);
+        gl.uniform3iv(cp.u.dims, S.dims);
+        gl.uniform2f(cp.u.mapSize, S.maps[0], S.maps[1]);
+        gl.uniform1f(cp.u.mapStep, S.maps[2]);
       }
       quad(cp, targets.clipFb, [['depth', targets.depth], ['rough', targets.rough], ['camsTex', clipTex.cams], ['sils', clipTex.sils, gl.TEXTURE_2D_ARRAY], ['maps', clipTex.maps, gl.TEXTURE_2D_ARRAY], ['occ', clipTex.occ, gl.TEXTURE_3D]]);
       depth = targets.clippedDepth;
@@ -877,7 +916,13 @@
     gl.uniform1f(pr.u.eps2, T.eps * T.eps);
     gl.uniform1f(pr.u.agree, T.agree_sd);
     gl.uniform1f(pr.u.fullFade, T.full_fade);
-    quad(pr, targets.sharpFb, [['refined', refined], ['rough', rough], ...refTextures]);
+    gl.uniform1i(pr.u.snapSteps, S.maps ? T.snap_steps : 0);
+    gl.uniform1f(pr.u.snapStep, T.sweep_step);
+    if (S.maps) {
+      gl.uniform2f(pr.u.mapSize, S.maps[0], S.maps[1]);
+      gl.uniform1f(pr.u.mapStep, S.maps[2]);
+    }
+    quad(pr, targets.sharpFb, [['refined', refined], ['rough', rough], ['maps', clipTex.maps, gl.TEXTURE_2D_ARRAY], ...refTextures]);
     // The object region (the coverage closed) and the holes in it filled by push-pull.
     const mp = progs.morph;
     gl.useProgram(mp.p);

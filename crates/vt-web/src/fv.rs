@@ -175,6 +175,9 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
             "sweep_window": t.sweep_window,
             "full_fade": FULL_FADE,
             "fill_radius": t.fill_radius,
+            // Steps of `sweep_step` each way texture_view's snapping searches (0 = off);
+            // the page snaps only when the depth maps are written (`maps`).
+            "snap_steps": if t.snap > 0.0 { (t.snap / t.sweep_step).round() as i64 } else { 0 },
             "backdrop": vt_fv::silhouette::colour_outside(m.images, m.masks).unwrap_or([0; 3]),
         },
     });
@@ -205,7 +208,10 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
     }
     let maps = &m.model.depths;
     let same_maps = maps.first().map(|f| (f.w, f.h, f.step));
-    if let (Some(_), Some(dc), Some((mw, mh, step))) = (&clip, m.depth_clip, same_maps) {
+    // The depth maps serve the trim to free space (with the silhouettes' clip) and the
+    // texturing's snapping; the page reads them as one texture array, so all of one size.
+    let depth_clip = m.depth_clip.filter(|_| clip.is_some());
+    if let (true, Some((mw, mh, step))) = (depth_clip.is_some() || t.snap > 0.0, same_maps) {
         if maps.len() == m.cams.len() && maps.iter().all(|f| (f.w, f.h, f.step) == (mw, mh, step)) {
             let mut depth = Vec::with_capacity(maps.len() * mw * mh * 4);
             for f in maps {
@@ -234,10 +240,14 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
                     base64(&deflate(&occ_bits))
                 ),
             )?;
-            meta["depth_clip"] = serde_json::json!({
-                "margin": dc.margin, "protect": dc.protect, "through": dc.through,
-                "voxel": vs.min(), "maps": [mw, mh, step], "dims": [nx, ny, nz],
-            });
+            meta["maps"] = serde_json::json!([mw, mh, step]);
+            meta["dims"] = serde_json::json!([nx, ny, nz]);
+            if let Some(dc) = depth_clip {
+                meta["depth_clip"] = serde_json::json!({
+                    "margin": dc.margin, "protect": dc.protect, "through": dc.through,
+                    "voxel": vs.min(),
+                });
+            }
         }
     }
     let meta = meta.to_string().replace('<', "\\u003c");
