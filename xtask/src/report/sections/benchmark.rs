@@ -151,7 +151,8 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
         format!(
             "Each row changes one setting of `StereoParams` from vt's default and rebuilds the \
              model from the 8 views; scored on {n} test views as above. Time is the model's \
-             (visual hull, stereo carving, photo hull) on this machine."
+             (visual hull, stereo carving, photo hull) on this machine, a view's the median over the \
+             test views; the last rows change the view's settings instead."
         ),
         &[
             "setting",
@@ -159,6 +160,7 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             "SSIM",
             "coverage IoU mean",
             "model (s)",
+            "view (s, median)",
         ],
     );
     let d = StereoParams::default();
@@ -170,6 +172,7 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             json!(s.whole.ssim),
             json!(s.coverage_iou),
             json!(s.model_secs),
+            json!(s.view_secs_median),
         ]
     };
     k.row(knob_row("default", &default));
@@ -275,6 +278,11 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             },
         )?;
         k.row(knob_row("no depth clip in the view", &s));
+        // The texturing's registration to each reference's own depth map.
+        let mut view = ViewParams::default();
+        view.texture.snap = 0.0;
+        let s = measure(&train, &test, &ModelParams::default(), &view)?;
+        k.row(knob_row("no snapping to the photos' depth maps", &s));
         // The silhouette clip as for real photos (closed, 1 px of slack) although lego's agree
         // exactly.
         let s = measure(
