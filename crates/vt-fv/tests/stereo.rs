@@ -14,17 +14,43 @@ fn scene() -> (SynthData<Camera>, VoxelGrid) {
     ring(8)
 }
 
-/// The ring of `views` views (seed 0) at 200x200, and its visual hull at 96^3.
-fn ring(views: usize) -> (SynthData<Camera>, VoxelGrid) {
+/// `vt synth object`'s ring of `views` views (seed 0) at `size` x `size`.
+fn photos(views: usize, size: u32) -> SynthData<Camera> {
     let ring = RingParams {
         views,
-        size: 200,
+        size,
         seed: 0,
     };
-    let d = generate(&ring.scene())
+    generate(&ring.scene())
         .unwrap()
         .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
-        .unwrap();
+        .unwrap()
+}
+
+/// The default model (stereo carving on) of `d` at `grid` voxels along the longest side.
+fn model(d: &SynthData<Camera>, grid: usize) -> vt_fv::VoxelModel {
+    use vt_fv::dataset::{build_summarised, volume, ModelParams};
+    let m = ModelParams {
+        grid,
+        ..Default::default()
+    };
+    let bounds = volume(None, &d.cameras, &d.masks).unwrap();
+    let (model, _) = build_summarised(
+        &d.cameras,
+        &d.photos,
+        &d.masks,
+        bounds,
+        &m,
+        &mut |_, _, _| {},
+    )
+    .unwrap();
+    assert_eq!(model.depths.len(), d.cameras.len());
+    model
+}
+
+/// The ring of `views` views (seed 0) at 200x200, and its visual hull at 96^3.
+fn ring(views: usize) -> (SynthData<Camera>, VoxelGrid) {
+    let d = photos(views, 200);
     let vh = visual_hull(
         &d.cameras,
         &d.masks,
@@ -448,24 +474,9 @@ fn fine_iterations_measure_every_pixel_as_closely_as_the_cells() {
 /// what the clip uncovers is mostly not the object.
 #[test]
 fn depth_clip_takes_back_coverage_that_is_not_the_object() {
-    use vt_fv::dataset::{build_summarised, volume, ModelParams};
     use vt_fv::pipeline::{iou, novel_view_in, ViewParams};
     let (d, _) = scene();
-    let m = ModelParams {
-        grid: 96,
-        ..Default::default()
-    };
-    let bounds = volume(None, &d.cameras, &d.masks).unwrap();
-    let (model, _) = build_summarised(
-        &d.cameras,
-        &d.photos,
-        &d.masks,
-        bounds,
-        &m,
-        &mut |_, _, _| {},
-    )
-    .unwrap();
-    assert_eq!(model.depths.len(), d.cameras.len());
+    let model = model(&d, 96);
     let (mut with, mut without, mut cut, mut cut_object) = (0.0, 0.0, 0usize, 0usize);
     for (cam, truth) in d.extra_cameras.iter().zip(&d.extra_masks) {
         let (w, h) = (truth.width(), truth.height());
@@ -571,28 +582,9 @@ fn colour_windows_match_isoluminant_texture() {
 /// voxels are finer against the photos there.)
 #[test]
 fn snapping_to_the_depth_maps_costs_nothing_against_the_truth() {
-    use vt_fv::dataset::{build_summarised, volume, ModelParams};
     use vt_fv::pipeline::{novel_view_in, ViewParams};
-    let ring = RingParams {
-        views: 8,
-        size: 400,
-        seed: 0,
-    };
-    let d = generate(&ring.scene())
-        .unwrap()
-        .try_map_cameras(|c| Camera::new(c.name.clone(), c.k, c.r, c.t))
-        .unwrap();
-    let bounds = volume(None, &d.cameras, &d.masks).unwrap();
-    let (model, _) = build_summarised(
-        &d.cameras,
-        &d.photos,
-        &d.masks,
-        bounds,
-        &ModelParams::default(),
-        &mut |_, _, _| {},
-    )
-    .unwrap();
-    assert_eq!(model.depths.len(), d.cameras.len());
+    let d = photos(8, 400);
+    let model = model(&d, 128);
     let score = |snap: f64| {
         let mut p = ViewParams::default();
         p.texture.snap = snap;
