@@ -102,6 +102,17 @@ pub struct TextureParams {
     pub snap: f64,
 }
 
+impl TextureParams {
+    /// Steps of `sweep_step` the snapping searches each way ([`TextureParams::snap`]; 0 = off).
+    pub fn snap_steps(&self) -> i64 {
+        if self.snap > 0.0 {
+            (self.snap / self.sweep_step).round() as i64
+        } else {
+            0
+        }
+    }
+}
+
 impl Default for TextureParams {
     fn default() -> Self {
         Self {
@@ -489,7 +500,7 @@ pub fn texture_view(
     // Each reference's sample moved to where the pixel's ray meets that reference's own depth
     // map (the model's, one per camera in `cams`' order; none in a model without them).
     let maps = (p.snap > 0.0 && model.depths.len() == cams.len()).then_some(&model.depths);
-    let snap_steps = (p.snap / p.sweep_step).round() as i64;
+    let snap_steps = p.snap_steps();
     // Per pixel: Some((colour, softening in [0, 1])) when some reference sees it.
     let samples: Vec<Option<([u8; 3], f64)>> = (0..n)
         .into_par_iter()

@@ -207,15 +207,25 @@
   // (clip_to_hull: some point of the ray near the splat depth inside every photo's silhouette
   // that sees it) and past the free space the photos' depth maps prove (clip_to_free_space);
   // a pixel trimmed away is uncovered. Cameras' projections are rows of `camsTex`.
+  // The photos' depth maps, one layer per camera (vt_fv::stereo::DepthMap::nearest): the depth
+  // at the cell nearest a pixel, -1 where there is none or outside the map.
+  const MAPS_GLSL = `
+  uniform sampler2DArray maps; uniform vec2 mapSize; uniform float mapStep;
+  float mapDepth(int layer, vec2 uv) {
+    vec2 cell = floor(uv / mapStep + 0.5);
+    if (cell.x < 0.0 || cell.y < 0.0 || cell.x >= mapSize.x || cell.y >= mapSize.y) return -1.0;
+    return texelFetch(maps, ivec3(ivec2(cell), layer), 0).r;
+  }
+  `;
   const CLIP_FS = `#version 300 es
   precision highp float; precision highp int; precision highp sampler2DArray; precision highp sampler3D;
   uniform sampler2D depth; uniform sampler2D rough; uniform sampler2D camsTex; uniform int ncams;
-  uniform sampler2DArray sils; uniform sampler2DArray maps; uniform sampler3D occ;
+  uniform sampler2DArray sils; uniform sampler3D occ;
   uniform mat3 A; uniform vec3 own; uniform vec2 size;
   uniform float before; uniform float behind; uniform float stepSize; uniform float voxel;
   uniform int depthOn; uniform float margin; uniform float protect; uniform int through;
   uniform float vmin; uniform vec3 gmin; uniform vec3 gmax; uniform ivec3 dims;
-  uniform vec2 mapSize; uniform float mapStep;
+  ${MAPS_GLSL}
   layout(location = 0) out vec4 outDepth; layout(location = 1) out vec4 outRough;
   vec3 proj(int k, vec3 x) {
     vec4 X = vec4(x, 1.0);
@@ -242,9 +252,7 @@
       vec2 ui = floor(uv + 0.5);
       if (ui.x < 0.0 || ui.y < 0.0 || ui.x >= size.x || ui.y >= size.y) continue;
       if (texelFetch(sils, ivec3(ivec2(ui), k), 0).r < 0.5) { th += through; continue; }
-      vec2 cell = floor(uv / mapStep + 0.5);
-      if (cell.x < 0.0 || cell.y < 0.0 || cell.x >= mapSize.x || cell.y >= mapSize.y) continue;
-      float d = texelFetch(maps, ivec3(ivec2(cell), k), 0).r;
+      float d = mapDepth(k, uv);
       if (d < 0.0) continue;
       if (abs(d - q.z) <= protect * vmin) return false;
       if (d > q.z + margin * vmin) th += 1;
@@ -372,7 +380,7 @@
   const TEXTURE_FS = REFS_GLSL + `
   uniform sampler2D refined; uniform sampler2D rough;
   uniform float eps2; uniform float agree; uniform float fullFade;
-  uniform sampler2DArray maps; uniform vec2 mapSize; uniform float mapStep;
+  ${MAPS_GLSL}
   uniform int snapSteps; uniform float snapStep;
   out vec4 outColour;
   // Reference k's camera depth of the ray's point at d less its depth map's there (texture.rs's
@@ -382,9 +390,7 @@
     vec3 q = vec3(dot(P0[k], x), dot(P1[k], x), dot(P2[k], x));
     ok = false;
     if (q.z <= 0.0) return 0.0;
-    vec2 cell = floor(q.xy / q.z / mapStep + 0.5);
-    if (cell.x < 0.0 || cell.y < 0.0 || cell.x >= mapSize.x || cell.y >= mapSize.y) return 0.0;
-    float z = texelFetch(maps, ivec3(ivec2(cell), layers[k]), 0).r;
+    float z = mapDepth(layers[k], q.xy / q.z);
     if (z < 0.0) return 0.0;
     ok = true;
     return q.z - z;

@@ -177,7 +177,7 @@ fn write(m: &FvModel<'_>, sink: &mut dyn Sink) -> Result<FvSummary> {
             "fill_radius": t.fill_radius,
             // Steps of `sweep_step` each way texture_view's snapping searches (0 = off);
             // the page snaps only when the depth maps are written (`maps`).
-            "snap_steps": if t.snap > 0.0 { (t.snap / t.sweep_step).round() as i64 } else { 0 },
+            "snap_steps": t.snap_steps(),
             "backdrop": vt_fv::silhouette::colour_outside(m.images, m.masks).unwrap_or([0; 3]),
         },
     });
