@@ -40,11 +40,15 @@ pub struct TextureParams {
     /// closed coverage are holes and get filled (3; 0 fills nothing).
     pub fill_radius: u32,
     /// Radius in pixels of the box filter that smooths the rough render's depth (voxel-centre
-    /// depths, flat per splat) before back-projection (2; 0 keeps the splat depths). Against 3
-    /// (with PatchMatch depths and the exact-silhouette clip): lego 8-view 21.73 -> 21.78 dB
-    /// (inside the silhouettes 18.32 -> 18.43); leave-one-out inside the silhouette kettle
-    /// 24.67 -> 24.75 dB (worst lead over blur2 +1.16 -> +1.24), templeSparseRing 22.18 ->
-    /// 22.19 (+0.13 -> +0.16).
+    /// depths, flat per splat) before back-projection (0, the default, keeps the splat depths).
+    /// With the snapping to the photos' depth maps ([`TextureParams::snap`]) each photo finds
+    /// its own surface near the splat's depth, and the box no longer helps. Against 2: lego
+    /// 8-view 22.37 -> 22.42 dB (inside the silhouettes 18.62 -> 18.71; radius 1: 22.40);
+    /// leave-one-out inside the silhouette kettle 24.77 -> 24.80 (radius 1 the same; worst
+    /// lead over blur2 +0.89 -> +0.90), templeSparseRing 22.59 -> 22.60 (worst lead +0.22 ->
+    /// +0.17; over the silhouette and the view's own coverage 21.62 -> 21.68). Before the
+    /// snapping, 2 was measured against 3: lego 21.73 -> 21.78 dB, kettle 24.67 -> 24.75,
+    /// temple 22.18 -> 22.19.
     pub depth_smooth: u32,
     /// Depth refinement: candidate depths tried on each side of the smoothed depth (4; 0 =
     /// none); per pixel the candidate whose reference colours agree best (variance across the
@@ -120,7 +124,7 @@ impl Default for TextureParams {
             depth_tolerance: 4.0,
             eps_deg: 2.0,
             fill_radius: 3,
-            depth_smooth: 2,
+            depth_smooth: 0,
             sweep: 4,
             sweep_step: 0.25,
             sweep_window: 2,

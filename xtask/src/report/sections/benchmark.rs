@@ -283,6 +283,11 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
         view.texture.snap = 0.0;
         let s = measure(&train, &test, &ModelParams::default(), &view)?;
         k.row(knob_row("no snapping to the photos' depth maps", &s));
+        // The splat depth box-filtered before the refinement (the default before the snapping).
+        let mut view = ViewParams::default();
+        view.texture.depth_smooth = 2;
+        let s = measure(&train, &test, &ModelParams::default(), &view)?;
+        k.row(knob_row("splat depth smoothed over 5x5 px", &s));
         // The silhouette clip as for real photos (closed, 1 px of slack) although lego's agree
         // exactly.
         let s = measure(
