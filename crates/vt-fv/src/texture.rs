@@ -50,9 +50,10 @@ pub struct TextureParams {
     /// snapping, 2 was measured against 3: lego 21.73 -> 21.78 dB, kettle 24.67 -> 24.75,
     /// temple 22.18 -> 22.19.
     pub depth_smooth: u32,
-    /// Depth refinement: candidate depths tried on each side of the smoothed depth (4; 0 =
-    /// none); per pixel the candidate whose reference colours agree best (variance across the
-    /// references, summed over a `(2 sweep_window + 1)^2` window) wins.
+    /// Depth refinement: candidate depths tried on each side of the splat depth (smoothed by
+    /// `depth_smooth`) (4; 0 = none); per pixel the candidate whose reference colours agree
+    /// best (variance across the references, summed over a `(2 sweep_window + 1)^2` window)
+    /// wins.
     pub sweep: usize,
     /// Spacing of the candidate depths in voxel sizes (0.25).
     pub sweep_step: f64,
