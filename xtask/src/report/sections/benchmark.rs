@@ -235,6 +235,10 @@ fn benchmark(ctx: &mut Ctx) -> Result<Vec<Item>> {
             ),
             ("margin 3 voxels".into(), StereoParams { margin: 3.0, ..d }),
             (
+                "the best source's NCC alone".into(),
+                StereoParams { best: 1, ..d },
+            ),
+            (
                 "no surface protection".into(),
                 StereoParams { protect: 0.0, ..d },
             ),
