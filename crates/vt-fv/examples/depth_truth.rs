@@ -2,10 +2,11 @@
 //! the first surface along each cell's ray in a model built from another folder of the same
 //! scene (e.g. all 100 lego training views): per photo the cells inside the silhouette, the
 //! share with a depth, and of those the share within 1 and 3 voxels of the truth, too deep and
-//! too shallow. The too shallow are classed further: on the 8-view visual hull's near side
-//! (within 1 voxel of where the ray enters it), at an edge of the truth's depth (its depths
-//! over the 7x7 window about the cell span more than 3 voxels; of those, how many take the
-//! truth's depth 3 pixels away, within 1.5 voxels: a foreground's depth bled over the edge), or
+//! too shallow. The too shallow are classed further: on DATA's own visual hull's near side
+//! (within 1 voxel of where the ray enters it), at an edge of the truth's depth (its depths at
+//! the centre, corners and edge midpoints of the 7x7 window about the cell span more than 3
+//! voxels, or one of those rays misses the truth; of those, how many take the truth's depth at
+//! one of those points, within 1.5 voxels: a foreground's depth bled over the edge), or
 //! neither.
 //! `cargo run --release -p vt-fv --example depth_truth -- DATA TRUTH_DATA [TRUTH_GRID]`; the
 //! truth's model at TRUTH_GRID (256) without stereo unless `TRUTH_STEREO` is set, photo
