@@ -78,10 +78,14 @@ fn main() {
                     c[5] += 1;
                     let near = first_hit(&hull.grid, cam, u, v, 0.25 * vs);
                     let r = 3.0;
-                    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                    // The centre's truth is z_true; the eight points around it are marched.
+                    let (mut lo, mut hi) = (z_true, z_true);
                     let mut neighbour = false;
                     for dy in [-r, 0.0, r] {
                         for dx in [-r, 0.0, r] {
+                            if dx == 0.0 && dy == 0.0 {
+                                continue;
+                            }
                             if let Some(zt) =
                                 first_hit(&truth.grid, cam, u + dx, v + dy, 0.25 * tvs)
                             {
