@@ -199,6 +199,24 @@ impl Yuv420Image {
         )
     }
 
+    /// Converts pixels `x0..x1` of row `y` into `out` (`3 * (x1 - x0)` bytes), byte for byte
+    /// what [`Yuv420Image::pixel`] gives there; `x0` and `x1` even (whole chroma samples).
+    pub fn segment_to_rgb(&self, y: u32, x0: u32, x1: u32, out: &mut [u8]) {
+        debug_assert!(x0.is_multiple_of(2) && x1.is_multiple_of(2) && x0 <= x1 && x1 <= self.width);
+        let c = Coefficients::of(self.matrix, self.range);
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (y, x0, x1) = (y as usize, x0 as usize, x1 as usize);
+        let chroma = w * h + (y / 2) * (w / 2);
+        let (c0, c1) = (chroma + x0 / 2, chroma + x1 / 2);
+        convert_row(
+            &c,
+            &self.data[y * w + x0..y * w + x1],
+            &self.data[c0..c1],
+            &self.data[c0 + w * h / 4..c1 + w * h / 4],
+            &mut out[..3 * (x1 - x0)],
+        );
+    }
+
     /// Converts row `y` into `out` (`3 * width` bytes).
     pub fn row_to_rgb(&self, y: u32, out: &mut [u8]) {
         let c = Coefficients::of(self.matrix, self.range);

@@ -472,6 +472,17 @@ pub(super) fn analyze_view(
                 (None, None) => None,
             };
             let room = packed.as_ref().map(|&(_, room, _)| room);
+            // What the cache's budget leaves to hold the baked frames for the store: beside the
+            // cached frames and the masks, or the packed window (its label search done by then).
+            let keep = match (&cache, &packed) {
+                (Some(frames), _) => {
+                    let held: usize = masks.iter().map(|m| m.len().div_ceil(64) * 8).sum();
+                    let cached: usize = frames.iter().map(|f| f.as_ref().byte_len()).sum();
+                    params.cache_bytes.saturating_sub(cached + held)
+                }
+                (None, Some((_, room, _))) => *room,
+                (None, None) => 0,
+            };
             let made = match &window {
                 Some(w) => Some(bake_regions(
                     w,
@@ -481,6 +492,7 @@ pub(super) fn analyze_view(
                     rp,
                     params.loops.min_length,
                     room,
+                    keep,
                 )?),
                 None => None,
             };
@@ -500,31 +512,49 @@ pub(super) fn analyze_view(
                             secs,
                         })
                     }
-                    Baked::Kept(rl, quality, single) => {
+                    Baked::Kept(rl, quality, single, held) => {
                         // The player's wrap onto the smoothest step of the cycle; the baked frames
-                        // replace the view's frames in the store (its file made anew).
+                        // replace the view's frames in the store (its file made anew): the
+                        // frames measured, rotated (frame t of the rotated loop is frame
+                        // (t + smoothest) mod L of the measured one), or made again.
                         let frames = window.as_ref().expect("made from a window");
-                        let bake = Bake::new(frames, window_masks, &rl, rp.feather)
-                            .rotated(quality.smoothest);
+                        let bake = held.is_none().then(|| {
+                            Bake::new(frames, window_masks, &rl, rp.feather)
+                                .rotated(quality.smoothest)
+                        });
                         let mut baked_masks = Vec::with_capacity(rl.length + 1);
                         let mut baked_thumbs = Vec::new();
                         let blur = GaussianBlur::new(&params.blur)?;
-                        let (mut f, mut blurred) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
+                        let (mut made, mut blurred) = (RgbImage::new(0, 0), RgbImage::new(0, 0));
                         let mut scratch = BlurScratch::default();
                         for t in 0..=rl.length {
-                            let m = bake.frame_into(t, &mut f);
-                            observer.object_frame(p, t, &shown(&m), &f)?;
+                            let (f, m) = match (&bake, &held) {
+                                (Some(bake), _) => {
+                                    let m = bake.frame_into(t, &mut made);
+                                    (&made, m)
+                                }
+                                (None, Some(held)) => {
+                                    let (f, m) = &held[(t + quality.smoothest) % rl.length];
+                                    (f, m.clone())
+                                }
+                                (None, None) => unreachable!("a bake or the frames held"),
+                            };
+                            observer.object_frame(p, t, &shown(&m), f)?;
                             if with_thumbs {
                                 if blurred.dimensions() != f.dimensions() {
                                     blurred = RgbImage::new(f.width(), f.height());
                                 }
-                                blur.apply_into(&f, &mut blurred, &mut scratch)?;
+                                blur.apply_into(f, &mut blurred, &mut scratch)?;
                                 baked_thumbs.push(change_thumb(&blurred, &bg_blur, factor));
                             }
                             baked_masks.push(m);
                         }
-                        let mut rl = bake.region_loop();
-                        drop(bake);
+                        drop((bake, held));
+                        // The loop the stored frames show (as `Bake::rotated` puts its phase).
+                        let mut rl = crate::regions::RegionLoop {
+                            phase: (rl.phase + quality.smoothest) % rl.length,
+                            ..rl
+                        };
                         for l in &mut rl.labels {
                             l.start += first;
                         }
@@ -640,6 +670,12 @@ impl crate::regions::Frames for Window<'_> {
             Window::Packed(w) => w.rgb_into(f, out),
         }
     }
+    fn rect_into(&self, f: usize, rect: [usize; 4], out: &mut Vec<u8>) {
+        match self {
+            Window::Cached(w) => w.rect_into(f, rect, out),
+            Window::Packed(w) => w.rect_into(f, rect, out),
+        }
+    }
 }
 
 /// What trying a per-region loop came to.
@@ -656,18 +692,20 @@ enum Baked {
     /// Asked for, but the label search (this many bytes) does not fit what the cache's budget
     /// leaves beside the packed window.
     OverCache(usize),
-    /// Kept: the labels (counted in the window), their quality, the thesis's.
+    /// Kept: the labels (counted in the window), their quality, the thesis's, and the baked
+    /// frames `0..=L` with their masks when they were held.
     Kept(
         crate::regions::RegionLoop,
         crate::regions::Quality,
         crate::regions::Quality,
+        Option<Vec<(RgbImage, Mask)>>,
     ),
 }
 
 /// Chooses and measures the per-region loop of `window` (source frames holding the thesis's
 /// loop `own`, counted from the window's first frame; `masks` theirs) against the thesis's loop
 /// measured alike, when the label search fits `room` bytes (None: no bound). The baked frames
-/// are made to be measured and dropped: none is held.
+/// are made to be measured, and held for the store only when they fit `keep` bytes.
 fn bake_regions<F: crate::regions::Frames + ?Sized>(
     window: &F,
     masks: &[Mask],
@@ -676,8 +714,11 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     rp: &crate::regions::RegionParams,
     min_length: usize,
     room: Option<usize>,
+    keep: usize,
 ) -> Result<Baked> {
-    use crate::regions::{quality_of, single_frame, single_loop, wraps_of, Quality};
+    use crate::regions::{
+        quality_of_single, quality_with, single_frame, single_loop, wraps_of, Quality, SourceEnergy,
+    };
     let dims = window.dimensions();
     let one = single_loop(own, dims, crate::regions::reduction(dims, rp).1);
     let frame = |t, out: &mut RgbImage| window.rgb_into(single_frame(&one, t), out);
@@ -694,14 +735,26 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     if room.is_some_and(|r| search > r) {
         return Ok(Baked::OverCache(search));
     }
-    let single = quality_of(frame, window, &one, alpha);
+    // The source's sharpness, measured once for both loops.
+    let energy = SourceEnergy::of(window, one.tile, alpha);
+    let single = quality_of_single(window, &energy, &one, alpha);
     let rl = crate::regions::solve(window, alpha, Some(own.period), min_length, rp)?;
     let bake = Bake::new(window, masks, &rl, rp.feather);
-    let quality = quality_of(
+    // The frames as measured, kept for the store when they fit `keep` (else made again).
+    let (w, h) = dims;
+    let frame_bytes =
+        3 * w as usize * h as usize + masks.first().map_or(0, |m| m.len().div_ceil(64) * 8);
+    let mut held = ((rl.length + 1).saturating_mul(frame_bytes) <= keep)
+        .then(|| Vec::with_capacity(rl.length + 1));
+    let quality = quality_with(
         |t, out: &mut RgbImage| {
-            bake.frame_into(t, out);
+            let m = bake.frame_into(t, out);
+            if let Some(h) = held.as_mut() {
+                h.push((out.clone(), m));
+            }
         },
         window,
+        &energy,
         &rl,
         alpha,
     );
@@ -709,7 +762,7 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
     Ok(if rp.only_if_better && !quality.better_than(&single) {
         Baked::Worse(rl, quality, single)
     } else {
-        Baked::Kept(rl, quality, single)
+        Baked::Kept(rl, quality, single, held)
     })
 }
 

@@ -32,10 +32,14 @@ mod bake;
 mod quality;
 mod solve;
 
-use bake::*;
+#[cfg(test)]
+use bake::tile_pixels;
 pub use bake::{compose, correction, single_loop, spreads, AxisBlend, Bake};
 use quality::{mad, median};
-pub use quality::{quality, quality_of, single_frame, single_frames, wraps_in, wraps_of, Quality};
+pub use quality::{
+    quality, quality_of, quality_of_single, quality_with, single_frame, single_frames, wraps_in,
+    wraps_of, Quality, SourceEnergy,
+};
 pub use solve::{reduction, search_bytes, solve, Problem, Strips, Temporal};
 
 /// The parameters of per-region loops.
@@ -192,6 +196,26 @@ pub trait Frames: Sync {
     fn px(&self, f: usize, x: u32, y: u32) -> [u8; 3];
     /// Frame `f` in RGB, into `out` (resized if needed).
     fn rgb_into(&self, f: usize, out: &mut RgbImage);
+    /// Pixels `x0..x1` of rows `y0..y1` of frame `f` in RGB, row after row, into `out` (its
+    /// length set): what [`Frames::px`] gives there, read a row at a time where the frames
+    /// allow.
+    fn rect_into(&self, f: usize, [x0, x1, y0, y1]: [usize; 4], out: &mut Vec<u8>) {
+        out.clear();
+        for y in y0..y1 {
+            for x in x0..x1 {
+                out.extend_from_slice(&self.px(f, x as u32, y as u32));
+            }
+        }
+    }
+}
+
+/// [`Frames::rect_into`] of one RGB image.
+fn rgb_rect_into(img: &RgbImage, [x0, x1, y0, y1]: [usize; 4], out: &mut Vec<u8>) {
+    let (w, raw) = (img.width() as usize, img.as_raw());
+    out.clear();
+    for y in y0..y1 {
+        out.extend_from_slice(&raw[3 * (y * w + x0)..3 * (y * w + x1)]);
+    }
 }
 
 impl Frames for [RgbImage] {
@@ -207,6 +231,9 @@ impl Frames for [RgbImage] {
     }
     fn rgb_into(&self, f: usize, out: &mut RgbImage) {
         crate::analysis::FrameRef::Rgb(&self[f]).to_rgb_into(out)
+    }
+    fn rect_into(&self, f: usize, rect: [usize; 4], out: &mut Vec<u8>) {
+        rgb_rect_into(&self[f], rect, out)
     }
 }
 
@@ -226,6 +253,27 @@ impl Frames for [crate::analysis::Frame] {
     }
     fn rgb_into(&self, f: usize, out: &mut RgbImage) {
         self[f].as_ref().to_rgb_into(out)
+    }
+    fn rect_into(&self, f: usize, rect: [usize; 4], out: &mut Vec<u8>) {
+        let [x0, x1, y0, y1] = rect;
+        match &self[f] {
+            crate::analysis::Frame::Rgb(img) => rgb_rect_into(img, rect, out),
+            crate::analysis::Frame::Yuv420(img) if x0.is_multiple_of(2) && x1.is_multiple_of(2) => {
+                let row = 3 * (x1 - x0);
+                out.resize(row * (y1 - y0), 0);
+                for (y, dst) in (y0..y1).zip(out.chunks_exact_mut(row.max(1))) {
+                    img.segment_to_rgb(y as u32, x0 as u32, x1 as u32, dst);
+                }
+            }
+            crate::analysis::Frame::Yuv420(img) => {
+                out.clear();
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        out.extend_from_slice(&img.pixel(x as u32, y as u32));
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -262,6 +310,9 @@ where
     }
     fn rgb_into(&self, f: usize, out: &mut RgbImage) {
         self.as_slice().rgb_into(f, out)
+    }
+    fn rect_into(&self, f: usize, rect: [usize; 4], out: &mut Vec<u8>) {
+        self.as_slice().rect_into(f, rect, out)
     }
 }
 

@@ -64,12 +64,6 @@ pub fn single_frame(rl: &RegionLoop, t: usize) -> usize {
     rl.labels[0].frame((t + rl.phase) % rl.length)
 }
 
-/// Pixel index `i` of frame `f` of `frames`, `w` pixels wide.
-#[inline]
-pub(super) fn at<F: Frames + ?Sized>(frames: &F, f: usize, i: usize, w: u32) -> [u8; 3] {
-    frames.px(f, (i % w as usize) as u32, (i / w as usize) as u32)
-}
-
 /// Weighted mean absolute difference over `px` (full-resolution pixel indices).
 pub(super) fn mad(a: &RgbImage, b: &RgbImage, px: &[usize], wt: &[f32]) -> (f64, f64) {
     let (ra, rb) = (a.as_raw(), b.as_raw());
@@ -93,11 +87,34 @@ pub(super) fn mad_rect(
     wt3: &[u8],
 ) -> (f64, f64) {
     let (ra, rb) = (a.as_raw(), b.as_raw());
+    mad_rows((y0..y1).map(|y| {
+        let r = 3 * (y * w + x0)..3 * (y * w + x1);
+        (&ra[r.clone()], &rb[r.clone()], &wt3[r])
+    }))
+}
+
+/// [`mad_rect`] of frame `a`'s rectangle against `b`, the same rectangle's pixels row after
+/// row (as [`Frames::rect_into`] gives them).
+fn mad_rect_buf(
+    a: &RgbImage,
+    [x0, x1, y0, y1]: [usize; 4],
+    w: usize,
+    wt3: &[u8],
+    b: &[u8],
+) -> (f64, f64) {
+    let ra = a.as_raw();
+    let row = 3 * (x1 - x0);
+    mad_rows((y0..y1).zip(b.chunks_exact(row.max(1))).map(|(y, pb)| {
+        let r = 3 * (y * w + x0)..3 * (y * w + x1);
+        (&ra[r.clone()], pb, &wt3[r])
+    }))
+}
+
+/// The weighted sums of [`mad_rect`] over rows given as (a's bytes, b's bytes, weights).
+fn mad_rows<'a>(rows: impl Iterator<Item = (&'a [u8], &'a [u8], &'a [u8])>) -> (f64, f64) {
     let (mut s, mut n) = (0u64, 0u64);
     // A row's sums fit a u32 up to 22,000 pixels; tiles are at most 256.
-    for y in y0..y1 {
-        let r = 3 * (y * w + x0)..3 * (y * w + x1);
-        let (pa, pb, pw) = (&ra[r.clone()], &rb[r.clone()], &wt3[r]);
+    for (pa, pb, pw) in rows {
         let (mut rs, mut rn) = (0u32, 0u32);
         for ((&p, &q), &wv) in pa.iter().zip(pb).zip(pw) {
             rs += u32::from(wv) * u32::from(p.abs_diff(q));
@@ -182,7 +199,72 @@ where
     M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
-    measure(make, source.dimensions(), Some(source), rl, alpha)
+    let energy = SourceEnergy::of(source, rl.tile, alpha);
+    quality_with(make, source, &energy, rl, alpha)
+}
+
+/// [`quality_of`] with the source's gradient energy measured beforehand (`energy`, of the same
+/// `source`, `alpha` and tile size; another tile size is measured anew), so that loops of the
+/// same window share it.
+pub fn quality_with<M, F>(
+    make: M,
+    source: &F,
+    energy: &SourceEnergy,
+    rl: &RegionLoop,
+    alpha: Option<&image::GrayImage>,
+) -> Quality
+where
+    M: FnMut(usize, &mut RgbImage),
+    F: Frames + ?Sized,
+{
+    let fresh;
+    let energy = if energy.fits(rl) {
+        energy
+    } else {
+        fresh = SourceEnergy::of(source, rl.tile, alpha);
+        &fresh
+    };
+    measure(
+        make,
+        source.dimensions(),
+        Against::Source(source, energy),
+        rl,
+        alpha,
+    )
+}
+
+/// [`quality_of`] of a single-label loop from [`single_loop`] (the thesis's loop), whose
+/// frames are the source's own (`source` frame [`single_frame`] at output time `t`): each
+/// frame's gradient energy is read from `energy` (see [`quality_with`]) and its distance to
+/// the nearest source frame is 0, so only the steps are measured. The same figures as
+/// [`quality_of`] of those frames.
+pub fn quality_of_single<F>(
+    source: &F,
+    energy: &SourceEnergy,
+    one: &RegionLoop,
+    alpha: Option<&image::GrayImage>,
+) -> Quality
+where
+    F: Frames + ?Sized,
+{
+    let first = one.labels.first();
+    if one.blend.is_some() || one.labels.iter().any(|l| Some(l) != first) || !energy.fits(one) {
+        // Not a single label: measured as any loop.
+        return quality_with(
+            |t, out: &mut RgbImage| source.rgb_into(single_frame(one, t), out),
+            source,
+            energy,
+            one,
+            alpha,
+        );
+    }
+    measure(
+        |t, out: &mut RgbImage| source.rgb_into(single_frame(one, t), out),
+        source.dimensions(),
+        Against::Own::<F>(energy),
+        one,
+        alpha,
+    )
 }
 
 /// [`quality_of`]'s step figures alone ([`Quality::smoothest`], [`Quality::worst_step`],
@@ -198,7 +280,7 @@ where
     M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
-    measure(make, source.dimensions(), None::<&F>, rl, alpha)
+    measure(make, source.dimensions(), Against::<F>::Nothing, rl, alpha)
 }
 
 /// [`wraps_of`] of `w x h` frames that `make` gives without a source behind them (e.g. decoded
@@ -212,14 +294,123 @@ pub fn wraps_in<M>(
 where
     M: FnMut(usize, &mut RgbImage),
 {
-    measure(make, dims, None::<&[RgbImage]>, rl, alpha)
+    measure(make, dims, Against::<[RgbImage]>::Nothing, rl, alpha)
 }
 
-/// The loop's step figures, and with `source` the figures against it.
+/// The source frames' gradient energy per tile (the weighted sums and weights of
+/// [`crate::metrics::gradient_sums_at`] over each tile's pixels), which every loop measured on
+/// the same window, alpha and tile size shares.
+pub struct SourceEnergy {
+    tile: u32,
+    dims: (u32, u32),
+    /// Per source frame, per tile (row by row).
+    frames: Vec<Vec<(f64, f64)>>,
+}
+
+impl SourceEnergy {
+    /// The energy of every frame of `source` over tiles of `tile` pixels, weighted by `alpha`.
+    pub fn of<F: Frames + ?Sized>(source: &F, tile: u32, alpha: Option<&image::GrayImage>) -> Self {
+        let (w, h) = source.dimensions();
+        let rects = tile_rects(tile, (w, h));
+        let wt = weights(alpha, (w, h));
+        let frames = (0..source.count())
+            .into_par_iter()
+            .map_init(
+                || RgbImage::new(w, h),
+                |buf, f| {
+                    source.rgb_into(f, buf);
+                    tile_energies(buf, &rects, &wt)
+                },
+            )
+            .collect();
+        Self {
+            tile,
+            dims: (w, h),
+            frames,
+        }
+    }
+
+    /// Whether this measures `rl`'s tiles.
+    fn fits(&self, rl: &RegionLoop) -> bool {
+        let (w, h) = self.dims;
+        self.tile == rl.tile
+            && rl.grid == (w.div_ceil(rl.tile) as usize, h.div_ceil(rl.tile) as usize)
+            && self.frames.iter().all(|f| f.len() == rl.labels.len())
+    }
+}
+
+/// The rectangles `[x0, x1, y0, y1]` of the tiles of `tile` pixels over a `w x h` frame, row by
+/// row (as [`tile_pixels`] lists their pixels).
+fn tile_rects(tile: u32, (w, h): (u32, u32)) -> Vec<[usize; 4]> {
+    let (cols, rows) = (w.div_ceil(tile) as usize, h.div_ceil(tile) as usize);
+    let t = tile as usize;
+    (0..cols * rows)
+        .map(|ti| {
+            let (x0, y0) = ((ti % cols) * t, (ti / cols) * t);
+            [x0, (x0 + t).min(w as usize), y0, (y0 + t).min(h as usize)]
+        })
+        .collect()
+}
+
+/// Per-pixel weights: the alpha's levels over 255, or 1 without one.
+fn weights(alpha: Option<&image::GrayImage>, (w, h): (u32, u32)) -> Vec<f32> {
+    match alpha {
+        Some(a) => a.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
+        None => vec![1.0; (w * h) as usize],
+    }
+}
+
+/// [`crate::metrics::gradient_sums_at`] of `f` over each of `rects`, with weights `wt`: the
+/// same terms summed in the same order (each tile's pixels row by row), so the same figures,
+/// with the frame's luma computed once instead of three times a pixel.
+fn tile_energies(f: &RgbImage, rects: &[[usize; 4]], wt: &[f32]) -> Vec<(f64, f64)> {
+    let (w, h) = (f.width() as usize, f.height() as usize);
+    let mut luma = vec![0f32; w * h];
+    luma.par_chunks_mut(w.max(1))
+        .zip(f.as_raw().par_chunks(3 * w.max(1)))
+        .for_each(|(out, row)| {
+            for (l, p) in out.iter_mut().zip(row.chunks_exact(3)) {
+                *l = 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
+            }
+        });
+    rects
+        .par_iter()
+        .map(|&[x0, x1, y0, y1]| {
+            let (mut s, mut n) = (0f64, 0f64);
+            for y in y0..y1.min(h.saturating_sub(1)) {
+                for x in x0..x1.min(w.saturating_sub(1)) {
+                    let i = y * w + x;
+                    let a = wt[i] as f64;
+                    if a == 0.0 {
+                        continue;
+                    }
+                    let v = luma[i];
+                    let (gx, gy) = (luma[i + 1] - v, luma[i + w] - v);
+                    s += a * (gx * gx + gy * gy) as f64;
+                    n += a;
+                }
+            }
+            (s, n)
+        })
+        .collect()
+}
+
+/// What [`measure`] measures a loop against besides its own steps.
+enum Against<'a, F: ?Sized> {
+    /// Nothing: the step figures alone.
+    Nothing,
+    /// The source frames (and their energy): the baked frames' sharpness and distance to them.
+    Source(&'a F, &'a SourceEnergy),
+    /// The source frames' energy, the loop a single label showing them: its frames' energy is
+    /// theirs and their distance to the source 0.
+    Own(&'a SourceEnergy),
+}
+
+/// The loop's step figures, and against a source the figures against it.
 fn measure<M, F>(
     mut make: M,
     (w, h): (u32, u32),
-    source: Option<&F>,
+    against: Against<'_, F>,
     rl: &RegionLoop,
     alpha: Option<&image::GrayImage>,
 ) -> Quality
@@ -227,20 +418,16 @@ where
     M: FnMut(usize, &mut RgbImage),
     F: Frames + ?Sized,
 {
-    let full = source.is_some();
-    let wt: Vec<f32> = match alpha {
-        Some(a) => a.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
-        None => vec![1.0; (w * h) as usize],
+    let (source, src_energy) = match &against {
+        Against::Nothing => (None, None),
+        Against::Source(s, e) => (Some(*s), Some(*e)),
+        Against::Own(e) => (None, Some(*e)),
     };
+    let wt = weights(alpha, (w, h));
     // Each tile's rectangle (x0, x1, y0, y1), as `tile_pixels` lists them, and the weights as
     // the alpha's levels (255 without one), one per byte, for integer sums.
-    let rects: Vec<[usize; 4]> = (0..rl.labels.len())
-        .map(|ti| {
-            let t = rl.tile as usize;
-            let (x0, y0) = ((ti % rl.grid.0) * t, (ti / rl.grid.0) * t);
-            [x0, (x0 + t).min(w as usize), y0, (y0 + t).min(h as usize)]
-        })
-        .collect();
+    let rects = tile_rects(rl.tile, (w, h));
+    debug_assert_eq!(rects.len(), rl.labels.len());
     let wt8: Vec<u8> = match alpha {
         Some(a) => a.as_raw().iter().flat_map(|&v| [v; 3]).collect(),
         None => vec![255; 3 * (w * h) as usize],
@@ -255,19 +442,23 @@ where
     let sum = |v: &[(f64, f64)]| v.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
     let l = rl.length;
     let (cols, _) = rl.grid;
-    let tile_px = tile_pixels(rl, w, h);
     let rows = rl.labels.len() / cols;
     let at_t = |t: usize| (t + rl.phase) % l;
     // Per tile: its share of the dynamic region, whether it counts (at least 10% dynamic), and
     // the frames near its wraps (from one before to two after each).
-    let share: Vec<f64> = tile_px
+    let share: Vec<f64> = rects
         .iter()
-        .map(|px| px.iter().map(|&i| wt[i] as f64).sum::<f64>())
+        .map(|&[x0, x1, y0, y1]| {
+            (y0..y1)
+                .flat_map(|y| (x0..x1).map(move |x| y * w as usize + x))
+                .map(|i| wt[i] as f64)
+                .sum::<f64>()
+        })
         .collect();
-    let counts: Vec<bool> = tile_px
+    let counts: Vec<bool> = rects
         .iter()
         .zip(&share)
-        .map(|(px, &s)| s >= 0.1 * px.len() as f64)
+        .map(|(&[x0, x1, y0, y1], &s)| s >= 0.1 * ((x1 - x0) * (y1 - y0)) as f64)
         .collect();
     let wraps_at = |lab: &Label, t: usize| lab.frame(at_t(t + 1)) != lab.frame(at_t(t)) + 1;
     let near: Vec<Vec<bool>> = rl
@@ -312,14 +503,18 @@ where
         let tile_steps = tile_steps_of(a, b);
         let (s, n) = sum(&tile_steps);
         steps.push(s / n.max(1e-9));
-        // The frame's gradient energy, summed from its tiles' (every tile, counted or not).
-        let energy = full.then(|| {
-            tile_px
-                .par_iter()
-                .map(|px| crate::metrics::gradient_sums_at(a, Some(px), Some(&wt)))
-                .collect::<Vec<_>>()
-        });
-        if let Some(e) = &energy {
+        // The frame's gradient energy, summed from its tiles' (every tile, counted or not):
+        // measured, or a source frame's own.
+        let measured;
+        let energy: Option<&[(f64, f64)]> = match &against {
+            Against::Nothing => None,
+            Against::Source(..) => {
+                measured = tile_energies(a, &rects, &wt);
+                Some(&measured)
+            }
+            Against::Own(e) => Some(&e.frames[rl.labels[0].frame(at_t(t))]),
+        };
+        if let Some(e) = energy {
             let (s, n) = e.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
             ge_baked += s / n.max(1e-9);
         }
@@ -327,8 +522,8 @@ where
             .par_iter_mut()
             .enumerate()
             .filter(|(ti, _)| counts[*ti])
-            .for_each(|(ti, tt)| {
-                let (px, lab) = (&tile_px[ti], &rl.labels[ti]);
+            .for_each_init(Vec::new, |buf, (ti, tt)| {
+                let lab = &rl.labels[ti];
                 let (s, n) = tile_steps[ti];
                 let step = s / n.max(1e-9);
                 if wraps_at(lab, t) {
@@ -336,27 +531,21 @@ where
                 } else {
                     tt.ordinary.push(step);
                 }
-                let (Some(energy), Some(source)) = (&energy, source) else {
+                let Some(energy) = energy else {
                     return;
                 };
-                tt.error += candidates(ti, t)
-                    .into_iter()
-                    .map(|f| {
-                        let (e, n) = mad_by(
-                            |i| {
-                                [
-                                    a.as_raw()[3 * i],
-                                    a.as_raw()[3 * i + 1],
-                                    a.as_raw()[3 * i + 2],
-                                ]
-                            },
-                            |i| at(source, f, i, w),
-                            px,
-                            &wt,
-                        );
-                        e / n.max(1e-9)
-                    })
-                    .fold(f64::INFINITY, f64::min);
+                // A single label's frames are the source's: 0 from the nearest.
+                if let Some(source) = source {
+                    let rect = rects[ti];
+                    tt.error += candidates(ti, t)
+                        .into_iter()
+                        .map(|f| {
+                            source.rect_into(f, rect, buf);
+                            let (e, n) = mad_rect_buf(a, rect, w as usize, &wt8, buf);
+                            e / n.max(1e-9)
+                        })
+                        .fold(f64::INFINITY, f64::min);
+                }
                 if near[ti][t] {
                     let (s, n) = energy[ti];
                     tt.near.0 += s / n.max(1e-9);
@@ -380,39 +569,19 @@ where
         .min_by(|&a, &b| steps[a].total_cmp(&steps[b]))
         .unwrap_or(0);
     let worst_step = steps.iter().cloned().fold(0.0, f64::max) / med;
-    // The source frames' gradient energy, per tile and over the frame, one frame in RGB at a
-    // time per thread.
-    let n_src = source.map_or(0, |s| s.count());
-    let (ge_src_tiles, ge_src) = (0..n_src)
-        .into_par_iter()
-        .map_init(
-            || RgbImage::new(w, h),
-            |buf, f| {
-                source
-                    .expect("n_src > 0 only with a source")
-                    .rgb_into(f, buf);
-                let sums: Vec<(f64, f64)> = tile_px
-                    .iter()
-                    .map(|px| crate::metrics::gradient_sums_at(buf, Some(px), Some(&wt)))
-                    .collect();
-                let (s, n) = sums.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
-                let tiles: Vec<f64> = sums
-                    .iter()
-                    .zip(&counts)
-                    .map(|(&(s, n), &c)| if c { s / n.max(1e-9) } else { 0.0 })
-                    .collect();
-                (tiles, s / n.max(1e-9))
-            },
-        )
-        .reduce(
-            || (vec![0.0; tile_px.len()], 0.0),
-            |(mut a, x), (b, y)| {
-                for (a, b) in a.iter_mut().zip(&b) {
-                    *a += b;
-                }
-                (a, x + y)
-            },
-        );
+    // The source frames' gradient energy, per tile (counted ones) and over the frame.
+    let n_src = src_energy.map_or(0, |e| e.frames.len());
+    let mut ge_src_tiles = vec![0.0; rects.len()];
+    let mut ge_src = 0.0;
+    for sums in src_energy.iter().flat_map(|e| &e.frames) {
+        let (s, n) = sums.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        ge_src += s / n.max(1e-9);
+        for ((a, &(s, n)), &c) in ge_src_tiles.iter_mut().zip(sums).zip(&counts) {
+            if c {
+                *a += s / n.max(1e-9);
+            }
+        }
+    }
     // Per tile: its wrap ratio, its source error, its gradient energy near its wraps and in
     // the source, and its share of the dynamic region.
     let per_tile: Vec<(f64, f64, f64, f64, f64)> = tally
@@ -507,5 +676,106 @@ mod tests {
             assert!((rs - s).abs() <= 1e-6 * s, "tile {ti}: {rs} vs {s}");
             assert!((rn - n).abs() <= 1e-6 * n, "tile {ti}: {rn} vs {n}");
         }
+    }
+
+    fn noise_frame(w: u32, h: u32, seed: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let v = (x * 31 + y * 17 + seed * 101).wrapping_mul(2654435761) >> 24;
+            image::Rgb([v as u8, (v * 3) as u8, (v * 7) as u8])
+        })
+    }
+
+    /// The per-tile energies from one luma plane are `gradient_sums_at`'s over each tile's
+    /// pixel list, exactly, with weights that are zero in places and a frame no multiple of
+    /// the tile.
+    #[test]
+    fn tile_energies_match_the_pixel_lists() {
+        let (w, h, tile) = (37u32, 23u32, 8u32);
+        let f = noise_frame(w, h, 3);
+        let wt: Vec<f32> = (0..w * h).map(|i| (i * 13 % 256) as f32 / 255.0).collect();
+        let rl = single_loop(
+            Label {
+                start: 0,
+                period: 4,
+            },
+            (w, h),
+            tile,
+        );
+        let lists = tile_pixels(&rl, w, h);
+        let fast = tile_energies(&f, &tile_rects(tile, (w, h)), &wt);
+        assert_eq!(fast.len(), lists.len());
+        for (ti, px) in lists.iter().enumerate() {
+            let slow = crate::metrics::gradient_sums_at(&f, Some(px), Some(&wt));
+            assert!(slow.0 > 0.0, "tile {ti}");
+            assert_eq!(fast[ti], slow, "tile {ti}");
+        }
+    }
+
+    /// A rectangle read from 4:2:0 frames a row at a time is what `px` reads pixel by pixel,
+    /// at even and odd edges.
+    #[test]
+    fn rectangles_read_as_the_pixels() {
+        let (w, h) = (38u32, 22u32);
+        let data: Vec<u8> = (0..w * h * 3 / 2)
+            .map(|i| (i.wrapping_mul(2654435761) >> 24) as u8)
+            .collect();
+        let yuv = crate::yuv::Yuv420Image::from_raw(
+            w,
+            h,
+            crate::yuv::YuvMatrix::Bt709,
+            crate::yuv::YuvRange::Limited,
+            data,
+        )
+        .expect("an even frame");
+        let frames = vec![
+            crate::analysis::Frame::Rgb(noise_frame(w, h, 1)),
+            crate::analysis::Frame::Yuv420(yuv),
+        ];
+        let mut buf = Vec::new();
+        for rect in [
+            [0, 38, 0, 22],
+            [16, 32, 8, 16],
+            [32, 38, 16, 22],
+            [3, 9, 5, 6],
+        ] {
+            for f in 0..2 {
+                frames.as_slice().rect_into(f, rect, &mut buf);
+                let [x0, x1, y0, y1] = rect;
+                let want: Vec<u8> = (y0..y1)
+                    .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+                    .flat_map(|(x, y)| frames.as_slice().px(f, x as u32, y as u32))
+                    .collect();
+                assert_eq!(buf, want, "frame {f}, rect {rect:?}");
+            }
+        }
+    }
+
+    /// The thesis's loop measured from the source's energy (its frames are the source's) gives
+    /// the figures of the same frames measured as any baked loop.
+    #[test]
+    fn a_single_label_measures_as_its_frames() {
+        let (w, h, tile) = (40u32, 24u32, 8u32);
+        // A drifting pattern with a jump at the wrap.
+        let frames: Vec<RgbImage> = (0..14).map(|k| noise_frame(w, h, k / 2)).collect();
+        let alpha = image::GrayImage::from_fn(w, h, |x, _| image::Luma([(x * 7) as u8]));
+        let one = single_loop(
+            Label {
+                start: 2,
+                period: 10,
+            },
+            (w, h),
+            tile,
+        );
+        let slow = quality_of(
+            |t, out: &mut RgbImage| frames.rgb_into(single_frame(&one, t), out),
+            &frames,
+            &one,
+            Some(&alpha),
+        );
+        let energy = SourceEnergy::of(&frames, tile, Some(&alpha));
+        let fast = quality_of_single(&frames, &energy, &one, Some(&alpha));
+        assert!(slow.sharpness > 0.5 && slow.tile_wrap > 0.0, "{slow:?}");
+        assert_eq!(slow.source_error, 0.0);
+        assert_eq!(fast, slow);
     }
 }
