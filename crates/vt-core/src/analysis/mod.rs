@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::appearance::{self, change_thumb, thumb_factor, Thumb};
-use crate::blur::{gaussian_blur, gaussian_blur_into, BlurScratch, GaussianBlur, GaussianParams};
+use crate::blur::{gaussian_blur, BlurScratch, GaussianBlur, GaussianParams};
 use crate::loops::{check_loop_input, loops_from_pair_costs, pair_costs, Loop, LoopParams};
 use crate::median::{temporal_median_frames, MedianAccumulator};
 use crate::model::{select_model, ModelParams, MotionModel, Selection};

@@ -240,106 +240,106 @@ pub(super) fn analyze_view(
     let factor = thumb_factor(bg_blur.width(), bg_blur.height());
     let mut thumbs: Vec<Thumb> = Vec::new();
 
-    // Pass 2: masks.
+    // Pass 2: masks. Frames in chunks: each chunk's frames converted, blurred and masked in
+    // parallel (one frame per thread, buffers reused) while the previous chunk goes to the
+    // observer in order (object store writes, the motion tally) on this thread. The chunks are
+    // the frame cache's, which stays for the per-region loop's window; without a cache, the
+    // frames decoded once more, a chunk at a time in the source's form.
     observer.start(Stage::Masks, Some(p), Some(n1 as u64));
     let t = Instant::now();
     let mut masks = Vec::with_capacity(n1);
-    let mut inside = Duration::ZERO;
-    if let Some(frames) = cache.as_deref() {
-        // Frames in chunks: each chunk's frames converted, blurred and masked in parallel (one
-        // frame per thread, buffers reused) while the previous chunk goes to the observer in
-        // order (object store writes, the motion tally) on this thread. The cache stays for
-        // the per-region loop's window.
-        let blur = GaussianBlur::new(&params.blur)?;
-        let (w, h) = bg_blur.dimensions();
-        let chunk = (4 * rayon::current_num_threads()).max(8);
-        let buffers = || -> Vec<RgbImage> {
-            (0..chunk.min(frames.len()))
-                .map(|_| RgbImage::new(w, h))
-                .collect()
-        };
-        let (mut ready, mut spare) = (buffers(), buffers());
-        // Blur buffers, one per frame of a chunk (one chunk is computed at a time).
-        let mut blurs: Vec<(BlurScratch, RgbImage)> = (0..ready.len())
-            .map(|_| (BlurScratch::default(), RgbImage::new(w, h)))
-            .collect();
-        // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
-        // with `prev`, the previous chunk's last frame and mask.
-        type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
-        let compute = |part: &[Frame],
-                       rgb: &mut Vec<RgbImage>,
-                       blurs: &mut Vec<(BlurScratch, RgbImage)>,
-                       prev: Option<(&RgbImage, &Mask)>|
-         -> Result<Computed> {
-            let masks: Vec<(Mask, Option<Thumb>)> = part
-                .par_iter()
-                .zip(rgb.par_iter_mut())
-                .zip(blurs.par_iter_mut())
-                .map(|((f, out), (scratch, blurred))| {
-                    f.as_ref().to_rgb_into(out);
-                    blur.apply_into(out, blurred, scratch)?;
-                    let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
-                    Ok((mask_of(blurred)?, thumb))
-                })
-                .collect::<Result<_>>()?;
-            let rgb: &[RgbImage] = rgb;
-            let change = (0..masks.len())
-                .into_par_iter()
-                .map(|k| {
-                    let before = match k {
-                        0 => prev,
-                        _ => Some((&rgb[k - 1], &masks[k - 1].0)),
-                    };
-                    before.map_or((0, 0), |(f0, m0)| {
-                        pair_change(f0, m0, &rgb[k], &masks[k].0, &background, alpha)
-                    })
-                })
-                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-            Ok((masks, change))
-        };
-        let mut parts = frames.chunks(chunk);
-        let (mut pending, change) = compute(
-            parts.next().unwrap_or_default(),
-            &mut ready,
-            &mut blurs,
-            None,
-        )?;
-        kept.add(change);
-        let mut i = 0;
-        while !pending.is_empty() {
-            let part = parts.next().unwrap_or_default();
-            let last_mask = pending.last().map(|(m, _)| m.clone());
-            let prev = pending
-                .len()
-                .checked_sub(1)
-                .map(|k| &ready[k])
-                .zip(last_mask.as_ref());
-            let (next, flushed) = std::thread::scope(|scope| {
-                let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
-                let mut flush = || -> Result<()> {
-                    for ((m, thumb), f) in pending.drain(..).zip(&ready) {
-                        observer.object_frame(p, i, &shown(&m), f)?;
-                        masks.push(m);
-                        thumbs.extend(thumb);
-                        observer.tick();
-                        i += 1;
-                    }
-                    Ok(())
+    let blur = GaussianBlur::new(&params.blur)?;
+    let (w, h) = bg_blur.dimensions();
+    let threads = rayon::current_num_threads();
+    let chunk = match &cache {
+        Some(frames) => (4 * threads).max(8).min(frames.len()),
+        // Streamed frames are held a chunk at a time beside their RGB and blur buffers.
+        None => (2 * threads).max(4),
+    };
+    let buffers = || -> Vec<RgbImage> { (0..chunk).map(|_| RgbImage::new(w, h)).collect() };
+    let (mut ready, mut spare) = (buffers(), buffers());
+    // Blur buffers, one per frame of a chunk (one chunk is computed at a time).
+    let mut blurs: Vec<(BlurScratch, RgbImage)> = (0..chunk)
+        .map(|_| (BlurScratch::default(), RgbImage::new(w, h)))
+        .collect();
+    // A chunk's masks (and thumbnails), and the motion tally of its frames' pairs, the first
+    // with `prev`, the previous chunk's last frame and mask.
+    type Computed = (Vec<(Mask, Option<Thumb>)>, (u64, u64));
+    let compute = |part: &[Frame],
+                   rgb: &mut Vec<RgbImage>,
+                   blurs: &mut Vec<(BlurScratch, RgbImage)>,
+                   prev: Option<(&RgbImage, &Mask)>|
+     -> Result<Computed> {
+        let masks: Vec<(Mask, Option<Thumb>)> = part
+            .par_iter()
+            .zip(rgb.par_iter_mut())
+            .zip(blurs.par_iter_mut())
+            .map(|((f, out), (scratch, blurred))| {
+                f.as_ref().to_rgb_into(out);
+                blur.apply_into(out, blurred, scratch)?;
+                let thumb = with_thumbs.then(|| change_thumb(blurred, &bg_blur, factor));
+                Ok((mask_of(blurred)?, thumb))
+            })
+            .collect::<Result<_>>()?;
+        let rgb: &[RgbImage] = rgb;
+        let change = (0..masks.len())
+            .into_par_iter()
+            .map(|k| {
+                let before = match k {
+                    0 => prev,
+                    _ => Some((&rgb[k - 1], &masks[k - 1].0)),
                 };
-                let flushed = flush();
-                (worker.join(), flushed)
-            });
-            flushed?;
-            let (next, change) = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
-            kept.add(change);
-            pending = next;
-            std::mem::swap(&mut ready, &mut spare);
+                before.map_or((0, 0), |(f0, m0)| {
+                    pair_change(f0, m0, &rgb[k], &masks[k].0, &background, alpha)
+                })
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        Ok((masks, change))
+    };
+    // The chunk computed last, waiting to be flushed.
+    let mut pending: Vec<(Mask, Option<Thumb>)> = Vec::new();
+    let mut i = 0;
+    // Computes `part` while the pending chunk is flushed; `part` empty: flushes the last.
+    let mut step = |part: &[Frame]| -> Result<()> {
+        let last_mask = pending.last().map(|(m, _)| m.clone());
+        let prev = pending
+            .len()
+            .checked_sub(1)
+            .map(|k| &ready[k])
+            .zip(last_mask.as_ref());
+        let (next, flushed) = std::thread::scope(|scope| {
+            let worker = scope.spawn(|| compute(part, &mut spare, &mut blurs, prev));
+            let mut flush = || -> Result<()> {
+                for ((m, thumb), f) in pending.drain(..).zip(&ready) {
+                    observer.object_frame(p, i, &shown(&m), f)?;
+                    masks.push(m);
+                    thumbs.extend(thumb);
+                    observer.tick();
+                    i += 1;
+                }
+                Ok(())
+            };
+            let flushed = flush();
+            (worker.join(), flushed)
+        });
+        flushed?;
+        let (next, change) = next.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+        kept.add(change);
+        pending = next;
+        std::mem::swap(&mut ready, &mut spare);
+        Ok(())
+    };
+    if let Some(frames) = cache.as_deref() {
+        for part in frames.chunks(chunk.max(1)) {
+            step(part)?;
         }
+        step(&[])?;
         timings.masks += t.elapsed();
     } else {
-        let mut blurred = RgbImage::new(bg_blur.width(), bg_blur.height());
+        let mut batch: Vec<Frame> = Vec::with_capacity(chunk);
+        let mut inside = Duration::ZERO;
         let t_pass = Instant::now();
-        let n2 = src.for_each_frame(&mut |i, frame| {
+        let n2 = src.for_each_native(&mut |i, frame| {
             let t = Instant::now();
             if frame.dimensions() != bg_blur.dimensions() {
                 return Err(size_err(
@@ -348,18 +348,19 @@ pub(super) fn analyze_view(
                     frame.dimensions(),
                 ));
             }
-            gaussian_blur_into(frame, &params.blur, &mut blurred)?;
-            let m = mask_of(&blurred)?;
-            if with_thumbs {
-                thumbs.push(change_thumb(&blurred, &bg_blur, factor));
+            batch.push(frame.to_owned());
+            if batch.len() == chunk {
+                step(&batch)?;
+                batch.clear();
             }
-            observer.object_frame(p, i, &shown(&m), frame)?;
-            kept.push(frame, &m, &background, alpha);
-            masks.push(m);
-            observer.tick();
             inside += t.elapsed();
             Ok(())
         })?;
+        let t_rest = Instant::now();
+        step(&batch)?;
+        step(&[])?;
+        drop(batch);
+        inside += t_rest.elapsed();
         if n2 != n1 {
             return Err(Error::Source {
                 view: label(""),
