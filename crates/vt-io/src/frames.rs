@@ -299,14 +299,18 @@ impl VideoSource {
         }
     }
 
-    /// Runs ffmpeg to decode every frame as raw `pix_fmt` of `frame_bytes` bytes, calling
-    /// `on_frame(index, bytes)` for each; returns the frame count.
+    /// Runs ffmpeg to decode every frame (or the first `end`) as raw `pix_fmt` of
+    /// `frame_bytes` bytes, calling `on_frame(index, bytes)` for each; returns the frame count.
     fn decode(
         &self,
         pix_fmt: &str,
         frame_bytes: usize,
+        end: Option<usize>,
         on_frame: &mut dyn FnMut(usize, &mut Vec<u8>) -> vt_core::Result<()>,
     ) -> vt_core::Result<usize> {
+        if end == Some(0) {
+            return Ok(0);
+        }
         let mut child = Command::new("ffmpeg")
             .args(["-v", "error", "-xerror", "-nostdin", "-i"])
             .arg(&self.path)
@@ -315,6 +319,10 @@ impl VideoSource {
                 self.display
                     .filters()
                     .map(|f| vec!["-vf".to_string(), f])
+                    .unwrap_or_default(),
+            )
+            .args(
+                end.map(|n| vec!["-frames:v".to_string(), n.to_string()])
                     .unwrap_or_default(),
             )
             .args([
@@ -383,24 +391,31 @@ impl VideoSource {
     fn decode_yuv(
         &self,
         (matrix, range): (YuvMatrix, YuvRange),
+        end: Option<usize>,
         f: &mut dyn FnMut(usize, &Yuv420Image) -> vt_core::Result<()>,
     ) -> vt_core::Result<usize> {
         let (w, h) = (self.width, self.height);
-        self.decode("yuv420p", Yuv420Image::byte_len(w, h), &mut |i, buf| {
-            let img = Yuv420Image::from_raw(w, h, matrix, range, std::mem::take(buf))?;
-            let r = f(i, &img);
-            *buf = img.into_raw();
-            r
-        })
+        self.decode(
+            "yuv420p",
+            Yuv420Image::byte_len(w, h),
+            end,
+            &mut |i, buf| {
+                let img = Yuv420Image::from_raw(w, h, matrix, range, std::mem::take(buf))?;
+                let r = f(i, &img);
+                *buf = img.into_raw();
+                r
+            },
+        )
     }
 
     /// Decodes RGB frames (converted by ffmpeg).
     fn decode_rgb(
         &self,
+        end: Option<usize>,
         f: &mut dyn FnMut(usize, &RgbImage) -> vt_core::Result<()>,
     ) -> vt_core::Result<usize> {
         let (w, h) = (self.width, self.height);
-        self.decode("rgb24", w as usize * h as usize * 3, &mut |i, buf| {
+        self.decode("rgb24", w as usize * h as usize * 3, end, &mut |i, buf| {
             let img = RgbImage::from_raw(w, h, std::mem::take(buf)).expect("buffer is w*h*3");
             let r = f(i, &img);
             *buf = img.into_raw();
@@ -421,12 +436,12 @@ impl FrameSource for VideoSource {
         match self.yuv {
             Some(form) => {
                 let mut rgb = RgbImage::new(self.width, self.height);
-                self.decode_yuv(form, &mut |i, yuv| {
+                self.decode_yuv(form, None, &mut |i, yuv| {
                     yuv.to_rgb_into(&mut rgb);
                     f(i, &rgb)
                 })
             }
-            None => self.decode_rgb(f),
+            None => self.decode_rgb(None, f),
         }
     }
 
@@ -434,9 +449,28 @@ impl FrameSource for VideoSource {
         &mut self,
         f: &mut dyn FnMut(usize, FrameRef<'_>) -> vt_core::Result<()>,
     ) -> vt_core::Result<usize> {
+        self.native(None, f)
+    }
+
+    fn for_each_native_to(
+        &mut self,
+        end: usize,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
+        self.native(Some(end), f)
+    }
+}
+
+impl VideoSource {
+    /// The frames in their decoded form: every one, or the first `end`.
+    fn native(
+        &self,
+        end: Option<usize>,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> vt_core::Result<()>,
+    ) -> vt_core::Result<usize> {
         match self.yuv {
-            Some(form) => self.decode_yuv(form, &mut |i, yuv| f(i, FrameRef::Yuv420(yuv))),
-            None => self.decode_rgb(&mut |i, rgb| f(i, FrameRef::Rgb(rgb))),
+            Some(form) => self.decode_yuv(form, end, &mut |i, yuv| f(i, FrameRef::Yuv420(yuv))),
+            None => self.decode_rgb(end, &mut |i, rgb| f(i, FrameRef::Rgb(rgb))),
         }
     }
 }
@@ -622,4 +656,37 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<()> {
             path: path.to_path_buf(),
             message: e.to_string(),
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first frames of a video, as a read that stops after them gives them, are the full
+    /// read's frames; a read past the clip's end gives the whole clip.
+    #[test]
+    fn a_read_that_stops_early_gives_the_first_frames() {
+        let tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/tree.avi");
+        let mut src = VideoSource::open(&tree).expect("tree.avi opens");
+        let mut all: Vec<Vec<u8>> = Vec::new();
+        let n = src
+            .for_each_native(&mut |_, f| {
+                all.push(f.rgb(&mut RgbImage::new(0, 0)).as_raw().clone());
+                Ok(())
+            })
+            .expect("a full read");
+        assert_eq!(n, 68);
+        for end in [1, 10, 68, 1000] {
+            let mut first: Vec<Vec<u8>> = Vec::new();
+            let got = src
+                .for_each_native_to(end, &mut |i, f| {
+                    assert!(i < end, "frame {i} past {end}");
+                    first.push(f.rgb(&mut RgbImage::new(0, 0)).as_raw().clone());
+                    Ok(())
+                })
+                .expect("a read to a frame");
+            assert_eq!(got, end.min(68), "end {end}");
+            assert!(first == all[..got], "end {end}: other frames");
+        }
+    }
 }

@@ -50,6 +50,18 @@ pub trait FrameSource {
     ) -> Result<usize> {
         self.for_each_frame(&mut |i, rgb| f(i, FrameRef::Rgb(rgb)))
     }
+    /// [`FrameSource::for_each_native`] of frames `0..end` alone: a source may stop reading
+    /// past them (a video decoder stops decoding). Returns how many of them it gave: `end`, or
+    /// fewer when the clip is shorter. The default reads every frame and hands out the first
+    /// `end`.
+    fn for_each_native_to(
+        &mut self,
+        end: usize,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
+    ) -> Result<usize> {
+        let n = self.for_each_native(&mut |i, frame| if i < end { f(i, frame) } else { Ok(()) })?;
+        Ok(n.min(end))
+    }
 }
 
 /// A frame as its source holds it.

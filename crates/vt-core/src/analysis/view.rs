@@ -768,8 +768,8 @@ fn bake_regions<F: crate::regions::Frames + ?Sized>(
 }
 
 /// [`crate::regions::wraps_of`] of the single-label loop `one` over frames `start..start +
-/// one.length` of `src` (`w x h`), decoded once more (all `n` of them) and measured as they come on another
-/// thread, two frames in flight.
+/// one.length` of `src` (`w x h`, `n` frames), decoded once more up to the loop's last frame and
+/// measured as they come on another thread, two frames in flight.
 fn streamed_wraps(
     src: &mut dyn FrameSource,
     (w, h): (u32, u32),
@@ -809,7 +809,7 @@ fn streamed_wraps(
                 alpha,
             )
         });
-        let got = src.for_each_native(&mut |i, frame| {
+        let got = src.for_each_native_to(start + l, &mut |i, frame| {
             if (start..start + l).contains(&i) {
                 let mut rgb = spent.try_recv().unwrap_or_else(|_| RgbImage::new(0, 0));
                 frame.to_rgb_into(&mut rgb);
@@ -825,7 +825,7 @@ fn streamed_wraps(
         (got, wraps)
     });
     let got = got?;
-    if got != n {
+    if got != (start + l).min(n) {
         return Err(Error::Source {
             view: label(""),
             message: format!("gave {n} frames on the first read and {got} on the third"),
@@ -834,7 +834,7 @@ fn streamed_wraps(
     Ok(wraps)
 }
 
-/// Frames `range` of `src` (decoded again, all `n` of them), packed losslessly while they take
+/// Frames `range` of `src` (decoded again up to the range's end, of `n`), packed losslessly while they take
 /// at most `budget` bytes (the frames past it are left out), and the packed size of the first
 /// frame left out (0 when none was).
 fn read_window(
@@ -846,7 +846,9 @@ fn read_window(
 ) -> Result<(crate::packed::PackedFrames, usize)> {
     let mut window = crate::packed::PackedFrames::new();
     let (mut full, mut left_out) = (false, 0);
-    let got = src.for_each_native(&mut |i, frame| {
+    // Decoded up to the window's end (of the `n` frames the first read gave).
+    let end = range.end.min(n);
+    let got = src.for_each_native_to(end, &mut |i, frame| {
         if range.contains(&i) && !full {
             let before = window.byte_len();
             window.push(frame)?;
@@ -858,7 +860,7 @@ fn read_window(
         }
         Ok(())
     })?;
-    if got != n {
+    if got != end {
         return Err(Error::Source {
             view: label(""),
             message: format!("gave {n} frames on the first read and {got} on the third"),

@@ -114,6 +114,19 @@ impl FrameSource for Probing<'_> {
         })?;
         self.first(n)
     }
+
+    fn for_each_native_to(
+        &mut self,
+        end: usize,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
+    ) -> Result<usize> {
+        if self.probed {
+            return self.source.for_each_native_to(end, f);
+        }
+        // The probe needs the whole clip.
+        let n = self.for_each_native(&mut |i, frame| if i < end { f(i, frame) } else { Ok(()) })?;
+        Ok(n.min(end))
+    }
 }
 
 /// Runs `pass` (a decoding pass that calls its hook with every frame before using it) with
@@ -208,14 +221,38 @@ impl FrameSource for Steady<'_> {
         &mut self,
         f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
     ) -> Result<usize> {
+        self.native(None, f)
+    }
+
+    fn for_each_native_to(
+        &mut self,
+        end: usize,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
+    ) -> Result<usize> {
+        self.native(Some(end), f)
+    }
+}
+
+impl Steady<'_> {
+    /// The warped frames in their source's form: every frame, or frames `0..end`.
+    fn native(
+        &mut self,
+        end: Option<usize>,
+        f: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>,
+    ) -> Result<usize> {
+        let name = self.source.name().to_string();
+        let source = &mut *self.source;
+        let mut read = |g: &mut dyn FnMut(usize, FrameRef<'_>) -> Result<()>| match end {
+            Some(end) => source.for_each_native_to(end, g),
+            None => source.for_each_native(g),
+        };
         let Some(maps) = &self.maps else {
-            return self.source.for_each_native(f);
+            return read(f);
         };
         let size = self.size;
         let mut rgb = RgbImage::new(size.0, size.1);
         let mut yuv: Option<Yuv420Image> = None;
-        let name = self.source.name().to_string();
-        self.source.for_each_native(&mut |i, frame| {
+        read(&mut |i, frame| {
             let h = maps.get(i).ok_or_else(|| past_end(&name, i, maps.len()))?;
             match frame {
                 FrameRef::Rgb(src) => {
