@@ -141,6 +141,24 @@ impl Frame {
             Frame::Yuv420(f) => FrameRef::Yuv420(f),
         }
     }
+
+    /// Becomes a copy of `frame`, in this frame's buffer when it has the same form and size
+    /// (no allocation: a stream of frames copied into a few).
+    pub fn copy_from(&mut self, frame: FrameRef<'_>) {
+        match (self, frame) {
+            (Frame::Rgb(dst), FrameRef::Rgb(src)) if dst.dimensions() == src.dimensions() => {
+                dst.copy_from_slice(src.as_raw())
+            }
+            (Frame::Yuv420(dst), FrameRef::Yuv420(src))
+                if dst.dimensions() == src.dimensions()
+                    && dst.matrix() == src.matrix()
+                    && dst.range() == src.range() =>
+            {
+                dst.as_raw_mut().copy_from_slice(src.as_raw())
+            }
+            (this, frame) => *this = frame.to_owned(),
+        }
+    }
 }
 
 /// Frames already in memory.
