@@ -647,17 +647,25 @@ mod tests {
     #[test]
     fn rectangle_sums_match_the_pixel_lists() {
         let (w, h, tile) = (37u32, 23u32, 8u32);
-        let noise = |seed: u32| {
-            RgbImage::from_fn(w, h, |x, y| {
-                let v = (x * 31 + y * 17 + seed).wrapping_mul(2654435761) >> 24;
-                image::Rgb([v as u8, (v * 3) as u8, (v * 7) as u8])
-            })
-        };
-        let (a, b) = (noise(1), noise(2));
+        let (a, b) = (noise_frame(w, h, 1), noise_frame(w, h, 2));
         let alpha: Vec<u8> = (0..w * h).map(|i| (i * 13 % 256) as u8).collect();
         let wt: Vec<f32> = alpha.iter().map(|&v| v as f32 / 255.0).collect();
         let wt3: Vec<u8> = alpha.iter().flat_map(|&v| [v; 3]).collect();
-        let rl = crate::regions::single_loop(
+        let (lists, rects) = tiles(w, h, tile);
+        assert_eq!(lists.len(), 5 * 3);
+        assert_eq!(rects[14], [32, 37, 16, 23]);
+        for (ti, (px, &rect)) in lists.iter().zip(&rects).enumerate() {
+            let (s, n) = mad(&a, &b, px, &wt);
+            let (rs, rn) = mad_rect(&a, &b, rect, w as usize, &wt3);
+            assert!(n > 0.0 && s > 0.0, "tile {ti}");
+            assert!((rs - s).abs() <= 1e-6 * s, "tile {ti}: {rs} vs {s}");
+            assert!((rn - n).abs() <= 1e-6 * n, "tile {ti}: {rn} vs {n}");
+        }
+    }
+
+    /// The tiles of `tile` pixels over a `w x h` frame: their pixel lists and rectangles.
+    fn tiles(w: u32, h: u32, tile: u32) -> (Vec<Vec<usize>>, Vec<[usize; 4]>) {
+        let rl = single_loop(
             Label {
                 start: 0,
                 period: 4,
@@ -665,17 +673,7 @@ mod tests {
             (w, h),
             tile,
         );
-        let lists = tile_pixels(&rl, w, h);
-        assert_eq!(lists.len(), 5 * 3);
-        for (ti, px) in lists.iter().enumerate() {
-            let (x0, y0) = ((ti % 5) * 8, (ti / 5) * 8);
-            let rect = [x0, (x0 + 8).min(37), y0, (y0 + 8).min(23)];
-            let (s, n) = mad(&a, &b, px, &wt);
-            let (rs, rn) = mad_rect(&a, &b, rect, w as usize, &wt3);
-            assert!(n > 0.0 && s > 0.0, "tile {ti}");
-            assert!((rs - s).abs() <= 1e-6 * s, "tile {ti}: {rs} vs {s}");
-            assert!((rn - n).abs() <= 1e-6 * n, "tile {ti}: {rn} vs {n}");
-        }
+        (tile_pixels(&rl, w, h), tile_rects(tile, (w, h)))
     }
 
     fn noise_frame(w: u32, h: u32, seed: u32) -> RgbImage {
@@ -693,16 +691,8 @@ mod tests {
         let (w, h, tile) = (37u32, 23u32, 8u32);
         let f = noise_frame(w, h, 3);
         let wt: Vec<f32> = (0..w * h).map(|i| (i * 13 % 256) as f32 / 255.0).collect();
-        let rl = single_loop(
-            Label {
-                start: 0,
-                period: 4,
-            },
-            (w, h),
-            tile,
-        );
-        let lists = tile_pixels(&rl, w, h);
-        let fast = tile_energies(&f, &tile_rects(tile, (w, h)), &wt);
+        let (lists, rects) = tiles(w, h, tile);
+        let fast = tile_energies(&f, &rects, &wt);
         assert_eq!(fast.len(), lists.len());
         for (ti, px) in lists.iter().enumerate() {
             let slow = crate::metrics::gradient_sums_at(&f, Some(px), Some(&wt));
