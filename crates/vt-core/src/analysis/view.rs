@@ -254,8 +254,10 @@ pub(super) fn analyze_view(
     let chunk = match &cache {
         Some(frames) => (4 * threads).max(8).min(frames.len()),
         // Streamed frames are held a chunk at a time beside their RGB and blur buffers (about
-        // 10 bytes a pixel each): a frame per thread.
-        None => threads.max(2),
+        // 10 bytes a pixel each): one frame, computed on the pool while the one before is
+        // written (a frame per thread raised the peak at 1080p from 373 to 420 MB, and was no
+        // faster on 2 cores).
+        None => 1,
     };
     let buffers = || -> Vec<RgbImage> { (0..chunk).map(|_| RgbImage::new(w, h)).collect() };
     let (mut ready, mut spare) = (buffers(), buffers());
