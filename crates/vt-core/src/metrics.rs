@@ -103,7 +103,7 @@ pub fn mean_abs_diff(a: &RgbImage, reference: &RgbImage, mask: Option<&Mask>) ->
 }
 
 /// Luma `0.299 R + 0.587 G + 0.114 B` of pixel `i` of packed RGB.
-fn luma_at(raw: &[u8], i: usize) -> f32 {
+pub(crate) fn luma_at(raw: &[u8], i: usize) -> f32 {
     0.299 * raw[3 * i] as f32 + 0.587 * raw[3 * i + 1] as f32 + 0.114 * raw[3 * i + 2] as f32
 }
 

@@ -247,19 +247,14 @@ pub fn quality_of_single<F>(
 where
     F: Frames + ?Sized,
 {
-    let first = one.labels.first();
-    if one.blend.is_some() || one.labels.iter().any(|l| Some(l) != first) || !energy.fits(one) {
-        // Not a single label: measured as any loop.
-        return quality_with(
-            |t, out: &mut RgbImage| source.rgb_into(single_frame(one, t), out),
-            source,
-            energy,
-            one,
-            alpha,
-        );
+    let make = |t, out: &mut RgbImage| source.rgb_into(single_frame(one, t), out);
+    let single = one.blend.is_none() && one.labels.iter().all(|l| *l == one.labels[0]);
+    if !single || !energy.fits(one) {
+        // Not one label, or other tiles: measured as any loop.
+        return quality_with(make, source, energy, one, alpha);
     }
     measure(
-        |t, out: &mut RgbImage| source.rgb_into(single_frame(one, t), out),
+        make,
         source.dimensions(),
         Against::Own::<F>(energy),
         one,
@@ -369,8 +364,8 @@ fn tile_energies(f: &RgbImage, rects: &[[usize; 4]], wt: &[f32]) -> Vec<(f64, f6
     luma.par_chunks_mut(w.max(1))
         .zip(f.as_raw().par_chunks(3 * w.max(1)))
         .for_each(|(out, row)| {
-            for (l, p) in out.iter_mut().zip(row.chunks_exact(3)) {
-                *l = 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
+            for (k, l) in out.iter_mut().enumerate() {
+                *l = crate::metrics::luma_at(row, k);
             }
         });
     rects
