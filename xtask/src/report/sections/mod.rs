@@ -92,6 +92,15 @@ fn curves(ctx: &mut Ctx) -> Result<Vec<Item>> {
     Ok(items)
 }
 
+/// Runs one part of a section and prints its time, as the knobs' times are printed, so a slow
+/// report (and the test that runs it) says where its time goes.
+pub fn timed<T>(title: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    let t = std::time::Instant::now();
+    let out = f();
+    eprintln!("report:   {title}: {:.1} s", t.elapsed().as_secs_f64());
+    out
+}
+
 /// A section builder.
 pub type Build = fn(&mut Ctx) -> Result<Vec<Item>>;
 

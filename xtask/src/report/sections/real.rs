@@ -16,6 +16,7 @@ use vt_fv::GuidedParams;
 use vt_synth::real::{RealParams, RealScene};
 
 use super::knobs_a::{circ, loop_phase_error, transition_phase_errors};
+use super::timed;
 use crate::report::data::{build_scene, real, synth_a, temple, tree};
 use crate::report::model::{Gallery, Item, Table};
 use crate::report::Ctx;
@@ -718,12 +719,26 @@ fn system_b_kettle(ctx: &mut Ctx) -> Result<Vec<Item>> {
 /// Builds the section.
 pub fn build(ctx: &mut Ctx) -> Result<Vec<Item>> {
     let mut items = vec![
-        Item::Table(system_a_table(ctx)?),
-        Item::Table(corner_table(ctx)?),
+        Item::Table(timed(
+            "Transitions and loops against the true clocks",
+            || system_a_table(ctx),
+        )?),
+        Item::Table(timed(
+            "Homography corner error against marking noise",
+            || corner_table(ctx),
+        )?),
     ];
-    items.extend(depth_table(ctx)?);
-    items.push(Item::Table(reference_table(ctx)?));
-    items.extend(system_b(ctx)?);
-    items.extend(system_b_kettle(ctx)?);
+    items.extend(timed(
+        "Intermediate views of real scenes with depth",
+        || depth_table(ctx),
+    )?);
+    items.push(Item::Table(timed(
+        "The four-view rigs against perfect geometry",
+        || reference_table(ctx),
+    )?));
+    items.extend(timed("System B on templeSparseRing", || system_b(ctx))?);
+    items.extend(timed("System B on the real kettle", || {
+        system_b_kettle(ctx)
+    })?);
     Ok(items)
 }
