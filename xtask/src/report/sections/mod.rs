@@ -62,24 +62,16 @@ fn curves(ctx: &mut Ctx) -> Result<Vec<Item>> {
         .collect();
     for knob in knobs {
         match knob.measure {
-            Ok(f) => {
-                let t = std::time::Instant::now();
-                match f(ctx) {
-                    Ok(cs) => items.extend(cs.into_iter().map(Item::Curve)),
-                    Err(e) => {
-                        failed.push(format!("{}: {e:#}", knob.title));
-                        items.push(Item::Missing {
-                            title: knob.title.into(),
-                            why: format!("the measurement failed: {e:#}"),
-                        });
-                    }
+            Ok(f) => match timed(knob.title, || f(ctx)) {
+                Ok(cs) => items.extend(cs.into_iter().map(Item::Curve)),
+                Err(e) => {
+                    failed.push(format!("{}: {e:#}", knob.title));
+                    items.push(Item::Missing {
+                        title: knob.title.into(),
+                        why: format!("the measurement failed: {e:#}"),
+                    });
                 }
-                eprintln!(
-                    "report:   {}: {:.1} s",
-                    knob.title,
-                    t.elapsed().as_secs_f64()
-                );
-            }
+            },
             Err(why) => items.push(Item::Missing {
                 title: knob.title.into(),
                 why: why.into(),
