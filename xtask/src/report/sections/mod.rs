@@ -84,8 +84,8 @@ fn curves(ctx: &mut Ctx) -> Result<Vec<Item>> {
     Ok(items)
 }
 
-/// Runs one part of a section and prints its time, as the knobs' times are printed, so a slow
-/// report (and the test that runs it) says where its time goes.
+/// Runs one part of a section (a knob's curves, one of section 4's tables) and prints its time,
+/// so a slow report (and the test that runs it) says where its time goes.
 pub fn timed<T>(title: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
     let t = std::time::Instant::now();
     let out = f();
