@@ -57,9 +57,9 @@ fn look(page: &mut Page, what: &str) -> (Vec<u8>, serde_json::Value) {
 /// `serve`, `vt fv view`'s page must show the same picture.
 fn page_matches_render(name: &str, data: &Path, extra: &[&str], root: &Path, serve: bool) {
     let data_s = data.to_str().unwrap();
-    let model_dir = root.join(format!("{name}-model"));
     let with = |args: &[&str]| -> String { vt_ok(&[args, extra].concat()) };
-    with(&["fv", "hull", data_s, "--out", model_dir.to_str().unwrap()]);
+    // The model as `vt fv hull DATA EXTRA` builds it, shared with the other System B tests.
+    let (model_dir, _) = shared_model(data, extra);
     let model = model_dir.join("model.vtfv");
     let model_s = model.to_str().unwrap();
     let web = root.join(format!("{name}-web"));
@@ -263,6 +263,6 @@ fn kettle_page_matches_vt_fv_render() {
 #[test]
 fn lego_page_matches_vt_fv_render() {
     let root = tempfile::tempdir().unwrap();
-    let views = ["--views", "r_26,r_86,r_2,r_55,r_75,r_93,r_16,r_73"];
+    let views = ["--views", LEGO_VIEWS];
     page_matches_render("lego", &testdata("nerf-lego"), &views, root.path(), false);
 }

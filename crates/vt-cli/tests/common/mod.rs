@@ -179,3 +179,80 @@ pub fn ffmpeg(args: &[&str]) {
         .success();
     assert!(ok, "ffmpeg {args:?}");
 }
+
+/// The folder `vt fv hull DATA --out DIR EXTRA...` writes, built once per build of vt and per
+/// argument list, then shared by every test and test binary that asks for the same model: the
+/// System B tests need the same few real models (lego, temple, kettle), each tens of seconds to
+/// carve. Returns the folder and the hull command's stdout. The folder lives under the target's
+/// tmp dir, named by a hash of the arguments and the vt binary's size and time; it is written
+/// beside and renamed into place whole, so a reader never sees half a model; folders left by
+/// older builds are removed. A model from changed data is refused by vt itself (the model file
+/// holds its views' fingerprints), so a stale folder fails loudly rather than passing.
+pub fn shared_model(data: &Path, extra: &[&str]) -> (PathBuf, String) {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock};
+    type Slot = Arc<OnceLock<(PathBuf, String)>>;
+    static SLOTS: OnceLock<Mutex<HashMap<String, Slot>>> = OnceLock::new();
+    // FNV-1a: the same in every test binary (std's hasher promises no such thing).
+    let fnv = |parts: &[&[u8]]| -> u64 {
+        parts.iter().fold(0xcbf2_9ce4_8422_2325, |h, p| {
+            p.iter()
+                .chain(&[0xff])
+                .fold(h, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+        })
+    };
+    let exe = std::fs::metadata(env!("CARGO_BIN_EXE_vt")).expect("the vt binary");
+    let time = exe
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    let build = format!(
+        "{:016x}",
+        fnv(&[&exe.len().to_le_bytes(), &time.to_le_bytes()])
+    );
+    let data = data.canonicalize().expect("the data folder");
+    let mut parts: Vec<&[u8]> = vec![s(&data).as_bytes()];
+    parts.extend(extra.iter().map(|a| a.as_bytes()));
+    let key = format!("{build}-{:016x}", fnv(&parts));
+    let slot = SLOTS
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap()
+        .entry(key.clone())
+        .or_default()
+        .clone();
+    slot.get_or_init(|| {
+        let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fv-models");
+        std::fs::create_dir_all(&root).unwrap();
+        for e in std::fs::read_dir(&root).unwrap().flatten() {
+            let name = e.file_name().to_string_lossy().to_string();
+            // (vt's own temporary folders, `.NAME.vt-tmp-PID`, belong to builds in progress.)
+            if !name.starts_with(&build) && !name.starts_with('.') {
+                let _ = std::fs::remove_dir_all(e.path());
+            }
+        }
+        let dir = root.join(&key);
+        let said = dir.join("stdout.txt");
+        if !said.is_file() {
+            let part = root.join(format!("{key}.{}.part", std::process::id()));
+            let _ = std::fs::remove_dir_all(&part);
+            let mut args = vec!["fv", "hull", s(&data), "--out", s(&part)];
+            args.extend_from_slice(extra);
+            let out = vt_ok(&args);
+            std::fs::write(part.join("stdout.txt"), out).unwrap();
+            // Another test binary may have put the same model in place first: keep that one.
+            if std::fs::rename(&part, &dir).is_err() {
+                let _ = std::fs::remove_dir_all(&part);
+            }
+        }
+        let out = std::fs::read_to_string(&said)
+            .unwrap_or_else(|e| panic!("{}: {e}", said.display()));
+        (dir, out)
+    })
+    .clone()
+}
+
+/// The NeRF lego benchmark's 8 training views (testdata/nerf-lego holds just these), as
+/// `--views` names them in the documented benchmark command.
+pub const LEGO_VIEWS: &str = "r_26,r_86,r_2,r_55,r_75,r_93,r_16,r_73";
