@@ -3,10 +3,14 @@
 //! and files from other data are refused naming the file; orbits have no frame-to-frame pop.
 
 use std::path::PathBuf;
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use vt_fv::camera::Ring;
-use vt_fv::dataset::{read_model, write_model, DataOptions, Dataset, ModelParams, MODEL_FILE};
+use vt_fv::dataset::{
+    read_model, write_model, BuildSummary, DataOptions, Dataset, ModelParams, MODEL_FILE,
+};
+use vt_fv::photo::VoxelModel;
 use vt_fv::orbit::orbit;
 use vt_fv::pipeline::{novel_view_in, ViewParams};
 use vt_fv::texture::model_centre;
@@ -32,18 +36,44 @@ fn params() -> ModelParams {
     }
 }
 
+/// The temple at half size with its model from every view ([`params`]), built once for the
+/// tests that read it, and the seconds the build took.
+struct Built {
+    data: Dataset,
+    model: VoxelModel,
+    summary: BuildSummary,
+    secs: f64,
+}
+
+fn temple() -> &'static Built {
+    static BUILT: OnceLock<Built> = OnceLock::new();
+    BUILT.get_or_init(|| {
+        let data = load("templeSparseRing", 0.5);
+        let t = Instant::now();
+        let (model, summary) = data.build_without(None, &params(), &mut |_, _, _| {}).unwrap();
+        Built {
+            data,
+            model,
+            summary,
+            secs: t.elapsed().as_secs_f64(),
+        }
+    })
+}
+
 #[test]
 fn model_read_back_renders_the_same_bytes_and_faster() {
-    let d = load("templeSparseRing", 0.5);
+    let Built {
+        data: d,
+        model,
+        summary: s,
+        secs: build,
+    } = temple();
     let m = params();
-    let t = Instant::now();
-    let (model, s) = d.build_without(None, &m, &mut |_, _, _| {}).unwrap();
-    let build = t.elapsed().as_secs_f64();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join(MODEL_FILE);
-    write_model(&file, &model, &d.model_header(None, &m, &s)).unwrap();
+    write_model(&file, model, &d.model_header(None, &m, s)).unwrap();
     let t = Instant::now();
-    let (back, header) = read_model(&file, &d).unwrap();
+    let (back, header) = read_model(&file, d).unwrap();
     let read = t.elapsed().as_secs_f64();
     assert_eq!(back.grid, model.grid);
     assert_eq!(back.surface, model.surface);
@@ -76,9 +106,9 @@ fn model_read_back_renders_the_same_bytes_and_faster() {
         ),
     ] {
         let view = &view;
-        let cam = ring.camera(angle, &model_centre(&model)).unwrap();
+        let cam = ring.camera(angle, &model_centre(model)).unwrap();
         let a =
-            novel_view_in(&model, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
+            novel_view_in(model, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
         let b = novel_view_in(&back, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
         assert!(a.rough.coverage.count_ones() > 1000);
         assert_eq!(a.guided.as_raw(), b.guided.as_raw(), "angle {angle}");
@@ -92,17 +122,21 @@ fn model_read_back_renders_the_same_bytes_and_faster() {
 
 #[test]
 fn bad_model_files_are_refused_naming_the_file() {
-    let d = load("templeSparseRing", 0.5);
+    let Built {
+        data: d,
+        model,
+        summary: s,
+        ..
+    } = temple();
     let m = params();
-    let (model, s) = d.build_without(None, &m, &mut |_, _, _| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join(MODEL_FILE);
-    write_model(&file, &model, &d.model_header(None, &m, &s)).unwrap();
+    write_model(&file, model, &d.model_header(None, &m, s)).unwrap();
     let good = std::fs::read(&file).unwrap();
     let bad = dir.path().join("bad.vtfv");
     let refused = |bytes: &[u8]| {
         std::fs::write(&bad, bytes).unwrap();
-        let e = read_model(&bad, &d).unwrap_err().to_string();
+        let e = read_model(&bad, d).unwrap_err().to_string();
         assert!(e.contains("bad.vtfv") && !e.contains('\n'), "{e}");
         e
     };
@@ -148,17 +182,25 @@ fn bad_model_files_are_refused_naming_the_file() {
 
 /// A whole turn of `frames` textured views; the largest frame-to-frame step over the median.
 fn orbit_ratio(name: &str, scale: f64, frames: usize) -> f64 {
-    let d = load(name, scale);
-    let (model, _) = d.build_without(None, &params(), &mut |_, _, _| {}).unwrap();
+    let built;
+    let (d, model) = if name == "templeSparseRing" && scale == 0.5 {
+        let b = temple();
+        (&b.data, &b.model)
+    } else {
+        let d = load(name, scale);
+        let (model, _) = d.build_without(None, &params(), &mut |_, _, _| {}).unwrap();
+        built = (d, model);
+        (&built.0, &built.1)
+    };
     let ring = Ring::fit(&d.cams).unwrap();
     let t = Instant::now();
     let steady = orbit::<vt_fv::Error>(
-        &model,
+        model,
         &d.cams,
         &d.images,
         Some(&d.masks),
         &ring,
-        &model_centre(&model),
+        &model_centre(model),
         frames,
         d.size(),
         &ViewParams::default(),
