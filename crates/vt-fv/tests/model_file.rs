@@ -10,8 +10,8 @@ use vt_fv::camera::Ring;
 use vt_fv::dataset::{
     read_model, write_model, BuildSummary, DataOptions, Dataset, ModelParams, MODEL_FILE,
 };
-use vt_fv::photo::VoxelModel;
 use vt_fv::orbit::orbit;
+use vt_fv::photo::VoxelModel;
 use vt_fv::pipeline::{novel_view_in, ViewParams};
 use vt_fv::texture::model_centre;
 
@@ -50,7 +50,9 @@ fn temple() -> &'static Built {
     BUILT.get_or_init(|| {
         let data = load("templeSparseRing", 0.5);
         let t = Instant::now();
-        let (model, summary) = data.build_without(None, &params(), &mut |_, _, _| {}).unwrap();
+        let (model, summary) = data
+            .build_without(None, &params(), &mut |_, _, _| {})
+            .unwrap();
         Built {
             data,
             model,
@@ -107,8 +109,7 @@ fn model_read_back_renders_the_same_bytes_and_faster() {
     ] {
         let view = &view;
         let cam = ring.camera(angle, &model_centre(model)).unwrap();
-        let a =
-            novel_view_in(model, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
+        let a = novel_view_in(model, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
         let b = novel_view_in(&back, &d.cams, &d.images, Some(&d.masks), &cam, w, h, view).unwrap();
         assert!(a.rough.coverage.count_ones() > 1000);
         assert_eq!(a.guided.as_raw(), b.guided.as_raw(), "angle {angle}");
@@ -180,18 +181,9 @@ fn bad_model_files_are_refused_naming_the_file() {
     assert!(e.contains("model.vtfv") && e.contains("16 views"), "{e}");
 }
 
-/// A whole turn of `frames` textured views; the largest frame-to-frame step over the median.
-fn orbit_ratio(name: &str, scale: f64, frames: usize) -> f64 {
-    let built;
-    let (d, model) = if name == "templeSparseRing" && scale == 0.5 {
-        let b = temple();
-        (&b.data, &b.model)
-    } else {
-        let d = load(name, scale);
-        let (model, _) = d.build_without(None, &params(), &mut |_, _, _| {}).unwrap();
-        built = (d, model);
-        (&built.0, &built.1)
-    };
+/// A whole turn of `frames` textured views of `d` from `model`; the largest frame-to-frame
+/// step over the median.
+fn orbit_ratio(name: &str, d: &Dataset, model: &VoxelModel, frames: usize) -> f64 {
     let ring = Ring::fit(&d.cams).unwrap();
     let t = Instant::now();
     let steady = orbit::<vt_fv::Error>(
@@ -222,8 +214,13 @@ fn orbit_ratio(name: &str, scale: f64, frames: usize) -> f64 {
 fn orbits_are_steady() {
     // Before the ring kept the photos' roll and the weights faded, the temple's orbit turned
     // the picture half round between two frames (ratio 3.6 at full size).
-    let r = orbit_ratio("templeSparseRing", 0.5, 36);
+    let b = temple();
+    let r = orbit_ratio("templeSparseRing", &b.data, &b.model, 36);
     assert!(r > 0.0 && r <= 2.0, "temple: largest/median step {r:.2}");
-    let r = orbit_ratio("kettle", 1.0, 36);
+    let kettle = load("kettle", 1.0);
+    let (model, _) = kettle
+        .build_without(None, &params(), &mut |_, _, _| {})
+        .unwrap();
+    let r = orbit_ratio("kettle", &kettle, &model, 36);
     assert!(r > 0.0 && r <= 2.0, "kettle: largest/median step {r:.2}");
 }

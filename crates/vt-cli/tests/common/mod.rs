@@ -246,8 +246,8 @@ pub fn shared_model(data: &Path, extra: &[&str]) -> (PathBuf, String) {
                 let _ = std::fs::remove_dir_all(&part);
             }
         }
-        let out = std::fs::read_to_string(&said)
-            .unwrap_or_else(|e| panic!("{}: {e}", said.display()));
+        let out =
+            std::fs::read_to_string(&said).unwrap_or_else(|e| panic!("{}: {e}", said.display()));
         (dir, out)
     })
     .clone()
