@@ -193,13 +193,14 @@ pub fn shared_model(data: &Path, extra: &[&str]) -> (PathBuf, String) {
     use std::sync::{Arc, Mutex, OnceLock};
     type Slot = Arc<OnceLock<(PathBuf, String)>>;
     static SLOTS: OnceLock<Mutex<HashMap<String, Slot>>> = OnceLock::new();
-    // FNV-1a: the same in every test binary (std's hasher promises no such thing).
-    let fnv = |parts: &[&[u8]]| -> u64 {
-        parts.iter().fold(0xcbf2_9ce4_8422_2325, |h, p| {
-            p.iter()
-                .chain(&[0xff])
-                .fold(h, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
-        })
+    // vt-core's word hash (the same in every test binary, unlike std's), over bytes and a
+    // separator after each part.
+    let hash = |parts: &[&[u8]]| -> u64 {
+        let words: Vec<u64> = parts
+            .iter()
+            .flat_map(|p| p.iter().map(|&b| b as u64).chain([u64::MAX]))
+            .collect();
+        vt_core::rng::hash(&words)
     };
     let exe = std::fs::metadata(env!("CARGO_BIN_EXE_vt")).expect("the vt binary");
     let time = exe
@@ -209,12 +210,12 @@ pub fn shared_model(data: &Path, extra: &[&str]) -> (PathBuf, String) {
         .map_or(0, |d| d.as_nanos());
     let build = format!(
         "{:016x}",
-        fnv(&[&exe.len().to_le_bytes(), &time.to_le_bytes()])
+        hash(&[&exe.len().to_le_bytes(), &time.to_le_bytes()])
     );
     let data = data.canonicalize().expect("the data folder");
     let mut parts: Vec<&[u8]> = vec![s(&data).as_bytes()];
     parts.extend(extra.iter().map(|a| a.as_bytes()));
-    let key = format!("{build}-{:016x}", fnv(&parts));
+    let key = format!("{build}-{:016x}", hash(&parts));
     let slot = SLOTS
         .get_or_init(Default::default)
         .lock()
