@@ -384,18 +384,17 @@ impl Tracked {
 /// Tracks frame 0's anchors into frame `k` (grey `g`): each anchor's patch is looked for
 /// ([`crate::register::refine_point`]: sub-pixel, gain and offset, within 3 px, correlation at
 /// least 0.8) where it was in `previous` (a frame just before, tracked), else where the
-/// previous frame's map puts it, else where it was in frame 0. When fewer than
-/// [`FOUND_IN_PLACE`] of them are found, the frame is registered to frame 0 by features
-/// (RANSAC) and the anchors looked for again under that map. A frame that cannot be, with
-/// fewer than `min_inliers` anchors found near their place, is an error (a cut, or the camera
-/// has left frame 0's view).
+/// previous frame's map puts it, else where it was in frame 0. When fewer than `enough` of
+/// them are found, the frame is registered to frame 0 by features (RANSAC) and the anchors
+/// looked for again under that map. A frame that cannot be, with fewer than `min_inliers`
+/// anchors found near their place, is an error (a cut, or the camera has left frame 0's view).
 fn track_frame(
     name: &str,
     reference: &Reference,
     k: usize,
     g: &GrayImage,
     previous: Option<&Tracked>,
-    every: usize,
+    (every, enough): (usize, Enough),
     params: &RegisterParams,
 ) -> Result<Tracked> {
     let fine = Grey::from_luma(g);
@@ -425,8 +424,20 @@ fn track_frame(
             .collect()
     };
     let looked_for = reference.anchors.len().div_ceil(every);
-    let enough = |at: &[Option<Point>]| {
-        at.iter().flatten().count() as f64 >= FOUND_IN_PLACE * looked_for as f64
+    let enough = |at: &[Option<Point>]| match enough {
+        Enough::Share => at.iter().flatten().count() as f64 >= FOUND_IN_PLACE * looked_for as f64,
+        Enough::Still => {
+            let still = |(&(x, y), q): (&(i64, i64), &Option<Point>)| {
+                q.is_some_and(|q| (q - Point::new(x as f64, y as f64)).norm() <= AGREE_PX)
+            };
+            reference
+                .anchors
+                .iter()
+                .zip(at)
+                .filter(|&p| still(p))
+                .count()
+                >= params.min_inliers
+        }
     };
     let at = track(prior.as_ref(), previous);
     if enough(&at) {
@@ -470,8 +481,26 @@ fn track_frame(
 }
 
 /// Least share of the anchors found near their prior place for a frame to need no
-/// registration by features.
+/// registration by features ([`Enough::Share`]).
 const FOUND_IN_PLACE: f64 = 0.5;
+
+/// How many anchors found near their prior place spare a frame its registration by features.
+#[derive(Debug, Clone, Copy)]
+enum Enough {
+    /// [`FOUND_IN_PLACE`] of those looked for: every frame of a moving camera, tracked from
+    /// the one before, whose map is made from them.
+    Share,
+    /// `min_inliers` of them found within [`AGREE_PX`] of their frame-0 place: the probe's
+    /// frames, tracked from there (no prior), where only the still-or-moving verdict is made.
+    /// Those anchors put the camera where it was in frame 0, which is what registering the
+    /// frame by features would find, and the anchors looked for again under it would be found
+    /// where they are. A scene that mostly moves (a tree in wind fills 92% of the five-view
+    /// scene's frames) leaves too few of all the anchors found for the share, which registered
+    /// nearly every probe by features for nothing. A camera that moved leaves the found
+    /// anchors off their places (a 4 px shake still finds 20 of them within the 3 px search,
+    /// where they are not its map), and its frame is registered.
+    Still,
+}
 
 /// Largest distance a corner of a `w x h` frame moves under `h`, pixels.
 fn corner_motion(h: &Homography, (w, hh): (u32, u32)) -> f64 {
@@ -766,10 +795,15 @@ impl Probe {
                 self.untextured = r.anchors.len() < MIN_ANCHORS;
                 self.reference = Some(r);
             }
-            Some(r) => {
-                self.tracks
-                    .push(track_frame(name, r, i, &g, None, PROBE_EVERY_ANCHOR, reg)?)
-            }
+            Some(r) => self.tracks.push(track_frame(
+                name,
+                r,
+                i,
+                &g,
+                None,
+                (PROBE_EVERY_ANCHOR, Enough::Still),
+                reg,
+            )?),
         }
         self.secs += t.elapsed().as_secs_f64();
         Ok(())
@@ -866,7 +900,15 @@ fn steady(
         if i == 0 {
             return Ok(());
         }
-        let t = track_frame(&name, r, i, &proxy(frame, f), tracks.last(), 1, reg)?;
+        let t = track_frame(
+            &name,
+            r,
+            i,
+            &proxy(frame, f),
+            tracks.last(),
+            (1, Enough::Share),
+            reg,
+        )?;
         tracks.push(t);
         Ok(())
     })?;
