@@ -247,6 +247,10 @@ pub(super) fn analyze_view(
     // frames decoded once more, a chunk at a time in the source's form.
     observer.start(Stage::Masks, Some(p), Some(n1 as u64));
     let t = Instant::now();
+    // A cached view that may get a per-region loop sends its frames to the object store once
+    // the loop is settled: the loop's baked frames would replace them, and they are written
+    // only when it is not kept (the cache holds them until then either way).
+    let defer_store = cache.is_some() && params.regions.is_some();
     let mut masks = Vec::with_capacity(n1);
     let blur = GaussianBlur::new(&params.blur)?;
     let (w, h) = bg_blur.dimensions();
@@ -318,7 +322,9 @@ pub(super) fn analyze_view(
             scope.spawn(|_| next = Some(compute(part, &mut spare, &mut blurs, prev)));
             let mut flush = || -> Result<()> {
                 for ((m, thumb), f) in pending.drain(..).zip(&ready) {
-                    observer.object_frame(p, i, &shown(&m), f)?;
+                    if !defer_store {
+                        observer.object_frame(p, i, &shown(&m), f)?;
+                    }
                     masks.push(m);
                     thumbs.extend(thumb);
                     observer.tick();
@@ -601,6 +607,21 @@ pub(super) fn analyze_view(
                         });
                     }
                 }
+            }
+        }
+    }
+    if let (true, None, Some(frames)) = (defer_store, &region_loop, cache.as_deref()) {
+        // The source's frames after all: converted a chunk at a time on the pool, sent in order.
+        let chunk = (4 * rayon::current_num_threads()).max(8);
+        let mut rgb: Vec<RgbImage> = Vec::new();
+        for (k, part) in frames.chunks(chunk).enumerate() {
+            rgb.resize_with(part.len(), || RgbImage::new(0, 0));
+            part.par_iter()
+                .zip(rgb.par_iter_mut())
+                .for_each(|(f, out)| f.as_ref().to_rgb_into(out));
+            for (j, f) in rgb.iter().enumerate() {
+                let i = k * chunk + j;
+                observer.object_frame(p, i, &shown(&masks[i]), f)?;
             }
         }
     }
