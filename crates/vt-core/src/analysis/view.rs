@@ -610,6 +610,8 @@ pub(super) fn analyze_view(
             }
         }
     }
+    // The deferred store writes count as the masks stage's, where a streamed view's are.
+    let t_store = Instant::now();
     if let (true, None, Some(frames)) = (defer_store, &region_loop, cache.as_deref()) {
         // The source's frames after all: converted a chunk at a time on the pool, sent in order.
         let chunk = (4 * rayon::current_num_threads()).max(8);
@@ -625,9 +627,11 @@ pub(super) fn analyze_view(
             }
         }
     }
+    let stored = t_store.elapsed();
+    timings.masks += stored;
     drop(cache);
     observer.finish();
-    timings.loops += t.elapsed();
+    timings.loops += t.elapsed().saturating_sub(stored);
     let total_px = masks.len() as f64 * masks[0].len() as f64;
     let moving_fraction = masks.iter().map(|m| m.count_ones() as f64).sum::<f64>() / total_px;
     // The seam unit: an ordinary step of the frames playback shows (the loop m+1..=n).
