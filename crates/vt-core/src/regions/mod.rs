@@ -395,20 +395,57 @@ pub fn reduce<F: Frames + ?Sized>(
     }
 }
 
-/// Weighted squared RGB difference of frames `i` and `j` over `pixels`.
-fn diff(r: &Reduced, i: usize, j: usize, pixels: &[usize]) -> f32 {
-    let (a, b) = (&r.frames[i], &r.frames[j]);
-    let d = |k: usize| a[k] as f32 - b[k] as f32;
-    // In fixed-point units squared, scaled back once: scaling by a power of two is exact, so
-    // the sum is the one over grey levels bit for bit.
-    let sum: f32 = pixels
-        .iter()
-        .map(|&k| {
-            let (d0, d1, d2) = (d(3 * k), d(3 * k + 1), d(3 * k + 2));
-            r.weight[k] * (d0 * d0 + d1 * d1 + d2 * d2)
-        })
-        .sum();
-    sum * (1.0 / (FIXED * FIXED) as f32)
+/// The values of [`Reduced::frames`] on a set of pixels, gathered once so that many frame pairs' weighted
+/// squared RGB differences read them contiguously: `planes[3 * k + c]` holds channel `c` of the set's `k`-th
+/// pixel in every frame, frame after frame.
+struct Gathered {
+    planes: Vec<Vec<f32>>,
+    weight: Vec<f32>,
+}
+
+impl Gathered {
+    fn new(r: &Reduced, pixels: &[usize]) -> Self {
+        let planes = pixels
+            .iter()
+            .flat_map(|&k| (0..3).map(move |c| 3 * k + c))
+            .map(|at| r.frames.iter().map(|f| f[at] as f32).collect())
+            .collect();
+        Self {
+            planes,
+            weight: pixels.iter().map(|&k| r.weight[k]).collect(),
+        }
+    }
+
+    /// `out[t]`, for `t` in `0..out.len()`: the weighted squared RGB difference of frames
+    /// `a0 + t * da` and `b0 + t` over the pixels, `sum_k w_k (d0^2 + d1^2 + d2^2)` in grey
+    /// levels squared, summed pixel after pixel in the set's order for each `t` (many `t` at
+    /// once), so each is bit for bit the plain sum (the tests' `diff`).
+    fn diffs(&self, a0: usize, da: usize, b0: usize, out: &mut [f32]) {
+        // The empty sum: what `Iterator::sum` of f32 starts from.
+        let zero: f32 = std::iter::empty::<f32>().sum();
+        out.fill(zero);
+        let n = out.len();
+        for (k, &w) in self.weight.iter().enumerate() {
+            let [p0, p1, p2] = [0, 1, 2].map(|c| &self.planes[3 * k + c]);
+            let (b0s, b1s, b2s) = (&p0[b0..b0 + n], &p1[b0..b0 + n], &p2[b0..b0 + n]);
+            if da == 0 {
+                let (a0v, a1v, a2v) = (p0[a0], p1[a0], p2[a0]);
+                for t in 0..n {
+                    let (d0, d1, d2) = (a0v - b0s[t], a1v - b1s[t], a2v - b2s[t]);
+                    out[t] += w * (d0 * d0 + d1 * d1 + d2 * d2);
+                }
+            } else {
+                let (a0s, a1s, a2s) = (&p0[a0..a0 + n], &p1[a0..a0 + n], &p2[a0..a0 + n]);
+                for t in 0..n {
+                    let (d0, d1, d2) = (a0s[t] - b0s[t], a1s[t] - b1s[t], a2s[t] - b2s[t]);
+                    out[t] += w * (d0 * d0 + d1 * d1 + d2 * d2);
+                }
+            }
+        }
+        for v in out.iter_mut() {
+            *v *= 1.0 / (FIXED * FIXED) as f32;
+        }
+    }
 }
 
 /// The chosen per-region loop of a view.
@@ -440,6 +477,66 @@ pub struct RegionLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Weighted squared RGB difference of frames `i` and `j` over `pixels`: the plain sum.
+    fn diff(r: &Reduced, i: usize, j: usize, pixels: &[usize]) -> f32 {
+        let (a, b) = (&r.frames[i], &r.frames[j]);
+        let d = |k: usize| a[k] as f32 - b[k] as f32;
+        // In fixed-point units squared, scaled back once: scaling by a power of two is exact, so
+        // the sum is the one over grey levels bit for bit.
+        let sum: f32 = pixels
+            .iter()
+            .map(|&k| {
+                let (d0, d1, d2) = (d(3 * k), d(3 * k + 1), d(3 * k + 2));
+                r.weight[k] * (d0 * d0 + d1 * d1 + d2 * d2)
+            })
+            .sum();
+        sum * (1.0 / (FIXED * FIXED) as f32)
+    }
+
+    #[test]
+    fn gathered_differences_are_the_plain_sums_bit_for_bit() {
+        let mut rng = crate::rng::Rng::new(11);
+        let (size, n) = ((9, 7), 13);
+        let px = size.0 * size.1;
+        let r = Reduced {
+            size,
+            frames: (0..n)
+                .map(|_| {
+                    (0..3 * px)
+                        .map(|_| rng.range(0, 255 * FIXED as i64) as u16)
+                        .collect()
+                })
+                .collect(),
+            weight: (0..px)
+                .map(|k| {
+                    if k % 5 == 0 {
+                        OUTSIDE
+                    } else {
+                        1.0 + k as f32 / 7.0
+                    }
+                })
+                .collect(),
+        };
+        let pixels: Vec<usize> = (0..px).filter(|k| k % 3 != 1).collect();
+        let g = Gathered::new(&r, &pixels);
+        for i in 0..n {
+            // Against every later frame (a strip's triangle row) ...
+            let mut row = vec![0.0; n - 1 - i];
+            g.diffs(i, 0, i + 1, &mut row);
+            for (t, v) in row.iter().enumerate() {
+                assert_eq!(v.to_bits(), diff(&r, i, i + 1 + t, &pixels).to_bits());
+            }
+        }
+        for p in 1..n {
+            // ... and frame pairs a period apart (a tile's temporal costs).
+            let mut per = vec![0.0; n - p];
+            g.diffs(0, 1, p, &mut per);
+            for (i, v) in per.iter().enumerate() {
+                assert_eq!(v.to_bits(), diff(&r, i, i + p, &pixels).to_bits());
+            }
+        }
+    }
 
     #[test]
     fn label_frames_cycle() {

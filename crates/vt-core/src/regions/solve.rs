@@ -106,10 +106,14 @@ impl Temporal {
             tile_px
                 .par_iter()
                 .map(|px| {
+                    let g = Gathered::new(r, px);
                     let mut per = vec![Vec::new(); n];
                     for &p in ps {
                         if p < n {
-                            per[p] = (0..n - p).map(|i| diff(r, i, i + p, px)).collect();
+                            // diff(r, i, i + p, px) for every i.
+                            let mut d = vec![0.0; n - p];
+                            g.diffs(0, 1, p, &mut d);
+                            per[p] = d;
                         }
                     }
                     per
@@ -356,13 +360,15 @@ impl Strips {
         let d = strips
             .par_iter()
             .map(|(_, px)| {
-                let mut m = Vec::with_capacity(n * n.saturating_sub(1) / 2 + 1);
+                let g = Gathered::new(r, px);
+                // Row i of the triangle: diff(r, i, j, px) for j in i + 1..n.
+                let mut m = vec![0.0; n * n.saturating_sub(1) / 2 + 1];
+                let mut at = 0;
                 for i in 0..n {
-                    for j in i + 1..n {
-                        m.push(diff(r, i, j, px));
-                    }
+                    let row = n - 1 - i;
+                    g.diffs(i, 0, i + 1, &mut m[at..at + row]);
+                    at += row;
                 }
-                m.push(0.0);
                 m
             })
             .collect();
