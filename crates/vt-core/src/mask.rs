@@ -72,6 +72,43 @@ impl Mask {
         m
     }
 
+    /// A mask whose pixels each come from one of `masks` (all of this size): pixel `(x, y)`
+    /// is `masks[pick(x / tile, y / tile)]`'s, `tile` pixels square, copied 64 pixels (a word)
+    /// at a time where the choice holds along a row.
+    pub fn from_tiles(
+        width: u32,
+        height: u32,
+        tile: u32,
+        masks: &[Mask],
+        pick: impl Fn(usize, usize) -> usize,
+    ) -> Self {
+        let (w, n, tile) = (
+            width as usize,
+            width as usize * height as usize,
+            tile.max(1) as usize,
+        );
+        let mut m = Self::new(width, height);
+        for (wi, word) in m.words.iter_mut().enumerate() {
+            let (base, end) = (wi * 64, (wi * 64 + 64).min(n));
+            let mut i = base;
+            while i < end {
+                let (x, y) = (i % w, i / w);
+                // To the end of the tile, the row or the word.
+                let run = (y * w + ((x / tile + 1) * tile).min(w)).min(end) - i;
+                let bits = if run == 64 {
+                    !0
+                } else {
+                    ((1u64 << run) - 1) << (i - base)
+                };
+                let src = &masks[pick(x / tile, y / tile)];
+                debug_assert_eq!((src.width, src.height), (width, height));
+                *word |= src.words[wi] & bits;
+                i += run;
+            }
+        }
+        m
+    }
+
     /// A mask from one byte per pixel (non-zero = set), row-major.
     pub fn from_bytes(width: u32, height: u32, bytes: &[u8]) -> Result<Self> {
         let n = width as usize * height as usize;
@@ -660,6 +697,24 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn from_tiles_matches_the_pixels_of_the_picked_masks(
+            (w, h) in (1u32..150, 1u32..40),
+            tile in 1u32..40,
+            seed in any::<u64>(),
+        ) {
+            let masks: Vec<Mask> = (0..4u64)
+                .map(|k| Mask::from_fn(w, h, |x, y| {
+                    crate::rng::mix(seed ^ k << 40 ^ (x as u64) << 20 ^ y as u64).is_multiple_of(3)
+                }))
+                .collect();
+            let pick = |tx: usize, ty: usize| (tx * 7 + ty * 3 + seed as usize) % masks.len();
+            let m = Mask::from_tiles(w, h, tile, &masks, pick);
+            let t = tile as usize;
+            let want = Mask::from_fn(w, h, |x, y| masks[pick(x as usize / t, y as usize / t)].get(x, y));
+            prop_assert_eq!(m.words(), want.words());
+        }
+
         #[test]
         fn bounding_box_matches_per_pixel_scan(m in sparse_mask(150)) {
             let mut want: Option<(u32, u32, u32, u32)> = None;

@@ -132,10 +132,7 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
                     row,
                 })
             });
-        Mask::from_fn(w, h, |x, y| {
-            let f = src((x / rl.tile) as usize, (y / rl.tile) as usize);
-            self.masks[f].get(x, y)
-        })
+        Mask::from_tiles(w, h, rl.tile, self.masks, src)
     }
 }
 
@@ -172,15 +169,60 @@ impl<F: Frames + ?Sized> crate::simd::Kernel for BakeRow<'_, F> {
             y,
             row,
         } = self;
+        // Each tile column's reach along the row (the pixels whose blend reads it), and the
+        // row's stretch of every frame a tile of the row's two bands shows there, converted a
+        // stretch at a time ([`Frames::rect_into`], what `px` gives): `spans` holds, per band,
+        // column and frame (shown, its wrap's start, its wrap's end), where it starts in `buf`.
+        let w = bx.len();
+        let mut reach = vec![(usize::MAX, 0usize); cols];
+        for (x, &(c, o, _)) in bx.iter().enumerate() {
+            for k in [c, o] {
+                reach[k] = (reach[k].0.min(x), reach[k].1.max(x + 1));
+            }
+        }
+        let bands = if by.1 == by.0 { 1 } else { 2 };
+        let mut spans = vec![usize::MAX; bands * cols * 3];
+        let mut buf: Vec<u8> = Vec::with_capacity(3 * (w + 8 * cols) * bands);
+        let mut stretch = Vec::new();
+        for (b, ty) in [by.0, by.1].into_iter().take(bands).enumerate() {
+            for (tx, &(lo, hi)) in reach.iter().enumerate() {
+                if lo >= hi {
+                    continue;
+                }
+                let (f, s, e, r) = shown[ty * cols + tx];
+                let wanted: &[usize] = if inline && r != 0.0 { &[f, s, e] } else { &[f] };
+                for (k, &frame) in wanted.iter().enumerate() {
+                    frames.rect_into(frame, [lo, hi, y as usize, y as usize + 1], &mut stretch);
+                    // Stored as if it began at x = 0, so pixel x reads at start + 3 x.
+                    spans[(b * cols + tx) * 3 + k] = buf.len().wrapping_sub(3 * lo);
+                    buf.extend_from_slice(&stretch);
+                }
+            }
+        }
+        // Per band and column: its correction's share (0 when none is added inline).
+        let share: Vec<f32> = [by.0, by.1]
+            .into_iter()
+            .take(bands)
+            .flat_map(|ty| (0..cols).map(move |tx| ty * cols + tx))
+            .map(|tile| if inline { shown[tile].3 } else { 0.0 })
+            .collect();
+        let px = |slot: usize, k: usize, x: usize| -> [u8; 3] {
+            let i = spans[slot * 3 + k].wrapping_add(3 * x);
+            [buf[i], buf[i + 1], buf[i + 2]]
+        };
+        let ob = usize::from(bands == 2) * cols;
         for (x, out) in row.chunks_exact_mut(3).enumerate() {
             let mut acc = [0f32; 3];
-            for (tile, wt) in tile_weights(bx[x], by, cols) {
+            let (cx, ox, _) = bx[x];
+            // The four tiles of `tile_weights`, in its order, as band-and-column slots.
+            let slots = [cx, ox, ob + cx, ob + ox];
+            for (slot, (_, wt)) in slots.into_iter().zip(tile_weights(bx[x], by, cols)) {
                 if wt > 0.0 {
-                    let (f, s, e, r) = shown[tile];
-                    let p = frames.px(f, x as u32, y);
-                    if inline && r != 0.0 {
-                        let a = frames.px(s, x as u32, y);
-                        let b = frames.px(e, x as u32, y);
+                    let r = share[slot];
+                    let p = px(slot, 0, x);
+                    if r != 0.0 {
+                        let a = px(slot, 1, x);
+                        let b = px(slot, 2, x);
                         for c in 0..3 {
                             acc[c] += wt * (p[c] as f32 + r * (b[c] as f32 - a[c] as f32));
                         }
@@ -422,5 +464,114 @@ pub fn single_loop(label: Label, frame: (u32, u32), tile: u32) -> RegionLoop {
         phase: label.start % label.period,
         blend: None,
         spread: DEFAULT_SPREAD,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::Frame;
+    use crate::yuv::{Yuv420Image, YuvMatrix, YuvRange};
+
+    /// [`Bake::frame_into`] pixel by pixel, each frame's pixel read with `px`: the formula the
+    /// row kernel computes.
+    fn reference<F: Frames + ?Sized>(bake: &Bake<F>, t: usize) -> (RgbImage, Mask) {
+        let (rl, frames) = (bake.rl, bake.frames);
+        let (w, h) = frames.dimensions();
+        let cols = rl.grid.0;
+        let t = (t + bake.phase) % rl.length;
+        let shown = ramps(rl, &bake.spread, t);
+        let inline = rl.blend == Some(0.0);
+        let img = RgbImage::from_fn(w, h, |x, y| {
+            let mut acc = [0f32; 3];
+            for (tile, wt) in tile_weights(bake.bx[x as usize], bake.by[y as usize], cols) {
+                if wt > 0.0 {
+                    let (f, s, e, r) = shown[tile];
+                    let p = frames.px(f, x, y);
+                    let (a, b) = (frames.px(s, x, y), frames.px(e, x, y));
+                    for c in 0..3 {
+                        acc[c] += if inline && r != 0.0 {
+                            wt * (p[c] as f32 + r * (b[c] as f32 - a[c] as f32))
+                        } else {
+                            wt * p[c] as f32
+                        };
+                    }
+                }
+            }
+            image::Rgb(acc.map(|v| v.round().clamp(0.0, 255.0) as u8))
+        });
+        let mask = Mask::from_fn(w, h, |x, y| {
+            let tile = (y / rl.tile) as usize * cols + (x / rl.tile) as usize;
+            bake.masks[rl.labels[tile].frame(t)].get(x, y)
+        });
+        (img, mask)
+    }
+
+    #[test]
+    fn the_row_kernel_bakes_what_the_per_pixel_formula_does() {
+        let mut rng = crate::rng::Rng::new(5);
+        // Tiles that do not divide the frame, feathered; several periods and starts.
+        let (w, h, n, tile) = (70u32, 38u32, 30usize, 16u32);
+        let grid = (w.div_ceil(tile) as usize, h.div_ceil(tile) as usize);
+        let labels: Vec<Label> = (0..grid.0 * grid.1)
+            .map(|_| {
+                let period = [6, 12, 4][rng.range(0, 2) as usize];
+                Label {
+                    start: rng.range(1, (n - period - 1) as i64) as usize,
+                    period,
+                }
+            })
+            .collect();
+        let yuv: Vec<Frame> = (0..n)
+            .map(|_| {
+                let bytes = (0..Yuv420Image::byte_len(w, h))
+                    .map(|_| rng.range(0, 255) as u8)
+                    .collect();
+                Frame::Yuv420(
+                    Yuv420Image::from_raw(w, h, YuvMatrix::Bt601, YuvRange::Limited, bytes)
+                        .unwrap(),
+                )
+            })
+            .collect();
+        let rgb: Vec<RgbImage> = yuv
+            .iter()
+            .map(|f| {
+                let mut out = RgbImage::new(0, 0);
+                f.as_ref().to_rgb_into(&mut out);
+                out
+            })
+            .collect();
+        let masks: Vec<Mask> = (0..n)
+            .map(|_| Mask::from_fn(w, h, |_, _| rng.range(0, 1) == 1))
+            .collect();
+        for blend in [Some(0.0), None] {
+            let rl = RegionLoop {
+                length: 12,
+                tile,
+                grid,
+                labels: labels.clone(),
+                energy: 0.0,
+                single_energy: 0.0,
+                periods: vec![4, 6, 12],
+                solve_secs: 0.0,
+                phase: 3,
+                blend,
+                spread: 0.0,
+            };
+            for t in [0, 1, 5, 11, 12] {
+                let bake = Bake::new(yuv.as_slice(), &masks, &rl, 8);
+                let mut img = RgbImage::new(0, 0);
+                let mask = bake.frame_into(t, &mut img);
+                let (want, want_mask) = reference(&bake, t);
+                assert!(img == want, "4:2:0 frames, blend {blend:?}, t {t}");
+                assert_eq!(mask.words(), want_mask.words());
+                let bake = Bake::new(rgb.as_slice(), &masks, &rl, 8);
+                bake.frame_into(t, &mut img);
+                assert!(
+                    img == reference(&bake, t).0,
+                    "RGB frames, blend {blend:?}, t {t}"
+                );
+            }
+        }
     }
 }
