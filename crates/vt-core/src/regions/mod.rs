@@ -395,9 +395,9 @@ pub fn reduce<F: Frames + ?Sized>(
     }
 }
 
-/// The values of [`Reduced::frames`] on a set of pixels, gathered once so that many frame pairs' weighted
-/// squared RGB differences read them contiguously: `planes[3 * k + c]` holds channel `c` of the set's `k`-th
-/// pixel in every frame, frame after frame.
+/// The values of [`Reduced::frames`] on a set of pixels, gathered once so that many frame pairs'
+/// weighted squared RGB differences read them contiguously: `planes[3 * k + c]` holds channel
+/// `c` of the set's `k`-th pixel in every frame, frame after frame.
 struct Gathered {
     planes: Vec<Vec<f32>>,
     weight: Vec<f32>,
@@ -417,11 +417,12 @@ impl Gathered {
     }
 
     /// `out[t]`, for `t` in `0..out.len()`: the weighted squared RGB difference of frames
-    /// `a0 + t * da` and `b0 + t` over the pixels, `sum_k w_k (d0^2 + d1^2 + d2^2)` in grey
+    /// `a0 + t * da` (`da` 0 or 1) and `b0 + t` over the pixels, `sum_k w_k (d0^2 + d1^2 + d2^2)` in grey
     /// levels squared, summed pixel after pixel in the set's order for each `t` (many `t` at
     /// once), so each is bit for bit the plain sum (the tests' `diff`).
     fn diffs(&self, a0: usize, da: usize, b0: usize, out: &mut [f32]) {
         // The empty sum: what `Iterator::sum` of f32 starts from.
+        debug_assert!(da <= 1, "frame a steps by 0 or 1");
         let zero: f32 = std::iter::empty::<f32>().sum();
         out.fill(zero);
         let n = out.len();

@@ -110,7 +110,7 @@ impl Temporal {
                     let mut per = vec![Vec::new(); n];
                     for &p in ps {
                         if p < n {
-                            // diff(r, i, i + p, px) for every i.
+                            // Frames i and i + p, for every i.
                             let mut d = vec![0.0; n - p];
                             g.diffs(0, 1, p, &mut d);
                             per[p] = d;
@@ -361,7 +361,7 @@ impl Strips {
             .par_iter()
             .map(|(_, px)| {
                 let g = Gathered::new(r, px);
-                // Row i of the triangle: diff(r, i, j, px) for j in i + 1..n.
+                // Row i of the triangle: frames i and j, for j in i + 1..n.
                 let mut m = vec![0.0; n * n.saturating_sub(1) / 2 + 1];
                 let mut at = 0;
                 for i in 0..n {
