@@ -50,6 +50,8 @@ pub struct Bake<'a, F: ?Sized> {
     rl: &'a RegionLoop,
     bx: Vec<AxisBlend>,
     by: Vec<AxisBlend>,
+    /// Per tile column, the pixels `lo..hi` along a row whose blend reads it (empty when none).
+    reach: Vec<(usize, usize)>,
     spread: Vec<usize>,
     /// Output frame 0 shows the labels' time `phase` (`rl.phase`, or as [`Bake::rotated`]).
     phase: usize,
@@ -65,12 +67,20 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
             Some(_) => spreads(frames, rl),
             None => vec![1; rl.labels.len()],
         };
+        let bx = axis_blend(w, rl.tile, cols, feather);
+        let mut reach = vec![(usize::MAX, 0usize); cols];
+        for (x, &(c, o, _)) in bx.iter().enumerate() {
+            for k in [c, o] {
+                reach[k] = (reach[k].0.min(x), reach[k].1.max(x + 1));
+            }
+        }
         Self {
             frames,
             masks,
             rl,
-            bx: axis_blend(w, rl.tile, cols, feather),
+            bx,
             by: axis_blend(h, rl.tile, rows, feather),
+            reach,
             spread,
             phase: rl.phase,
         }
@@ -123,6 +133,7 @@ impl<'a, F: Frames + ?Sized> Bake<'a, F> {
                     shown: &shown,
                     bx: &self.bx,
                     by: self.by[y],
+                    reach: &self.reach,
                     cols,
                     inline,
                     corr: corr
@@ -144,6 +155,8 @@ struct BakeRow<'a, F: ?Sized> {
     shown: &'a [(usize, usize, usize, f32)],
     bx: &'a [(usize, usize, f32)],
     by: (usize, usize, f32),
+    /// [`Bake`]'s `reach`.
+    reach: &'a [(usize, usize)],
     cols: usize,
     /// Whether the unsmoothed correction is added pixel by pixel.
     inline: bool,
@@ -163,26 +176,21 @@ impl<F: Frames + ?Sized> crate::simd::Kernel for BakeRow<'_, F> {
             shown,
             bx,
             by,
+            reach,
             cols,
             inline,
             corr,
             y,
             row,
         } = self;
-        // Each tile column's reach along the row (the pixels whose blend reads it), and the
-        // row's stretch of every frame a tile of the row's two bands shows there, converted a
-        // stretch at a time ([`Frames::rect_into`], what `px` gives): `spans` holds, per band,
-        // column and frame (shown, its wrap's start, its wrap's end), where it starts in `buf`.
-        let w = bx.len();
-        let mut reach = vec![(usize::MAX, 0usize); cols];
-        for (x, &(c, o, _)) in bx.iter().enumerate() {
-            for k in [c, o] {
-                reach[k] = (reach[k].0.min(x), reach[k].1.max(x + 1));
-            }
-        }
+        // The row's stretch of every frame a tile of the row's two bands shows, over that tile
+        // column's reach, converted a stretch at a time ([`Frames::rect_into`], what `px`
+        // gives): `spans` holds, per band, column and frame (shown, its wrap's start, its
+        // wrap's end), where it starts in `buf`.
         let bands = if by.1 == by.0 { 1 } else { 2 };
         let mut spans = vec![usize::MAX; bands * cols * 3];
-        let mut buf: Vec<u8> = Vec::with_capacity(3 * (w + 8 * cols) * bands);
+        let reached: usize = reach.iter().map(|&(lo, hi)| hi.saturating_sub(lo)).sum();
+        let mut buf: Vec<u8> = Vec::with_capacity(3 * reached * bands);
         let mut stretch = Vec::new();
         for (b, ty) in [by.0, by.1].into_iter().take(bands).enumerate() {
             for (tx, &(lo, hi)) in reach.iter().enumerate() {
