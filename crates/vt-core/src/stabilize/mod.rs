@@ -442,16 +442,15 @@ fn track_frame(
             })
             .count()
     };
-    let rule = enough;
-    let enough = |at: &[Option<Point>]| match rule {
+    let is_enough = |at: &[Option<Point>]| match enough {
         Enough::Share => at.iter().flatten().count() as f64 >= FOUND_IN_PLACE * looked_for as f64,
         Enough::Still => in_place(at) >= params.min_inliers,
     };
     let at = track(prior.as_ref(), previous);
-    if enough(&at) {
+    if is_enough(&at) {
         return Ok(Tracked { at });
     }
-    if matches!(rule, Enough::Still) && every > 1 {
+    if matches!(enough, Enough::Still) && every > 1 {
         // Too few in place among those looked for: the others are looked for too before the
         // registration by features (a few milliseconds against tens). The frame's anchors
         // stay those looked for, as every probe's.
